@@ -1,0 +1,9 @@
+"""sb3-maddpg: multi-agent DDPG for Stable-Baselines3, with swappable critic information sharing."""
+
+from sb3_maddpg.envs import register_envs
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.version import __version__
+
+register_envs()
+
+__all__ = ["AgentLayout", "__version__"]

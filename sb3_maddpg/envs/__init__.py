@@ -1,0 +1,15 @@
+"""Environments: the PettingZoo-to-Gymnasium adapter and MPE cooperative navigation."""
+
+from sb3_maddpg.envs.adapter import MetricsFn, PettingZooToGym
+from sb3_maddpg.envs.registration import SIMPLE_SPREAD_ID, register_envs
+from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS, SimpleSpreadMetrics, make_simple_spread
+
+__all__ = [
+    "CAPTURE_RADIUS",
+    "SIMPLE_SPREAD_ID",
+    "MetricsFn",
+    "PettingZooToGym",
+    "SimpleSpreadMetrics",
+    "make_simple_spread",
+    "register_envs",
+]

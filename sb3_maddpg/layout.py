@@ -1,0 +1,88 @@
+"""The agent layout: where each agent's observation and action sit in the flat joint vectors.
+
+This module depends on numpy only, so both the environment side (which builds a layout) and the
+algorithm side (which reads it) can share it without importing each other.
+"""
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class AgentLayout:
+    """
+    Where each agent's part lies in the flat joint observation and joint action.
+
+    Agents are in ``possible_agents`` order everywhere: in the joint vectors, in
+    ``info["agent_rewards"]``, in the replay buffer and in the policy's per-agent networks.
+
+    :param agent_ids: The agents' names, in ``possible_agents`` order.
+    :param obs_sizes: The length of each agent's flat observation.
+    :param action_sizes: The length of each agent's flat action.
+    """
+
+    agent_ids: tuple[str, ...]
+    obs_sizes: tuple[int, ...]
+    action_sizes: tuple[int, ...]
+    obs_slices: tuple[slice, ...] = field(init=False, repr=False, compare=False)
+    action_slices: tuple[slice, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "agent_ids", tuple(str(agent) for agent in self.agent_ids))
+        object.__setattr__(self, "obs_sizes", tuple(int(size) for size in self.obs_sizes))
+        object.__setattr__(self, "action_sizes", tuple(int(size) for size in self.action_sizes))
+        n_agents = len(self.agent_ids)
+        if n_agents == 0:
+            raise ValueError("An agent layout needs at least one agent.")
+        if len(set(self.agent_ids)) != n_agents:
+            raise ValueError(f"Agent ids must be unique, got {self.agent_ids}.")
+        if len(self.obs_sizes) != n_agents or len(self.action_sizes) != n_agents:
+            raise ValueError(
+                f"The layout has {n_agents} agents but {len(self.obs_sizes)} observation sizes "
+                f"and {len(self.action_sizes)} action sizes: give one size per agent."
+            )
+        if min(self.obs_sizes) < 1 or min(self.action_sizes) < 1:
+            raise ValueError(f"Every agent needs a non-empty observation and action, got {self}.")
+        object.__setattr__(self, "obs_slices", _consecutive_slices(self.obs_sizes))
+        object.__setattr__(self, "action_slices", _consecutive_slices(self.action_sizes))
+
+    @property
+    def n_agents(self) -> int:
+        """The number of agents."""
+        return len(self.agent_ids)
+
+    @property
+    def obs_dim(self) -> int:
+        """The length of the flat joint observation."""
+        return sum(self.obs_sizes)
+
+    @property
+    def action_dim(self) -> int:
+        """The length of the flat joint action."""
+        return sum(self.action_sizes)
+
+    @property
+    def is_homogeneous(self) -> bool:
+        """Whether every agent has the same observation size and the same action size."""
+        return len(set(self.obs_sizes)) == 1 and len(set(self.action_sizes)) == 1
+
+    def index_of(self, agent_id: str) -> int:
+        """
+        The position of an agent in the layout.
+
+        :param agent_id: The agent's name.
+        :return: Its index, from 0 to ``n_agents - 1``.
+        """
+        try:
+            return self.agent_ids.index(agent_id)
+        except ValueError as error:
+            raise KeyError(f"Unknown agent {agent_id!r}; the layout's agents are {self.agent_ids}.") from error
+
+
+def _consecutive_slices(sizes: Sequence[int]) -> tuple[slice, ...]:
+    slices = []
+    start = 0
+    for size in sizes:
+        slices.append(slice(start, start + size))
+        start += size
+    return tuple(slices)
