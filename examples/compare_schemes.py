@@ -1,0 +1,96 @@
+"""Compare the five critic information-sharing schemes on one environment, with the same budget and seeds.
+
+    python examples/compare_schemes.py                       # 5 agents, 300k steps per run, 2 seeds
+    python examples/compare_schemes.py --seeds 0 1 2 --steps 1000000 --plot schemes.png
+    python examples/compare_schemes.py --fast                # seconds: checks that everything runs (CI)
+
+``SB3_MADDPG_FAST=1`` in the environment has the same effect as ``--fast``. For the paper's full
+protocol (31 seeds, checkpoints, statistics) use ``python -m sb3_maddpg.experiments`` instead.
+"""
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.evaluation import evaluate_team
+
+# critic_sharing value -> the paper's name
+SCHEMES = {
+    "independent": "IDDPG",
+    "full": "MADDPG",
+    "observations": "MADDPG-fo",
+    "actions": "MADDPG-fa",
+    "selected": "MADDPG-soa",
+}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--fast", action="store_true", default=os.environ.get("SB3_MADDPG_FAST", "0") != "0")
+    parser.add_argument("--n-agents", type=int, default=5)
+    parser.add_argument("--neighbors", type=int, default=None, help="observe only the k nearest agents (partial obs.)")
+    parser.add_argument("--steps", type=int, default=300_000, help="training steps per run")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--eval-episodes", type=int, default=100)
+    parser.add_argument("--plot", default=None, help="save a bar chart of the success rates to this file (needs matplotlib)")
+    args = parser.parse_args()
+
+    overrides: dict = {}
+    if args.fast:
+        args.n_agents, args.steps, args.seeds, args.eval_episodes = 3, 400, [0], 3
+        overrides = {"learning_starts": 200, "batch_size": 32, "train_freq": 50, "buffer_size": 5_000}
+
+    def make_env():
+        return make_simple_spread(n_agents=args.n_agents, num_agent_neighbors=args.neighbors)
+
+    results: dict[str, list[dict]] = {scheme: [] for scheme in SCHEMES}
+    for scheme in SCHEMES:
+        for seed in args.seeds:
+            start = time.time()
+            model = MADDPG("MlpPolicy", make_env(), critic_sharing=scheme, seed=seed, **overrides)
+            model.learn(total_timesteps=args.steps)
+            # The same evaluation episodes (seed) for every scheme and training seed.
+            result = evaluate_team(model, make_env(), n_episodes=args.eval_episodes, seed=10_000)
+            results[scheme].append(result)
+            print(
+                f"{scheme:>12} seed {seed}: success {100 * result['success_rate']:5.1f}%  "
+                f"coverage {100 * result['coverage']:5.1f}%  return {result['return_mean']:8.2f}  "
+                f"({time.time() - start:.0f}s)"
+            )
+
+    print(f"\n{args.n_agents} agents, {args.steps} steps, seeds {args.seeds}; mean (std) over seeds")
+    print(f"{'scheme':>12} {'paper':>11} {'success %':>12} {'coverage %':>12} {'collisions':>11} {'return':>9}")
+    for scheme, paper_name in SCHEMES.items():
+        success = 100 * np.array([r["success_rate"] for r in results[scheme]])
+        coverage = 100 * np.array([r["coverage"] for r in results[scheme]])
+        collisions = np.mean([r["collisions"] for r in results[scheme]])
+        returns = np.mean([r["return_mean"] for r in results[scheme]])
+        print(
+            f"{scheme:>12} {paper_name:>11} {success.mean():6.1f} ({success.std():4.1f}) "
+            f"{coverage.mean():6.1f} ({coverage.std():4.1f}) {collisions:11.2f} {returns:9.2f}"
+        )
+
+    if args.plot:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(6, 3.5))
+        names = [SCHEMES[s] for s in SCHEMES]
+        means = [100 * np.mean([r["success_rate"] for r in results[s]]) for s in SCHEMES]
+        stds = [100 * np.std([r["success_rate"] for r in results[s]]) for s in SCHEMES]
+        ax.bar(names, means, yerr=stds, capsize=4, color="#3b75af")
+        ax.set_ylabel("success rate (%)")
+        ax.set_title(f"simple_spread, {args.n_agents} agents, {args.steps} steps")
+        fig.tight_layout()
+        fig.savefig(args.plot)
+        print(f"plot saved to {args.plot}")
+
+
+if __name__ == "__main__":
+    main()
