@@ -1,0 +1,222 @@
+"""Team evaluation: task success, landmark coverage, collisions and returns of a trained team."""
+
+import csv
+import os
+from typing import Any, Protocol
+
+import gymnasium as gym
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
+
+TASK_METRICS = ("success", "coverage", "collisions", "min_dist_sum")
+"""The task metrics read from ``info`` (see :class:`~sb3_maddpg.envs.SimpleSpreadMetrics`)."""
+
+EVAL_KEYS = (
+    "success_rate",
+    "coverage",
+    "collisions",
+    "min_dist_sum",
+    "return_mean",
+    "return_std",
+    "episode_length",
+)
+"""The scalar results of :func:`evaluate_team`, in the order they are logged and written."""
+
+
+class PredictsActions(Protocol):
+    """Anything with SB3's ``predict`` (a model or a policy)."""
+
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, Any]: ...
+
+
+def evaluate_team(
+    model: PredictsActions,
+    env: gym.Env | VecEnv,
+    n_episodes: int = 100,
+    deterministic: bool = True,
+    seed: int | None = None,
+) -> dict[str, Any]:
+    """
+    Run a team for ``n_episodes`` episodes and measure the task, as the paper's evaluation does.
+
+    The task metrics come from the env's ``info`` at the **last step** of each episode
+    (``success``, ``coverage``, ``min_dist_sum``), except ``collisions``, which is **summed over the
+    episode** (agent pairs in contact, counted at every step). Per-agent returns are summed from
+    ``info["agent_rewards"]``. An env without these keys gives ``nan`` for the missing metrics.
+
+    With a ``VecEnv`` of ``n`` envs the episodes are spread evenly over the envs, as in SB3's
+    ``evaluate_policy``, so that the result does not favour short episodes.
+
+    :param model: The trained model (anything with SB3's ``predict``).
+    :param env: The evaluation env: a gymnasium env or an SB3 ``VecEnv``. It is reset here and not closed.
+    :param n_episodes: Number of episodes.
+    :param deterministic: Whether the team acts without exploration noise.
+    :param seed: Seed for the env's first reset, so that two evaluations with the same seed see the
+        same episodes (the same initial states); ``None`` to continue the env's own random stream.
+    :return: A dict with ``success_rate`` (fraction of episodes in which every landmark is covered at
+        the last step), ``coverage`` (mean fraction of landmarks covered at the last step),
+        ``collisions`` (mean per episode), ``min_dist_sum`` (mean at the last step), ``return_mean`` and
+        ``return_std`` (team return, the env's scalar reward), ``episode_length`` (mean),
+        ``agent_returns`` (mean return of each agent, a list) and ``n_episodes``.
+    """
+    if n_episodes < 1:
+        raise ValueError(f"n_episodes must be at least 1, got {n_episodes}.")
+    vec_env: VecEnv = env if isinstance(env, VecEnv) else DummyVecEnv([lambda: env])  # type: ignore[list-item, return-value]
+    n_envs = vec_env.num_envs
+    if seed is not None:
+        vec_env.seed(seed)
+    observations = vec_env.reset()
+
+    targets = np.array([(n_episodes + i) // n_envs for i in range(n_envs)], dtype=int)
+    counts = np.zeros(n_envs, dtype=int)
+    team_returns = np.zeros(n_envs)
+    lengths = np.zeros(n_envs, dtype=int)
+    collisions = np.zeros(n_envs)
+    agent_returns: list[np.ndarray | None] = [None] * n_envs
+    episodes: dict[str, list[Any]] = {key: [] for key in ("return", "length", "agent_returns", *TASK_METRICS)}
+    states = None
+    episode_starts = np.ones(n_envs, dtype=bool)
+
+    while (counts < targets).any():
+        actions, states = model.predict(observations, state=states, episode_start=episode_starts, deterministic=deterministic)
+        observations, rewards, dones, infos = vec_env.step(actions)
+        team_returns += rewards
+        lengths += 1
+        for i in range(n_envs):
+            info = infos[i]
+            collisions[i] += float(info.get("collisions", np.nan))
+            if "agent_rewards" in info:
+                step_rewards = np.asarray(info["agent_rewards"], dtype=np.float64)
+                previous = agent_returns[i]
+                agent_returns[i] = step_rewards if previous is None else previous + step_rewards
+            if not dones[i]:
+                continue
+            if counts[i] < targets[i]:
+                episodes["return"].append(float(team_returns[i]))
+                episodes["length"].append(int(lengths[i]))
+                episodes["agent_returns"].append(agent_returns[i])
+                episodes["collisions"].append(float(collisions[i]))
+                for key in ("success", "coverage", "min_dist_sum"):
+                    episodes[key].append(float(info.get(key, np.nan)))
+                counts[i] += 1
+            team_returns[i], lengths[i], collisions[i], agent_returns[i] = 0.0, 0, 0.0, None
+        episode_starts = dones
+
+    returns = np.asarray(episodes["return"])
+    per_agent = [r for r in episodes["agent_returns"] if r is not None]
+    return {
+        "success_rate": float(np.mean(episodes["success"])),
+        "coverage": float(np.mean(episodes["coverage"])),
+        "collisions": float(np.mean(episodes["collisions"])),
+        "min_dist_sum": float(np.mean(episodes["min_dist_sum"])),
+        "return_mean": float(returns.mean()),
+        "return_std": float(returns.std()),
+        "episode_length": float(np.mean(episodes["length"])),
+        "agent_returns": np.mean(per_agent, axis=0).tolist() if len(per_agent) == len(returns) else [],
+        "n_episodes": len(returns),
+    }
+
+
+class TeamEvalCallback(BaseCallback):
+    """
+    Evaluate the team every ``eval_freq`` calls during training with :func:`evaluate_team` and log
+    the results under ``<log_prefix>/`` (``eval/success_rate``, ``eval/coverage``, ``eval/collisions``,
+    ``eval/min_dist_sum``, ``eval/return_mean``, ...), e.g. to tensorboard.
+
+    It can run beside SB3's ``EvalCallback`` (in a ``CallbackList``): it logs none of that callback's
+    keys (``eval/mean_reward``, ``eval/mean_ep_length``), and with ``log_prefix`` its keys can be moved
+    elsewhere. The history of evaluations is kept in :attr:`history` and, with ``log_path``, written
+    as a CSV file (one row per evaluation, rewritten after each), a learning curve.
+
+    :param eval_env: The evaluation env (a gymnasium env or a ``VecEnv``), separate from the training env.
+    :param eval_freq: Evaluate every ``eval_freq`` calls of the callback (one call per ``env.step``
+        of the training ``VecEnv``, i.e. ``n_envs`` env steps, as in ``EvalCallback``).
+    :param n_eval_episodes: Episodes per evaluation.
+    :param deterministic: Whether the team acts without exploration noise.
+    :param seed: Seed for each evaluation's first reset (each evaluation then sees the same
+        episodes); ``None`` to continue the eval env's random stream.
+    :param log_path: Path of a CSV file for the evaluation history, or ``None``.
+    :param log_prefix: The logger key prefix.
+    :param eval_at_start: Also evaluate the untrained team when training starts (timestep 0).
+    :param verbose: 1 to print each evaluation.
+    """
+
+    def __init__(
+        self,
+        eval_env: gym.Env | VecEnv,
+        eval_freq: int = 10_000,
+        n_eval_episodes: int = 100,
+        deterministic: bool = True,
+        seed: int | None = None,
+        log_path: str | None = None,
+        log_prefix: str = "eval",
+        eval_at_start: bool = False,
+        verbose: int = 0,
+    ) -> None:
+        super().__init__(verbose=verbose)
+        if eval_freq < 1:
+            raise ValueError(f"eval_freq must be at least 1, got {eval_freq}.")
+        self.eval_env = eval_env
+        self.eval_freq = eval_freq
+        self.n_eval_episodes = n_eval_episodes
+        self.deterministic = deterministic
+        self.seed = seed
+        self.log_path = log_path
+        self.log_prefix = log_prefix
+        self.eval_at_start = eval_at_start
+        self.history: list[dict[str, float]] = []
+
+    def _on_training_start(self) -> None:
+        if self.eval_at_start and self.num_timesteps == 0:
+            self._evaluate()
+
+    def _on_step(self) -> bool:
+        if self.n_calls % self.eval_freq == 0:
+            self._evaluate()
+        return True
+
+    def _evaluate(self) -> None:
+        assert self.model is not None
+        result = evaluate_team(
+            self.model, self.eval_env, n_episodes=self.n_eval_episodes, deterministic=self.deterministic, seed=self.seed
+        )
+        row = {"timesteps": float(self.num_timesteps), **{key: float(result[key]) for key in EVAL_KEYS}}
+        self.history.append(row)
+        for key in EVAL_KEYS:
+            self.logger.record(f"{self.log_prefix}/{key}", row[key])
+        self.logger.record("time/total_timesteps", self.num_timesteps, exclude="tensorboard")
+        self.logger.dump(self.num_timesteps)
+        if self.verbose >= 1:
+            print(
+                f"Team eval num_timesteps={self.num_timesteps}: success {100 * row['success_rate']:.1f}%, "
+                f"coverage {100 * row['coverage']:.1f}%, min-dist sum {row['min_dist_sum']:.3f}, "
+                f"collisions {row['collisions']:.2f}, return {row['return_mean']:.2f} +/- {row['return_std']:.2f}"
+            )
+        if self.log_path is not None:
+            write_rows(self.log_path, self.history)
+
+
+def write_rows(path: str, rows: list[dict[str, Any]]) -> None:
+    """
+    Write dict rows as a CSV file (columns from the first row), replacing the file atomically.
+
+    :param path: The CSV file.
+    :param rows: The rows; nothing but the header is written when there are none.
+    """
+    directory = os.path.dirname(path)
+    if directory:
+        os.makedirs(directory, exist_ok=True)
+    tmp_path = f"{path}.tmp"
+    with open(tmp_path, "w", newline="") as file:
+        fieldnames = list(rows[0]) if rows else []
+        writer = csv.DictWriter(file, fieldnames=fieldnames)
+        writer.writeheader()
+        writer.writerows(rows)
+    os.replace(tmp_path, path)

@@ -1,0 +1,42 @@
+"""The paper's protocol as code: experiment configs, runs, sweeps (local or Ray), statistics, tables and plots.
+
+Command line: ``sb3-maddpg run --config exp1 ...`` then ``sb3-maddpg report <results>``
+(or ``python -m sb3_maddpg.experiments ...``).
+"""
+
+from sb3_maddpg.experiments.config import (
+    BASELINE_SCHEME,
+    EXP1,
+    EXP2,
+    EXPERIMENTS,
+    PAPER_NAMES,
+    SCHEMES,
+    SMOKE,
+    ExperimentConfig,
+    RunConfig,
+    load_experiment,
+)
+from sb3_maddpg.experiments.report import make_report
+from sb3_maddpg.experiments.runner import execute_run
+from sb3_maddpg.experiments.stats import aggregate, mann_whitney, significance_stars
+from sb3_maddpg.experiments.sweep import SweepResult, run_sweep
+
+__all__ = [
+    "BASELINE_SCHEME",
+    "EXP1",
+    "EXP2",
+    "EXPERIMENTS",
+    "PAPER_NAMES",
+    "SCHEMES",
+    "SMOKE",
+    "ExperimentConfig",
+    "RunConfig",
+    "SweepResult",
+    "aggregate",
+    "execute_run",
+    "load_experiment",
+    "make_report",
+    "mann_whitney",
+    "run_sweep",
+    "significance_stars",
+]

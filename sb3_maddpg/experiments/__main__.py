@@ -1,0 +1,8 @@
+"""``python -m sb3_maddpg.experiments run|report ...``: see :mod:`sb3_maddpg.experiments.cli`."""
+
+import sys
+
+from sb3_maddpg.experiments.cli import main
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,159 @@
+"""Command line: ``sb3-maddpg run ...`` (or ``python -m sb3_maddpg.experiments run ...``) and ``... report ...``."""
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+
+from sb3_maddpg.experiments.config import EXPERIMENTS, ExperimentConfig, load_experiment
+from sb3_maddpg.experiments.stats import METRICS
+
+DEFAULT_RESULTS = "runs/experiments"
+
+
+def _int_list(text: str) -> tuple[int, ...]:
+    return tuple(int(item) for item in text.split(",") if item.strip())
+
+
+def _str_list(text: str) -> tuple[str, ...]:
+    return tuple(item.strip() for item in text.split(",") if item.strip())
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """:return: The argument parser of the ``sb3-maddpg`` command."""
+    parser = argparse.ArgumentParser(
+        prog="sb3-maddpg",
+        description="Reproduce the paper's experiments: train every scheme and seed, evaluate checkpoints, report Table 2.",
+    )
+    commands = parser.add_subparsers(dest="command", required=True)
+
+    run = commands.add_parser(
+        "run",
+        help="run a sweep (finished runs are skipped, so the same command resumes an interrupted sweep)",
+        description="Run every (scheme, seed) of the experiments. Presets: "
+        + "; ".join(f"{name}: {config.description}" for name, config in EXPERIMENTS.items()),
+    )
+    run.add_argument(
+        "--config",
+        action="append",
+        default=None,
+        help=f"a preset ({', '.join(EXPERIMENTS)}) or an experiment JSON file; repeat for several (default: exp1 and exp2)",
+    )
+    run.add_argument("--results", default=DEFAULT_RESULTS, help=f"results directory (default: {DEFAULT_RESULTS})")
+    group = run.add_argument_group("overrides (applied to every --config)")
+    group.add_argument("--name", help="store the experiment under this name (one --config only)")
+    group.add_argument("--schemes", type=_str_list, help="comma-separated schemes, e.g. full,selected")
+    group.add_argument("--seeds", type=int, help="number of seeds (0..N-1)")
+    group.add_argument("--seed-list", type=_int_list, help="comma-separated seeds (instead of --seeds)")
+    group.add_argument("--n-agents", type=int, help="agents (and landmarks)")
+    group.add_argument("--neighbors", help="nearest other agents observed: an integer, or 'all'")
+    group.add_argument("--episodes", type=int, help="training budget in episodes")
+    group.add_argument("--n-checkpoints", type=int, help="checkpoints over the last 20%% of training")
+    group.add_argument("--eval-episodes", type=int, help="episodes per checkpoint evaluation")
+    group.add_argument("--curve-points", type=int, help="learning-curve evaluations per run")
+    group.add_argument("--curve-eval-episodes", type=int, help="episodes per learning-curve evaluation")
+    group.add_argument(
+        "--model-kwargs", type=json.loads, help="JSON merged into the MADDPG kwargs, e.g. '{\"batch_size\": 256}'"
+    )
+    group.add_argument("--keep-checkpoints", action=argparse.BooleanOptionalAction, default=None, help="keep model files")
+    execution = run.add_argument_group("execution")
+    execution.add_argument("--backend", choices=("local", "ray"), default="local", help="local process pool or Ray")
+    execution.add_argument(
+        "--workers", type=int, default=1, help="parallel runs (local); CPUs of a local Ray instance (ray, 0: all)"
+    )
+    execution.add_argument("--threads", type=int, default=1, help="torch threads per run (default: 1)")
+    execution.add_argument(
+        "--ray-address", help="Ray cluster address (e.g. auto, ray://head:10001); default: start a local one"
+    )
+    execution.add_argument("--dry-run", action="store_true", help="list the runs and exit")
+    execution.add_argument("--quiet", action="store_true", help="print only the sweep's progress, not each run's")
+
+    report = commands.add_parser(
+        "report", help="Table 2 (Markdown, CSV), learning curves and boxplots from a results directory"
+    )
+    report.add_argument("results", nargs="?", default=DEFAULT_RESULTS, help=f"results directory (default: {DEFAULT_RESULTS})")
+    report.add_argument("--out", help="output directory (default: <results>/report)")
+    report.add_argument(
+        "--metric",
+        action="append",
+        choices=sorted(METRICS),
+        help="score(s) to tabulate and plot; repeat for several (default: success_rate)",
+    )
+    report.add_argument("--no-plots", action="store_true", help="tables only")
+    return parser
+
+
+def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
+    """
+    :param args: Parsed ``run`` arguments.
+    :return: The experiments with the overrides applied.
+    """
+    names = args.config or ["exp1", "exp2"]
+    if args.name and len(names) != 1:
+        raise SystemExit("--name renames one experiment: give a single --config.")
+    experiments = []
+    for name in names:
+        experiment = load_experiment(name)
+        seeds = args.seed_list or (tuple(range(args.seeds)) if args.seeds is not None else None)
+        model_kwargs = {**experiment.model_kwargs, **args.model_kwargs} if args.model_kwargs else None
+        experiment = experiment.replace(
+            name=args.name,
+            schemes=args.schemes,
+            seeds=seeds,
+            n_agents=args.n_agents,
+            episodes=args.episodes,
+            n_checkpoints=args.n_checkpoints,
+            eval_episodes=args.eval_episodes,
+            curve_points=args.curve_points,
+            curve_eval_episodes=args.curve_eval_episodes,
+            model_kwargs=model_kwargs,
+            keep_checkpoints=args.keep_checkpoints,
+        )
+        if args.neighbors is not None:
+            neighbors = None if args.neighbors == "all" else int(args.neighbors)
+            experiment = ExperimentConfig.from_dict({**experiment.to_dict(), "num_agent_neighbors": neighbors})
+        experiments.append(experiment)
+    return experiments
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """
+    :param argv: The arguments (default: ``sys.argv[1:]``).
+    :return: The exit status: 0 when every run finished (or the report was written), 1 otherwise.
+    """
+    args = build_parser().parse_args(argv)
+    if args.command == "run":
+        from sb3_maddpg.experiments.sweep import plan_sweep, run_sweep
+
+        experiments = experiments_from_args(args)
+        if args.dry_run:
+            todo, finished = plan_sweep(experiments, args.results)
+            for experiment in experiments:
+                print(f"{experiment.name}: {json.dumps(experiment.to_dict())}")
+            for config in todo:
+                print(f"  {config.run_id}: {config.total_timesteps:,} steps, checkpoints at {config.checkpoint_steps()}")
+            print(f"{len(todo)} run(s) to do, {finished} finished")
+            return 0
+        result = run_sweep(
+            experiments,
+            args.results,
+            backend=args.backend,
+            workers=args.workers,
+            threads=args.threads,
+            ray_address=args.ray_address,
+            verbose=1 if args.quiet else 2,
+        )
+        if not args.quiet:
+            print(f"results in {args.results}; report with: sb3-maddpg report {args.results}")
+        return 0 if result.ok else 1
+
+    from sb3_maddpg.experiments.report import make_report
+
+    out = args.out or f"{args.results.rstrip('/')}/report"
+    for path in make_report(args.results, out, metrics=args.metric or ["success_rate"], plots=not args.no_plots):
+        print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,297 @@
+"""Experiment and run configurations: the paper's two experiments, a CI smoke test, and overrides."""
+
+import copy
+import dataclasses
+import json
+from dataclasses import dataclass, field
+from typing import Any
+
+EPISODE_LENGTH = 25
+"""Steps per simple_spread episode in the paper (``max_cycles``)."""
+
+SCHEMES = ("full", "independent", "observations", "actions", "selected")
+"""The five information-sharing schemes, in the paper's Table 2 column order."""
+
+DEFAULT_ALGORITHM = "sb3_maddpg:MADDPG"
+"""The algorithm every run trains, as ``"module:Class"``."""
+
+BASELINE_SCHEME = "full"
+"""The scheme every other one is tested against (MADDPG)."""
+
+PAPER_NAMES = {
+    "full": "MADDPG",
+    "independent": "IDDPG",
+    "observations": "MADDPG-fo",
+    "actions": "MADDPG-fa",
+    "selected": "MADDPG-soa",
+}
+"""The paper's name of each scheme."""
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """
+    One training run: a scheme, a seed and everything else a run needs. A run is a pure function of
+    its config (the results of two runs with equal configs differ only by floating-point noise).
+
+    :param experiment: The experiment (setting) name, e.g. ``"exp1"``.
+    :param scheme: The critic information-sharing scheme (``MADDPG(critic_sharing=...)``).
+    :param seed: The run's seed: the model's seed; the evaluation env is seeded from it too.
+    :param n_agents: Number of agents and landmarks.
+    :param num_agent_neighbors: Nearest other agents each agent observes, ``None`` for all.
+    :param episodes: Training budget in episodes.
+    :param episode_length: Steps per episode.
+    :param n_checkpoints: Models saved (evenly) over the last ``checkpoint_fraction`` of training,
+        the last one at the end; the run's score is the mean of their evaluations.
+    :param checkpoint_fraction: The final fraction of training over which checkpoints are saved.
+    :param eval_episodes: Episodes per checkpoint evaluation.
+    :param curve_points: Evaluations during training for the learning curve (evenly spaced, plus one at step 0).
+    :param curve_eval_episodes: Episodes per learning-curve evaluation.
+    :param keep_checkpoints: Keep the checkpoint model files after they are evaluated.
+    :param model_kwargs: Keyword arguments for the algorithm (overriding the paper's defaults).
+    :param algorithm: The algorithm class as ``"module:Class"``; it is built as
+        ``Class("MlpPolicy", env, critic_sharing=scheme, seed=seed, **model_kwargs)``.
+    """
+
+    experiment: str
+    scheme: str
+    seed: int
+    n_agents: int = 5
+    num_agent_neighbors: int | None = None
+    episodes: int = 100_000
+    episode_length: int = EPISODE_LENGTH
+    n_checkpoints: int = 20
+    checkpoint_fraction: float = 0.2
+    eval_episodes: int = 100
+    curve_points: int = 50
+    curve_eval_episodes: int = 20
+    keep_checkpoints: bool = True
+    model_kwargs: dict[str, Any] = field(default_factory=dict)
+    algorithm: str = DEFAULT_ALGORITHM
+
+    def __post_init__(self) -> None:
+        if self.episodes < 1 or self.episode_length < 1:
+            raise ValueError(f"episodes and episode_length must be positive, got {self.episodes}, {self.episode_length}.")
+        if not 0 < self.checkpoint_fraction <= 1:
+            raise ValueError(f"checkpoint_fraction must be in (0, 1], got {self.checkpoint_fraction}.")
+        if self.n_checkpoints < 1:
+            raise ValueError(f"n_checkpoints must be at least 1, got {self.n_checkpoints}.")
+        if self.n_checkpoints > self.episodes * self.checkpoint_fraction:
+            raise ValueError(
+                f"{self.n_checkpoints} checkpoints do not fit in the last {self.checkpoint_fraction:.0%} of "
+                f"{self.episodes} episodes: lower n_checkpoints or raise the budget."
+            )
+        if self.eval_episodes < 1 or self.curve_eval_episodes < 1 or self.curve_points < 0:
+            raise ValueError("eval_episodes and curve_eval_episodes must be positive and curve_points non-negative.")
+
+    @property
+    def total_timesteps(self) -> int:
+        """The training budget in env steps."""
+        return self.episodes * self.episode_length
+
+    @property
+    def run_id(self) -> str:
+        """The run's path relative to the results directory: ``<experiment>/<scheme>/seed_<seed>``."""
+        return f"{self.experiment}/{self.scheme}/seed_{self.seed:03d}"
+
+    @property
+    def eval_seed(self) -> int:
+        """Seed of the evaluation env: derived from the run seed, apart from the training env's seeds."""
+        return 1_000_003 + 7919 * self.seed
+
+    def checkpoint_episodes(self) -> list[int]:
+        """
+        The episodes after which checkpoints are saved: ``n_checkpoints`` evenly spaced over the last
+        ``checkpoint_fraction`` of training, the last at the end (paper: every 1,000 episodes over
+        episodes 80k-100k for experiment 1).
+
+        :return: Increasing episode numbers.
+        """
+        window = self.episodes * self.checkpoint_fraction
+        start = self.episodes - window
+        return [round(start + window * k / self.n_checkpoints) for k in range(1, self.n_checkpoints + 1)]
+
+    def checkpoint_steps(self) -> list[int]:
+        """:return: The env steps at which checkpoints are saved."""
+        return [episode * self.episode_length for episode in self.checkpoint_episodes()]
+
+    @property
+    def curve_interval(self) -> int:
+        """The env steps between learning-curve evaluations (whole episodes; 0 when there is no curve)."""
+        if self.curve_points == 0:
+            return 0
+        return max(1, self.episodes // self.curve_points) * self.episode_length
+
+    def to_dict(self) -> dict[str, Any]:
+        """:return: The config as JSON-compatible values."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "RunConfig":
+        """
+        :param data: A dict from :meth:`to_dict` (unknown keys are an error).
+        :return: The config.
+        """
+        return cls(**data)
+
+    def same_as(self, other: "RunConfig") -> bool:
+        """
+        :param other: Another config.
+        :return: Whether the two describe the same run (compared through JSON, so tuples equal lists).
+        """
+        return json.dumps(self.to_dict(), sort_keys=True) == json.dumps(other.to_dict(), sort_keys=True)
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """
+    One setting of the paper (an environment and a budget) with the schemes and seeds to run in it.
+    Use :meth:`replace` for smaller runs, e.g. ``EXPERIMENTS["exp1"].replace(n_agents=3, episodes=5000)``.
+
+    :param name: The setting's name (a directory of the results).
+    :param n_agents: Number of agents and landmarks.
+    :param num_agent_neighbors: Nearest other agents each agent observes, ``None`` for full observability.
+    :param episodes: Training budget in episodes (of ``episode_length`` steps).
+    :param schemes: The information-sharing schemes to compare.
+    :param seeds: The seeds (independent trials) of each scheme.
+    :param n_checkpoints: Checkpoints over the last ``checkpoint_fraction`` of training.
+    :param checkpoint_fraction: The final fraction of training the score is taken over.
+    :param eval_episodes: Episodes per checkpoint evaluation.
+    :param curve_points: Learning-curve evaluations per run.
+    :param curve_eval_episodes: Episodes per learning-curve evaluation.
+    :param episode_length: Steps per episode.
+    :param keep_checkpoints: Keep the checkpoint model files after evaluation.
+    :param model_kwargs: Keyword arguments for ``MADDPG`` (the paper's hyperparameters are its defaults).
+    :param algorithm: The algorithm class as ``"module:Class"``.
+    :param description: One line for reports.
+    """
+
+    name: str
+    n_agents: int = 5
+    num_agent_neighbors: int | None = None
+    episodes: int = 100_000
+    schemes: tuple[str, ...] = SCHEMES
+    seeds: tuple[int, ...] = tuple(range(31))
+    n_checkpoints: int = 20
+    checkpoint_fraction: float = 0.2
+    eval_episodes: int = 100
+    curve_points: int = 50
+    curve_eval_episodes: int = 20
+    episode_length: int = EPISODE_LENGTH
+    keep_checkpoints: bool = True
+    model_kwargs: dict[str, Any] = field(default_factory=dict)
+    algorithm: str = DEFAULT_ALGORITHM
+    description: str = ""
+
+    def runs(self) -> list[RunConfig]:
+        """:return: One run config per (scheme, seed), seeds outermost so partial sweeps stay balanced."""
+        return [
+            RunConfig(
+                experiment=self.name,
+                scheme=scheme,
+                seed=seed,
+                n_agents=self.n_agents,
+                num_agent_neighbors=self.num_agent_neighbors,
+                episodes=self.episodes,
+                episode_length=self.episode_length,
+                n_checkpoints=self.n_checkpoints,
+                checkpoint_fraction=self.checkpoint_fraction,
+                eval_episodes=self.eval_episodes,
+                curve_points=self.curve_points,
+                curve_eval_episodes=self.curve_eval_episodes,
+                keep_checkpoints=self.keep_checkpoints,
+                model_kwargs=copy.deepcopy(self.model_kwargs),
+                algorithm=self.algorithm,
+            )
+            for seed in self.seeds
+            for scheme in self.schemes
+        ]
+
+    def replace(self, **changes: Any) -> "ExperimentConfig":
+        """
+        :param changes: Fields to change (``None`` values are ignored, so CLI options can be passed as they are;
+            use :func:`dataclasses.replace` to set ``num_agent_neighbors=None``).
+        :return: A copy with the changes.
+        """
+        return dataclasses.replace(self, **{key: value for key, value in changes.items() if value is not None})
+
+    def to_dict(self) -> dict[str, Any]:
+        """:return: The config as JSON-compatible values."""
+        data = dataclasses.asdict(self)
+        data["schemes"], data["seeds"] = list(self.schemes), list(self.seeds)
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "ExperimentConfig":
+        """
+        :param data: A dict from :meth:`to_dict` or a JSON file.
+        :return: The config.
+        """
+        data = dict(data)
+        for key in ("schemes", "seeds"):
+            if key in data:
+                data[key] = tuple(data[key])
+        return cls(**data)
+
+
+EXP1 = ExperimentConfig(
+    name="exp1",
+    n_agents=5,
+    num_agent_neighbors=None,
+    episodes=100_000,
+    n_checkpoints=20,
+    description="Experiment 1: N=5, full observability, 100,000 episodes, 20 checkpoints over the last 20%",
+)
+"""The paper's experiment 1 (fully observable cooperative navigation)."""
+
+EXP2 = ExperimentConfig(
+    name="exp2",
+    n_agents=5,
+    num_agent_neighbors=2,
+    episodes=150_000,
+    n_checkpoints=30,
+    description="Experiment 2: N=5, two nearest agents observed, 150,000 episodes, 30 checkpoints over the last 20%",
+)
+"""The paper's experiment 2 (each agent observes its two nearest other agents)."""
+
+TINY_MODEL_KWARGS: dict[str, Any] = {
+    "learning_starts": 250,
+    "batch_size": 64,
+    "buffer_size": 10_000,
+    "train_freq": 50,
+    "policy_kwargs": {"net_arch": {"pi": [16, 16], "qf": [16, 16]}},
+}
+"""Tiny networks and an early start for pipeline tests."""
+
+SMOKE = ExperimentConfig(
+    name="smoke",
+    n_agents=3,
+    num_agent_neighbors=None,
+    episodes=40,
+    seeds=(0, 1),
+    n_checkpoints=2,
+    eval_episodes=4,
+    curve_points=2,
+    curve_eval_episodes=2,
+    keep_checkpoints=False,
+    model_kwargs=TINY_MODEL_KWARGS,
+    description="Smoke test: N=3, 2 seeds, 40 episodes, tiny networks (tests the pipeline, not the methods)",
+)
+"""A pipeline check that runs every scheme in seconds (for CI)."""
+
+EXPERIMENTS: dict[str, ExperimentConfig] = {config.name: config for config in (EXP1, EXP2, SMOKE)}
+"""The named presets."""
+
+
+def load_experiment(name_or_path: str) -> ExperimentConfig:
+    """
+    :param name_or_path: A preset name (``exp1``, ``exp2``, ``smoke``) or the path of a JSON file
+        written from :meth:`ExperimentConfig.to_dict`.
+    :return: The experiment config.
+    """
+    if name_or_path in EXPERIMENTS:
+        return EXPERIMENTS[name_or_path]
+    if name_or_path.endswith(".json"):
+        with open(name_or_path) as file:
+            return ExperimentConfig.from_dict(json.load(file))
+    raise ValueError(f"Unknown experiment {name_or_path!r}: use one of {sorted(EXPERIMENTS)} or a .json config file.")

@@ -1,0 +1,161 @@
+"""Figures like the paper's: learning curves (Figure 7) and boxplots of per-run scores (Figure 8).
+
+matplotlib is imported inside the functions (with the Agg backend), so the package does not need it.
+"""
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sb3_maddpg.experiments.config import PAPER_NAMES, SCHEMES
+from sb3_maddpg.experiments.runner import read_curve
+from sb3_maddpg.experiments.stats import METRICS, Cell, Metric
+
+COLORS = {
+    "full": "tab:blue",
+    "independent": "tab:orange",
+    "observations": "tab:green",
+    "actions": "tab:red",
+    "selected": "tab:purple",
+}
+"""One color per scheme, the same in every figure."""
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(figure: Any, path: str | os.PathLike[str]) -> None:
+    # No "Software" stamp, so the same results give the same file with the same matplotlib.
+    figure.savefig(path, dpi=110, bbox_inches="tight", metadata={"Software": None})
+
+
+def _scheme_order(schemes: set[str]) -> list[str]:
+    return [s for s in SCHEMES if s in schemes] + sorted(s for s in schemes if s not in SCHEMES)
+
+
+def _title(setting: str, experiments: dict[str, dict[str, Any]] | None) -> str:
+    from sb3_maddpg.experiments.report import setting_label
+
+    return setting_label(setting, (experiments or {}).get(setting))
+
+
+Curve = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def mean_curves(summaries: Sequence[dict[str, Any]], metric: str) -> dict[str, dict[str, Curve]]:
+    """
+    Average the runs' learning curves per setting and scheme, over the evaluation steps every run has.
+
+    :param summaries: Run summaries with ``"directory"`` (from :func:`~sb3_maddpg.experiments.report.load_summaries`).
+    :param metric: The curve's column (e.g. ``success_rate``).
+    :return: ``{setting: {scheme: (steps, mean, std)}}`` (displayed units, std with ``ddof=0``).
+    """
+    scale = METRICS.get(metric, Metric(metric, metric)).scale
+    grouped: dict[str, dict[str, list[dict[float, float]]]] = {}
+    for summary in summaries:
+        rows = read_curve(summary["directory"])
+        if rows:
+            curve = {row["timesteps"]: row[metric] * scale for row in rows}
+            grouped.setdefault(summary["experiment"], {}).setdefault(summary["scheme"], []).append(curve)
+    result: dict[str, dict[str, Curve]] = {}
+    for setting, by_scheme in grouped.items():
+        for scheme, curves in by_scheme.items():
+            steps = sorted(set.intersection(*(set(curve) for curve in curves)))
+            values = np.array([[curve[step] for step in steps] for curve in curves])
+            result.setdefault(setting, {})[scheme] = (np.array(steps), values.mean(axis=0), values.std(axis=0))
+    return result
+
+
+def plot_learning_curves(
+    summaries: Sequence[dict[str, Any]],
+    metric: str,
+    path: str | os.PathLike[str],
+    experiments: dict[str, dict[str, Any]] | None = None,
+) -> Path:
+    """
+    One panel per setting: the metric of the team evaluations during training against env steps,
+    mean over runs with a one-std band, one line per method (the paper's Figure 7).
+
+    :param summaries: Run summaries with ``"directory"``.
+    :param metric: The curve's column.
+    :param path: The PNG file.
+    :param experiments: The stored experiment configs (for titles).
+    :return: The path.
+    """
+    plt = _pyplot()
+    curves = mean_curves(summaries, metric)
+    settings = list(curves) or ["(no learning curves)"]
+    figure, axes = plt.subplots(1, len(settings), figsize=(5.5 * len(settings), 4), squeeze=False)
+    for axis, setting in zip(axes[0], settings):
+        for scheme in _scheme_order(set(curves.get(setting, {}))):
+            steps, mean, std = curves[setting][scheme]
+            color = COLORS.get(scheme)
+            axis.plot(steps, mean, label=PAPER_NAMES.get(scheme, scheme), color=color)
+            axis.fill_between(steps, mean - std, mean + std, color=color, alpha=0.2, linewidth=0)
+        axis.set_title(_title(setting, experiments), fontsize=10)
+        axis.set_xlabel("env steps")
+        axis.set_ylabel(METRICS.get(metric, Metric(metric, metric)).label)
+        axis.grid(alpha=0.3)
+        if curves.get(setting):
+            axis.legend(fontsize=8)
+    figure.tight_layout()
+    _save(figure, path)
+    plt.close(figure)
+    return Path(path)
+
+
+def plot_boxplots(
+    cells: Sequence[Cell],
+    metric: str,
+    path: str | os.PathLike[str],
+    experiments: dict[str, dict[str, Any]] | None = None,
+) -> Path:
+    """
+    One panel per setting: a box of the per-run scores of each method, the runs drawn as points, and
+    the Mann-Whitney marks against MADDPG above the boxes (the paper's Figure 8).
+
+    :param cells: From :func:`~sb3_maddpg.experiments.stats.aggregate`.
+    :param metric: The score's key.
+    :param path: The PNG file.
+    :param experiments: The stored experiment configs (for titles).
+    :return: The path.
+    """
+    plt = _pyplot()
+    settings = list(dict.fromkeys(cell.setting for cell in cells))
+    figure, axes = plt.subplots(1, len(settings), figsize=(5.5 * len(settings), 4), squeeze=False)
+    for axis, setting in zip(axes[0], settings):
+        row = [cell for cell in cells if cell.setting == setting]
+        positions = np.arange(1, len(row) + 1)
+        boxes = axis.boxplot([cell.scores for cell in row], positions=positions, widths=0.6, patch_artist=True)
+        for patch, cell in zip(boxes["boxes"], row):
+            patch.set_facecolor(COLORS.get(cell.scheme, "tab:gray"))
+            patch.set_alpha(0.35)
+        # Deterministic jitter, so the same results draw the same figure.
+        jitter = np.random.default_rng(0)
+        top = max((max(cell.scores) for cell in row if cell.scores), default=0.0)
+        bottom = min((min(cell.scores) for cell in row if cell.scores), default=0.0)
+        span = (top - bottom) or 1.0
+        for position, cell in zip(positions, row):
+            offsets = jitter.uniform(-0.12, 0.12, size=len(cell.scores))
+            axis.scatter(position + offsets, cell.scores, s=12, color=COLORS.get(cell.scheme, "tab:gray"), zorder=3)
+            if cell.stars:
+                axis.text(position, top + 0.04 * span, cell.stars, ha="center", va="bottom", fontsize=12)
+        axis.set_ylim(bottom - 0.08 * span, top + 0.16 * span)
+        axis.set_xticks(positions)
+        axis.set_xticklabels([cell.method for cell in row], fontsize=8)
+        axis.set_title(_title(setting, experiments), fontsize=10)
+        axis.set_ylabel(f"per-run score: {METRICS.get(metric, Metric(metric, metric)).label}")
+        axis.grid(axis="y", alpha=0.3)
+    figure.tight_layout()
+    _save(figure, path)
+    plt.close(figure)
+    return Path(path)

@@ -1,0 +1,308 @@
+"""One run of the protocol: train, save checkpoints over the last 20%, evaluate each, write the run directory."""
+
+import copy
+import csv
+import importlib
+import json
+import os
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+from stable_baselines3.common.logger import configure
+
+from sb3_maddpg.evaluation import EVAL_KEYS, TeamEvalCallback, evaluate_team, write_rows
+from sb3_maddpg.experiments.config import PAPER_NAMES, RunConfig
+
+CONFIG_FILE = "config.json"
+SUMMARY_FILE = "summary.json"
+CURVE_FILE = "learning_curve.csv"
+CHECKPOINT_EVALS_FILE = "checkpoint_evals.csv"
+PROGRESS_FILE = "progress.csv"
+LOG_FILE = "train.log"
+DONE_FILE = "done"
+CHECKPOINT_DIR = "checkpoints"
+RESULT_FILES = (CONFIG_FILE, SUMMARY_FILE, CURVE_FILE, CHECKPOINT_EVALS_FILE, PROGRESS_FILE, LOG_FILE)
+"""The small text files of a finished run (they travel back from remote workers; model files do not)."""
+
+
+def run_directory(results_dir: str | os.PathLike[str], config: RunConfig) -> Path:
+    """
+    :param results_dir: The sweep's results directory.
+    :param config: The run.
+    :return: The run's directory, ``<results_dir>/<experiment>/<scheme>/seed_<seed>``.
+    """
+    return Path(results_dir) / config.run_id
+
+
+def is_finished(results_dir: str | os.PathLike[str], config: RunConfig) -> bool:
+    """
+    Whether the run has finished in ``results_dir``: its ``done`` marker exists (it is written last).
+
+    :param results_dir: The sweep's results directory.
+    :param config: The run.
+    :return: True if the run is finished; a finished run with another config is an error.
+    """
+    directory = run_directory(results_dir, config)
+    if not (directory / DONE_FILE).exists():
+        return False
+    with open(directory / CONFIG_FILE) as file:
+        stored = RunConfig.from_dict(json.load(file))
+    if not stored.same_as(config):
+        raise ValueError(
+            f"{directory} holds a finished run with another config; use a new results directory for a "
+            f"changed experiment (or delete that run).\n  stored:    {stored.to_dict()}\n  requested: {config.to_dict()}"
+        )
+    return True
+
+
+def load_algorithm(path: str) -> type[BaseAlgorithm]:
+    """
+    :param path: ``"module:Class"``, e.g. ``"sb3_maddpg:MADDPG"``.
+    :return: The class.
+    """
+    module_name, _, class_name = path.partition(":")
+    if not class_name:
+        raise ValueError(f"The algorithm must be given as 'module:Class', got {path!r}.")
+    return getattr(importlib.import_module(module_name), class_name)
+
+
+def make_env(config: RunConfig) -> Any:
+    """
+    :param config: The run.
+    :return: The run's simple_spread env (a new one on each call).
+    """
+    from sb3_maddpg.envs import make_simple_spread
+
+    return make_simple_spread(
+        n_agents=config.n_agents, num_agent_neighbors=config.num_agent_neighbors, max_cycles=config.episode_length
+    )
+
+
+class CheckpointAtSteps(BaseCallback):
+    """
+    Save the model when training reaches given env steps (``<save_dir>/model_<steps>_steps.zip``).
+
+    :param steps: The env steps (``model.num_timesteps``) to save at.
+    :param save_dir: The directory of the model files.
+    """
+
+    def __init__(self, steps: list[int], save_dir: str | os.PathLike[str]) -> None:
+        super().__init__()
+        self.pending = sorted(set(steps))
+        self.save_dir = Path(save_dir)
+        self.saved: list[tuple[int, Path]] = []
+
+    def _on_step(self) -> bool:
+        while self.pending and self.num_timesteps >= self.pending[0]:
+            self.pending.pop(0)
+            path = self.save_dir / f"model_{self.num_timesteps}_steps.zip"
+            self.save_dir.mkdir(parents=True, exist_ok=True)
+            self.model.save(path)
+            self.saved.append((self.num_timesteps, path))
+        return True
+
+
+class ProgressLogCallback(BaseCallback):
+    """
+    Report a run's progress (steps, throughput, time left) every ``every`` of training to stdout and a log file.
+
+    :param run_id: The name printed with each line.
+    :param total_timesteps: The run's budget.
+    :param log_path: A text file the lines are appended to, or ``None``.
+    :param every: The fraction of training between two lines.
+    :param echo: Print the lines too.
+    """
+
+    def __init__(
+        self, run_id: str, total_timesteps: int, log_path: str | None = None, every: float = 0.1, echo: bool = True
+    ) -> None:
+        super().__init__()
+        self.run_id = run_id
+        self.total_timesteps = total_timesteps
+        self.log_path = log_path
+        self.interval = max(1, int(total_timesteps * every))
+        self.echo = echo
+        self._next = self.interval
+        self._start = time.perf_counter()
+
+    def _on_training_start(self) -> None:
+        self._start = time.perf_counter()
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self._next:
+            self._next += self.interval
+            elapsed = time.perf_counter() - self._start
+            rate = self.num_timesteps / max(elapsed, 1e-9)
+            left = (self.total_timesteps - self.num_timesteps) / max(rate, 1e-9)
+            self.log(
+                f"{self.run_id}: {self.num_timesteps:,}/{self.total_timesteps:,} steps "
+                f"({self.num_timesteps / self.total_timesteps:.0%}), {rate:,.0f} steps/s, "
+                f"{_format_seconds(elapsed)} elapsed, {_format_seconds(left)} left"
+            )
+        return True
+
+    def log(self, line: str) -> None:
+        """
+        :param line: A line for stdout and the log file.
+        """
+        if self.echo:
+            print(line, flush=True)
+        if self.log_path is not None:
+            with open(self.log_path, "a") as file:
+                file.write(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {line}\n")
+
+
+def execute_run(
+    config: RunConfig,
+    results_dir: str | os.PathLike[str],
+    threads: int | None = 1,
+    verbose: int = 1,
+) -> dict[str, Any]:
+    """
+    Train one run and evaluate it, writing its directory; a finished run is not repeated, an
+    unfinished one (interrupted) is started again from scratch.
+
+    The directory holds ``config.json``, ``progress.csv`` (SB3's training log), ``train.log`` (progress
+    lines), ``learning_curve.csv`` (team evaluations during training), ``checkpoint_evals.csv`` (one
+    evaluation of ``eval_episodes`` episodes per checkpoint), ``summary.json`` (the run's score: each
+    metric's mean over the checkpoints, and timings), ``checkpoints/`` (model files, unless
+    ``keep_checkpoints`` is off) and the ``done`` marker, written last.
+
+    :param config: The run.
+    :param results_dir: The sweep's results directory.
+    :param threads: ``torch.set_num_threads`` for this run (``None`` leaves it), so parallel workers don't fight.
+    :param verbose: 1 to print progress lines.
+    :return: The summary, plus ``"files"``: the text of the small result files, so that a remote worker's
+        results can be written on the machine that collects them (see :func:`write_result_files`).
+    """
+    directory = run_directory(results_dir, config)
+    if is_finished(results_dir, config):
+        return collect_result(directory)
+    if directory.exists():
+        shutil.rmtree(directory)
+    directory.mkdir(parents=True)
+    with open(directory / CONFIG_FILE, "w") as file:
+        json.dump(config.to_dict(), file, indent=2)
+
+    if threads is not None:
+        import torch as th
+
+        th.set_num_threads(threads)
+
+    started = time.perf_counter()
+    algorithm: Any = load_algorithm(config.algorithm)
+    eval_env = make_env(config)
+    # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.
+    model = algorithm(
+        "MlpPolicy", make_env(config), critic_sharing=config.scheme, seed=config.seed, **copy.deepcopy(config.model_kwargs)
+    )
+    model.set_logger(configure(str(directory), ["csv"]))
+
+    progress = ProgressLogCallback(config.run_id, config.total_timesteps, str(directory / LOG_FILE), echo=verbose >= 1)
+    checkpoints = CheckpointAtSteps(config.checkpoint_steps(), directory / CHECKPOINT_DIR)
+    callbacks: list[BaseCallback] = [checkpoints, progress]
+    if config.curve_points > 0:
+        n_envs = model.get_env().num_envs  # type: ignore[union-attr]
+        callbacks.append(
+            TeamEvalCallback(
+                eval_env,
+                eval_freq=max(1, config.curve_interval // n_envs),
+                n_eval_episodes=config.curve_eval_episodes,
+                seed=config.eval_seed,
+                log_path=str(directory / CURVE_FILE),
+                eval_at_start=True,
+            )
+        )
+    progress.log(f"{config.run_id}: training {config.total_timesteps:,} steps ({config.episodes:,} episodes)")
+    model.learn(config.total_timesteps, callback=CallbackList(callbacks), log_interval=max(1, config.episodes // 100))
+    train_time = time.perf_counter() - started
+    model.get_env().close()  # type: ignore[union-attr]
+    del model
+
+    eval_started = time.perf_counter()
+    rows = []
+    for steps, path in checkpoints.saved:
+        checkpoint = algorithm.load(path, device="cpu")
+        result = evaluate_team(checkpoint, eval_env, n_episodes=config.eval_episodes, seed=config.eval_seed)
+        rows.append({"timesteps": steps, "episodes": steps // config.episode_length, **{k: result[k] for k in EVAL_KEYS}})
+    write_rows(str(directory / CHECKPOINT_EVALS_FILE), rows)
+    eval_time = time.perf_counter() - eval_started
+    eval_env.close()
+    if not config.keep_checkpoints:
+        shutil.rmtree(directory / CHECKPOINT_DIR, ignore_errors=True)
+
+    score = {key: sum(row[key] for row in rows) / len(rows) for key in EVAL_KEYS}
+    summary: dict[str, Any] = {
+        "run_id": config.run_id,
+        "experiment": config.experiment,
+        "scheme": config.scheme,
+        "method": PAPER_NAMES.get(config.scheme, config.scheme),
+        "seed": config.seed,
+        "score": score,
+        "n_checkpoints": len(rows),
+        "total_timesteps": config.total_timesteps,
+        "train_time_s": round(train_time, 2),
+        "eval_time_s": round(eval_time, 2),
+        "wall_time_s": round(time.perf_counter() - started, 2),
+        "train_steps_per_s": round(config.total_timesteps / train_time, 1),
+    }
+    with open(directory / SUMMARY_FILE, "w") as file:
+        json.dump(summary, file, indent=2)
+    progress.log(
+        f"{config.run_id}: done in {_format_seconds(summary['wall_time_s'])} "
+        f"({summary['train_steps_per_s']:,.0f} steps/s), score: success {100 * score['success_rate']:.1f}%, "
+        f"coverage {100 * score['coverage']:.1f}%, min-dist sum {score['min_dist_sum']:.3f}"
+    )
+    (directory / DONE_FILE).write_text(time.strftime("%Y-%m-%dT%H:%M:%S%z\n"))
+    return collect_result(directory)
+
+
+def collect_result(directory: Path) -> dict[str, Any]:
+    """
+    :param directory: A finished run's directory.
+    :return: Its summary, with ``"files"``: the text of its result files.
+    """
+    with open(directory / SUMMARY_FILE) as file:
+        result = json.load(file)
+    result["files"] = {name: (directory / name).read_text() for name in RESULT_FILES if (directory / name).exists()}
+    return result
+
+
+def write_result_files(results_dir: str | os.PathLike[str], result: dict[str, Any]) -> None:
+    """
+    Write a run's result files (from :func:`execute_run` on another machine) unless the run is
+    already finished there, then its ``done`` marker.
+
+    :param results_dir: The sweep's results directory on this machine.
+    :param result: The value :func:`execute_run` returned.
+    """
+    directory = Path(results_dir) / result["run_id"]
+    if (directory / DONE_FILE).exists():
+        return
+    directory.mkdir(parents=True, exist_ok=True)
+    for name, text in result["files"].items():
+        (directory / name).write_text(text)
+    (directory / DONE_FILE).write_text(time.strftime("%Y-%m-%dT%H:%M:%S%z\n"))
+
+
+def read_curve(directory: str | os.PathLike[str]) -> list[dict[str, float]]:
+    """
+    :param directory: A run's directory.
+    :return: Its learning curve rows (empty if it has none).
+    """
+    path = Path(directory) / CURVE_FILE
+    if not path.exists():
+        return []
+    with open(path, newline="") as file:
+        return [{key: float(value) for key, value in row.items()} for row in csv.DictReader(file)]
+
+
+def _format_seconds(seconds: float) -> str:
+    seconds = round(seconds)
+    hours, rest = divmod(seconds, 3600)
+    minutes, secs = divmod(rest, 60)
+    return f"{hours}h{minutes:02d}m{secs:02d}s" if hours else f"{minutes}m{secs:02d}s"

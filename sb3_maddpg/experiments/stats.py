@@ -1,0 +1,165 @@
+"""Statistics of the paper's Table 2: mean (std) of per-run scores and Mann-Whitney U tests against MADDPG."""
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, SCHEMES
+
+
+@dataclass(frozen=True)
+class Metric:
+    """
+    How a score is shown.
+
+    :param key: The key in a run's ``score``.
+    :param label: A label for tables and axes.
+    :param scale: Factor applied for display (100 for rates shown in %).
+    :param higher_is_better: The direction of improvement.
+    """
+
+    key: str
+    label: str
+    scale: float = 1.0
+    higher_is_better: bool = True
+
+
+METRICS: dict[str, Metric] = {
+    metric.key: metric
+    for metric in (
+        Metric("success_rate", "success rate (%)", 100.0),
+        Metric("coverage", "landmark coverage (%)", 100.0),
+        Metric("min_dist_sum", "sum of min. distances", 1.0, higher_is_better=False),
+        Metric("return_mean", "team return", 1.0),
+        Metric("collisions", "collisions per episode", 1.0, higher_is_better=False),
+    )
+}
+"""The metrics a report can score runs by (``success_rate`` is the paper's)."""
+
+
+@dataclass(frozen=True)
+class Cell:
+    """
+    One cell of Table 2: a method in a setting.
+
+    :param setting: The experiment name.
+    :param scheme: The sharing scheme.
+    :param method: The paper's name of the scheme.
+    :param scores: The per-run scores (displayed units), in seed order.
+    :param mean: Their mean.
+    :param std: Their sample standard deviation (``ddof=1``; 0 for a single run).
+    :param u_statistic: Mann-Whitney U of this method against the baseline (``nan`` for the baseline).
+    :param p_value: Its two-sided p-value (``nan`` for the baseline or when a side has no runs).
+    :param stars: ``"**"`` for p < .01, ``"*"`` for p < .05, else ``""``.
+    """
+
+    setting: str
+    scheme: str
+    method: str
+    scores: tuple[float, ...]
+    mean: float
+    std: float
+    u_statistic: float
+    p_value: float
+    stars: str
+
+    @property
+    def n(self) -> int:
+        """The number of runs."""
+        return len(self.scores)
+
+
+def significance_stars(p_value: float) -> str:
+    """
+    :param p_value: A p-value (``nan`` for no test).
+    :return: ``"**"`` if p < .01, ``"*"`` if p < .05, else ``""`` (the paper's marks).
+    """
+    if math.isnan(p_value):
+        return ""
+    if p_value < 0.01:
+        return "**"
+    if p_value < 0.05:
+        return "*"
+    return ""
+
+
+def mann_whitney(x: Sequence[float], y: Sequence[float]) -> tuple[float, float]:
+    """
+    Two-sided Mann-Whitney U test of ``x`` against ``y`` (``scipy.stats.mannwhitneyu``, its default
+    method: exact for small samples without ties, else the normal approximation with tie correction).
+
+    :param x: One sample (e.g. a method's per-run scores).
+    :param y: The other (e.g. MADDPG's).
+    :return: The U statistic of ``x`` and the p-value; ``(nan, nan)`` if a sample is empty, and
+        ``p = 1`` when every value of both samples is the same (no evidence of a difference).
+    """
+    from scipy.stats import mannwhitneyu
+
+    a, b = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    if a.size == 0 or b.size == 0:
+        return math.nan, math.nan
+    if np.all(a == a[0]) and np.all(b == a[0]):
+        return a.size * b.size / 2.0, 1.0
+    result = mannwhitneyu(a, b, alternative="two-sided")
+    return float(result.statistic), float(result.pvalue)
+
+
+def mean_std(values: Sequence[float]) -> tuple[float, float]:
+    """
+    :param values: Per-run scores.
+    :return: Their mean and sample standard deviation (``ddof=1``; 0 for one value; ``nan`` for none).
+    """
+    array = np.asarray(values, dtype=float)
+    if array.size == 0:
+        return math.nan, math.nan
+    std = float(array.std(ddof=1)) if array.size > 1 else 0.0
+    return float(array.mean()), std
+
+
+def aggregate(
+    summaries: Sequence[dict[str, Any]],
+    metric: str = "success_rate",
+    baseline: str = BASELINE_SCHEME,
+) -> list[Cell]:
+    """
+    Build Table 2 from run summaries: for each setting and scheme, the mean (std) of the per-run
+    scores and the Mann-Whitney U test of the scheme's scores against the baseline's.
+
+    :param summaries: Run summaries (``summary.json``: ``experiment``, ``scheme``, ``seed``, ``score``).
+    :param metric: The score to tabulate (a key of :data:`METRICS` or any key of ``score``).
+    :param baseline: The scheme tested against (MADDPG, ``"full"``).
+    :return: The cells, settings in order of appearance, schemes in the paper's order (others after).
+    """
+    info = METRICS.get(metric, Metric(metric, metric))
+    groups: dict[str, dict[str, list[tuple[int, float]]]] = {}
+    for summary in summaries:
+        value = float(summary["score"][metric]) * info.scale
+        groups.setdefault(summary["experiment"], {}).setdefault(summary["scheme"], []).append((int(summary["seed"]), value))
+    cells = []
+    for setting, by_scheme in groups.items():
+        order = [s for s in SCHEMES if s in by_scheme] + sorted(s for s in by_scheme if s not in SCHEMES)
+        reference = [value for _, value in sorted(by_scheme.get(baseline, []))]
+        for scheme in order:
+            scores = tuple(value for _, value in sorted(by_scheme[scheme]))
+            mean, std = mean_std(scores)
+            if scheme == baseline or not reference:
+                u_statistic, p_value = math.nan, math.nan
+            else:
+                u_statistic, p_value = mann_whitney(scores, reference)
+            cells.append(
+                Cell(
+                    setting=setting,
+                    scheme=scheme,
+                    method=PAPER_NAMES.get(scheme, scheme),
+                    scores=scores,
+                    mean=mean,
+                    std=std,
+                    u_statistic=u_statistic,
+                    p_value=p_value,
+                    stars=significance_stars(p_value),
+                )
+            )
+    return cells

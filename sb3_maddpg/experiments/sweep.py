@@ -1,0 +1,188 @@
+"""A sweep: every run of one or more experiments, resumable, with progress and timing."""
+
+import json
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sb3_maddpg.experiments.backends import BACKENDS, run_local, run_ray
+from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
+from sb3_maddpg.experiments.runner import _format_seconds, is_finished
+
+EXPERIMENT_FILE = "experiment.json"
+SWEEP_LOG = "sweep.log"
+
+
+@dataclass
+class SweepResult:
+    """
+    What a sweep did.
+
+    :param total: Runs in the sweep.
+    :param skipped: Runs already finished before it started (resumed sweeps skip them).
+    :param completed: Runs finished by this sweep (their summaries).
+    :param failed: Runs that raised, with their tracebacks.
+    :param wall_time_s: The sweep's wall time.
+    """
+
+    total: int
+    skipped: int
+    completed: list[dict[str, Any]] = field(default_factory=list)
+    failed: dict[str, str] = field(default_factory=dict)
+    wall_time_s: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        """Whether every run is finished."""
+        return not self.failed and self.skipped + len(self.completed) == self.total
+
+
+class SweepProgress:
+    """
+    Print and log one line per finished run: runs done of total, elapsed time and time left.
+
+    :param total: Runs in the sweep.
+    :param skipped: Runs finished before it started.
+    :param parallel: Runs executing at once (for the time-left estimate).
+    :param log_path: A text file the lines are appended to, or ``None``.
+    :param echo: Print the lines too.
+    """
+
+    def __init__(self, total: int, skipped: int, parallel: int, log_path: str | None = None, echo: bool = True) -> None:
+        self.total = total
+        self.done = skipped
+        self.to_run = total - skipped
+        self.finished_here = 0
+        self.parallel = max(1, parallel)
+        self.log_path = log_path
+        self.echo = echo
+        self.start = time.perf_counter()
+
+    def log(self, line: str) -> None:
+        """
+        :param line: A line for stdout and the sweep log.
+        """
+        if self.echo:
+            print(line, flush=True)
+        if self.log_path is not None:
+            with open(self.log_path, "a") as file:
+                file.write(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {line}\n")
+
+    def update(self, run_id: str, message: str) -> None:
+        """
+        :param run_id: The run that ended.
+        :param message: What happened to it.
+        """
+        self.done += 1
+        self.finished_here += 1
+        elapsed = time.perf_counter() - self.start
+        remaining = self.total - self.done
+        # Runs start in waves of `parallel`: the time left is the mean time per run times the waves left.
+        per_run = elapsed * min(self.parallel, self.to_run) / self.finished_here
+        left = per_run * remaining / min(self.parallel, max(remaining, 1))
+        self.log(
+            f"[{self.done}/{self.total}] {run_id} {message} | elapsed {_format_seconds(elapsed)}, "
+            f"left ~{_format_seconds(left)}"
+        )
+
+
+def plan_sweep(experiments: Sequence[ExperimentConfig], results_dir: str | os.PathLike[str]) -> tuple[list[RunConfig], int]:
+    """
+    :param experiments: The experiments of the sweep.
+    :param results_dir: The results directory.
+    :return: The runs still to do, and how many are finished already.
+    """
+    todo, finished = [], 0
+    for experiment in experiments:
+        for config in experiment.runs():
+            if is_finished(results_dir, config):
+                finished += 1
+            else:
+                todo.append(config)
+    return todo, finished
+
+
+def run_sweep(
+    experiments: Sequence[ExperimentConfig],
+    results_dir: str | os.PathLike[str],
+    backend: str = "local",
+    workers: int = 1,
+    threads: int = 1,
+    ray_address: str | None = None,
+    verbose: int = 2,
+) -> SweepResult:
+    """
+    Run every (scheme, seed) of the experiments, skipping runs finished before (resume an
+    interrupted sweep by running the same command again).
+
+    :param experiments: The experiments.
+    :param results_dir: The results directory (one sub-directory per experiment, scheme and seed).
+    :param backend: ``"local"`` (a process pool) or ``"ray"``.
+    :param workers: Parallel processes (local), or the CPUs of a local Ray instance (0: all).
+    :param threads: Torch threads per run.
+    :param ray_address: The Ray cluster's address; ``None`` starts a local instance.
+    :param verbose: 0 quiet, 1 the sweep's progress (a line per finished run), 2 also each run's progress.
+    :return: What the sweep did.
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"Unknown backend {backend!r}; use one of {BACKENDS}.")
+    results_path = Path(results_dir).resolve()
+    names = [experiment.name for experiment in experiments]
+    if len(set(names)) != len(names):
+        raise ValueError(f"Experiment names must be unique, got {names}.")
+    for experiment in experiments:
+        (results_path / experiment.name).mkdir(parents=True, exist_ok=True)
+        with open(results_path / experiment.name / EXPERIMENT_FILE, "w") as file:
+            json.dump(experiment.to_dict(), file, indent=2)
+
+    todo, skipped = plan_sweep(experiments, results_path)
+    result = SweepResult(total=len(todo) + skipped, skipped=skipped)
+    parallel = workers if backend == "local" else max(1, workers) // max(1, threads)
+    progress = SweepProgress(result.total, skipped, parallel, str(results_path / SWEEP_LOG), echo=verbose >= 1)
+    progress.log(
+        f"sweep of {result.total} runs ({', '.join(names)}) on {backend} with {workers} worker(s) x {threads} thread(s): "
+        f"{skipped} finished before, {len(todo)} to run"
+    )
+
+    def on_result(config: RunConfig, summary: dict[str, Any] | None, error: str | None) -> None:
+        if summary is not None:
+            summary = {key: value for key, value in summary.items() if key != "files"}
+            result.completed.append(summary)
+            score = summary["score"]
+            progress.update(
+                config.run_id,
+                f"done in {_format_seconds(summary['wall_time_s'])} ({summary['train_steps_per_s']:,.0f} steps/s, "
+                f"success {100 * score['success_rate']:.1f}%, coverage {100 * score['coverage']:.1f}%)",
+            )
+        else:
+            result.failed[config.run_id] = error or ""
+            progress.update(config.run_id, f"FAILED:\n{error}")
+
+    started = time.perf_counter()
+    run_verbose = 1 if verbose >= 2 else 0
+    if backend == "local":
+        run_local(todo, str(results_path), on_result, workers=workers, threads=threads, verbose=run_verbose)
+    else:
+        run_ray(
+            todo,
+            str(results_path),
+            on_result,
+            address=ray_address,
+            threads=threads,
+            num_cpus=workers if workers > 0 else None,
+            verbose=run_verbose,
+        )
+    result.wall_time_s = time.perf_counter() - started
+    if result.completed:
+        steps_per_s = sum(s["train_steps_per_s"] for s in result.completed) / len(result.completed)
+        throughput = f", mean per-run throughput {steps_per_s:,.0f} env steps/s"
+    else:
+        throughput = ""
+    progress.log(
+        f"sweep finished: {len(result.completed)} run(s) in {_format_seconds(result.wall_time_s)} "
+        f"({result.wall_time_s:.0f} s wall){throughput}, {skipped} skipped, {len(result.failed)} failed"
+    )
+    return result
