@@ -2,8 +2,9 @@
 
 from sb3_maddpg.envs import register_envs
 from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.version import __version__
 
 register_envs()
 
-__all__ = ["AgentLayout", "__version__"]
+__all__ = ["MADDPG", "AgentLayout", "__version__"]

@@ -177,7 +177,9 @@ def _check_box(space: spaces.Space, agent: str, kind: str) -> spaces.Box:
         fix = "flatten the observations first (e.g. supersuit.flatten_v0 or a custom wrapper)"
     else:
         fix = "convert the space to a Box with a PettingZoo or supersuit wrapper"
-    raise TypeError(f"Agent {agent!r} has a {type(space).__name__} {kind} space; PettingZooToGym supports Box spaces only: {fix}.")
+    raise TypeError(
+        f"Agent {agent!r} has a {type(space).__name__} {kind} space; PettingZooToGym supports Box spaces only: {fix}."
+    )
 
 
 def _concatenate_boxes(boxes: list[spaces.Box], dtype: type[np.floating]) -> spaces.Box:

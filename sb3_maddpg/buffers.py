@@ -1,0 +1,161 @@
+"""The multi-agent replay buffer: one row per joint transition, per-agent rewards and terminations, selections."""
+
+from typing import Any, NamedTuple
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.vec_env import VecNormalize
+
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.selection import Selector
+
+
+class MultiAgentReplayBufferSamples(NamedTuple):
+    """A batch of joint transitions; every agent trains on the same rows."""
+
+    observations: th.Tensor
+    """Joint observations ``[batch, obs_dim]``."""
+    actions: th.Tensor
+    """Joint actions in [-1, 1] ``[batch, action_dim]``."""
+    next_observations: th.Tensor
+    """Joint next observations ``[batch, obs_dim]``."""
+    dones: th.Tensor
+    """1.0 where agent i's episode truly terminated (time-limit truncation is 0: it bootstraps), ``[batch, n_agents]``."""
+    rewards: th.Tensor
+    """Per-agent rewards r_i ``[batch, n_agents]``."""
+    selections: th.Tensor | None
+    """Agents each agent selected when the transition was stored, ``[batch, n_agents, k]`` (LongTensor), or None."""
+
+
+class MultiAgentReplayBuffer(ReplayBuffer):
+    """
+    Replay buffer with one row per joint transition (paper, Algorithm 3): joint observation, next
+    observation and action (float32), per-agent rewards and terminations (float32), time-limit
+    truncations, and the selection made from the observation when the transition was stored (int16).
+
+    Per-agent rewards are read from ``info["agent_rewards"]`` and per-agent terminations from
+    ``info["agent_terminations"]`` (both written by :class:`~sb3_maddpg.envs.PettingZooToGym`).
+
+    Memory: ``4 * (2 * obs_dim + action_dim + 2 * n_agents + 1) + 2 * n_agents * k`` bytes per row
+    (:meth:`nbytes` tells), e.g. for 1e6 transitions of simple_spread with N=5: 1.36 GB with full
+    observability (obs_dim 150, action_dim 25, k=2), 1.04 GB with two observed neighbours (obs_dim 110).
+
+    :param buffer_size: Max number of joint transitions.
+    :param observation_space: The joint observation space.
+    :param action_space: The joint action space.
+    :param device: PyTorch device for the samples.
+    :param n_envs: Number of parallel environments.
+    :param optimize_memory_usage: Not supported (must be False).
+    :param handle_timeout_termination: Bootstrap on time-limit truncation (SB3's ``TimeLimit.truncated``).
+    :param layout: The team's agent layout (MADDPG passes it).
+    :param selector: The selection rule, for schemes that use one; None otherwise.
+    """
+
+    rewards: np.ndarray
+    dones: np.ndarray
+    selections: np.ndarray
+
+    def __init__(
+        self,
+        buffer_size: int,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        device: th.device | str = "auto",
+        n_envs: int = 1,
+        optimize_memory_usage: bool = False,
+        handle_timeout_termination: bool = True,
+        layout: AgentLayout | None = None,
+        selector: Selector | None = None,
+    ) -> None:
+        if layout is None:
+            raise ValueError("MultiAgentReplayBuffer needs the team's layout: pass replay_buffer_kwargs=dict(layout=...).")
+        if optimize_memory_usage:
+            raise ValueError("MultiAgentReplayBuffer does not support optimize_memory_usage=True: leave it False.")
+        super().__init__(buffer_size, observation_space, action_space, device, n_envs, False, handle_timeout_termination)
+        self.layout = layout
+        self.selector = selector
+        n_agents = layout.n_agents
+        self.rewards = np.zeros((self.buffer_size, self.n_envs, n_agents), dtype=np.float32)
+        self.dones = np.zeros((self.buffer_size, self.n_envs, n_agents), dtype=np.float32)
+        self.selection_size = selector.k if selector is not None else 0
+        self.selections = np.zeros((self.buffer_size, self.n_envs, n_agents, self.selection_size), dtype=np.int16)
+
+    def nbytes(self) -> int:
+        """Bytes held by the buffer's arrays (allocated lazily by the OS until rows are written)."""
+        arrays = (self.observations, self.next_observations, self.actions, self.rewards, self.dones, self.timeouts)
+        return int(sum(array.nbytes for array in arrays)) + int(self.selections.nbytes)
+
+    def add(
+        self,
+        obs: np.ndarray,
+        next_obs: np.ndarray,
+        action: np.ndarray,
+        reward: np.ndarray,
+        done: np.ndarray,
+        infos: list[dict[str, Any]],
+    ) -> None:
+        """
+        Store one joint transition per env.
+
+        :param obs: Joint observations ``[n_envs, obs_dim]`` (unnormalised; the selection is made from them).
+        :param next_obs: Joint next observations.
+        :param action: Joint actions in [-1, 1].
+        :param reward: Team rewards (unused: per-agent rewards come from ``infos``).
+        :param done: Episode ends (termination or truncation).
+        :param infos: Per-env infos with ``agent_rewards`` (and ``agent_terminations``).
+        """
+        pos, n_envs = self.pos, self.n_envs
+        obs = np.asarray(obs).reshape(n_envs, self.obs_shape[0])
+        self.observations[pos] = obs
+        self.next_observations[pos] = np.asarray(next_obs).reshape(n_envs, self.obs_shape[0])
+        self.actions[pos] = np.asarray(action).reshape(n_envs, self.action_dim)
+        for env_index, info in enumerate(infos):
+            try:
+                self.rewards[pos, env_index] = info["agent_rewards"]
+            except KeyError:
+                raise KeyError(
+                    "The env's info has no 'agent_rewards': MADDPG trains critic i on agent i's reward. Wrap the "
+                    "PettingZoo env in sb3_maddpg.envs.PettingZooToGym, or put one reward per agent in info['agent_rewards']."
+                ) from None
+            timeout = bool(info.get("TimeLimit.truncated", False)) and self.handle_timeout_termination
+            terminations = info.get("agent_terminations")
+            if terminations is None:
+                terminations = float(done[env_index]) * (1.0 - timeout)
+            self.dones[pos, env_index] = terminations
+            self.timeouts[pos, env_index] = timeout
+        if self.selector is not None:
+            self.selections[pos] = self.selector.select(obs, self.layout)
+        self.pos += 1
+        if self.pos == self.buffer_size:
+            self.full = True
+            self.pos = 0
+
+    def sample(self, batch_size: int, env: VecNormalize | None = None) -> MultiAgentReplayBufferSamples:  # type: ignore[override]
+        """
+        Sample joint transitions uniformly (the same rows for every agent).
+
+        :param batch_size: Number of transitions.
+        :param env: The VecNormalize wrapper, to normalise observations.
+        :return: The batch.
+        """
+        upper_bound = self.buffer_size if self.full else self.pos
+        return self._get_samples(np.random.randint(0, upper_bound, size=batch_size), env=env)
+
+    def _get_samples(self, batch_inds: np.ndarray, env: VecNormalize | None = None) -> MultiAgentReplayBufferSamples:  # type: ignore[override]
+        env_indices = np.random.randint(0, high=self.n_envs, size=(len(batch_inds),))
+        selections = None
+        if self.selection_size > 0:
+            selections = th.as_tensor(self.selections[batch_inds, env_indices].astype(np.int64), device=self.device)
+        observations = self._normalize_obs(self.observations[batch_inds, env_indices], env)
+        next_observations = self._normalize_obs(self.next_observations[batch_inds, env_indices], env)
+        assert isinstance(observations, np.ndarray) and isinstance(next_observations, np.ndarray)
+        return MultiAgentReplayBufferSamples(
+            observations=self.to_torch(observations),
+            actions=self.to_torch(self.actions[batch_inds, env_indices]),
+            next_observations=self.to_torch(next_observations),
+            dones=self.to_torch(self.dones[batch_inds, env_indices]),
+            rewards=self.to_torch(self.rewards[batch_inds, env_indices]),
+            selections=selections,
+        )

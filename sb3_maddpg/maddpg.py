@@ -1,0 +1,338 @@
+"""MADDPG on SB3's off-policy base, with the critic's information sharing as a swappable part."""
+
+from collections.abc import Sequence
+from typing import Any, ClassVar, TypeVar
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.noise import ActionNoise, NormalActionNoise
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
+from stable_baselines3.common.utils import polyak_update
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize, unwrap_vec_normalize
+from torch.nn import functional as F
+
+from sb3_maddpg.buffers import MultiAgentReplayBuffer
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentCritic
+from sb3_maddpg.selection import NearestAgents, Selector
+from sb3_maddpg.sharing import CriticFeaturesExtractor, resolve_scheme
+
+SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
+
+
+class MADDPG(OffPolicyAlgorithm):
+    """
+    Multi-Agent DDPG with selectable critic information sharing.
+
+    MADDPG: Lowe et al. (2017) https://arxiv.org/abs/1706.02275. Sharing schemes: Sakagami and
+    Takadama, "What Kind of Information Is Needed? Multi-Agent Reinforcement Learning that
+    Selectively Shares Information from Other Agents". Each agent i has its own deterministic actor
+    mu_i(o_i) and its own critic Q_i, whose input the sharing scheme builds from the joint
+    observation, the joint action and (for ``"selected"``) the agents i selected.
+    Defaults are the paper's (from Lowe et al.).
+
+    :param policy: The policy model to use (``"MlpPolicy"`` or a :class:`~sb3_maddpg.policies.MADDPGPolicy` subclass).
+    :param env: The environment to learn from: a :class:`~sb3_maddpg.envs.PettingZooToGym` env (or a VecEnv of
+        them, or a registered id), which exposes ``agent_layout`` and ``info["agent_rewards"]``.
+    :param critic_sharing: What critic i sees: ``"independent"`` (IDDPG), ``"full"`` (MADDPG),
+        ``"observations"`` (MADDPG-fo), ``"actions"`` (MADDPG-fa), ``"selected"`` (MADDPG-soa), the paper's
+        short names ``"iddpg"``, ``"maddpg"``, ``"fo"``, ``"fa"``, ``"soa"``, or a
+        :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor` subclass.
+    :param selection: For schemes that use a selection: a :class:`~sb3_maddpg.selection.Selector`
+        (default ``NearestAgents(k=2)``). It is applied to the observation when a transition is stored.
+    :param learning_rate: Learning rate of every actor and critic (Adam), constant or a schedule.
+    :param buffer_size: Replay buffer size, in joint transitions.
+    :param learning_starts: Env steps (all envs counted) of uniformly random actions before learning starts.
+        The default, 1024 episodes of 25 steps, matches Lowe et al.'s code.
+    :param batch_size: Minibatch size of each gradient step (the same rows for every agent).
+    :param tau: Polyak coefficient of the target networks.
+    :param gamma: Discount factor.
+    :param train_freq: Update the model every ``train_freq`` steps (SB3 semantics: vectorised env steps, so
+        ``n_envs`` transitions each; or a ``(n, "episode")`` tuple).
+    :param gradient_steps: Gradient steps per update (-1: as many as env steps collected).
+    :param action_noise: Exploration noise over the joint action in the policy's [-1, 1] space (any SB3
+        ``ActionNoise``). None: Gaussian noise of ``noise_std``.
+    :param noise_std: Standard deviation of the default Gaussian exploration noise, in each agent's own
+        action units (for mpe2's [0, 1] actions, 0.1 is 0.2 in the policy's [-1, 1] space); one value, or one
+        per agent. 0 disables it. Ignored when ``action_noise`` is given.
+    :param max_grad_norm: Clip each agent's actor and critic gradient norm to this (as Lowe et al.'s code);
+        None to disable.
+    :param critic_sharing_kwargs: Extra keyword arguments for the sharing scheme's extractor.
+    :param replay_buffer_class: Replay buffer class (default :class:`~sb3_maddpg.buffers.MultiAgentReplayBuffer`).
+    :param replay_buffer_kwargs: Keyword arguments for the replay buffer.
+    :param stats_window_size: Window size for the rollout logging (episodes).
+    :param tensorboard_log: The log location for tensorboard (None: no logging).
+    :param policy_kwargs: Additional arguments for the policy, e.g. ``net_arch``, ``share_parameters``.
+    :param verbose: 0 no output, 1 info messages, 2 debug messages.
+    :param seed: Seed for the pseudo random generators.
+    :param device: Device (cpu, cuda, ...) on which the code should be run; "auto" uses the GPU if possible.
+    :param _init_setup_model: Whether or not to build the network at the creation of the instance.
+    """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"MlpPolicy": MlpPolicy}
+    policy: MADDPGPolicy
+    replay_buffer: MultiAgentReplayBuffer
+    actor: MultiAgentActor
+    actor_target: MultiAgentActor
+    critic: MultiAgentCritic
+    critic_target: MultiAgentCritic
+
+    def __init__(
+        self,
+        policy: str | type[MADDPGPolicy],
+        env: GymEnv | str | None,
+        critic_sharing: str | type[CriticFeaturesExtractor] = "full",
+        selection: Selector | None = None,
+        learning_rate: float | Schedule = 1e-2,
+        buffer_size: int = 1_000_000,
+        learning_starts: int = 25_600,
+        batch_size: int = 1024,
+        tau: float = 0.01,
+        gamma: float = 0.95,
+        train_freq: int | tuple[int, str] = 100,
+        gradient_steps: int = 1,
+        action_noise: ActionNoise | None = None,
+        noise_std: float | Sequence[float] = 0.1,
+        max_grad_norm: float | None = 0.5,
+        critic_sharing_kwargs: dict[str, Any] | None = None,
+        replay_buffer_class: type[ReplayBuffer] | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: th.device | str = "auto",
+        _init_setup_model: bool = True,
+    ) -> None:
+        scheme = resolve_scheme(critic_sharing)  # fail early on an unknown name
+        if env is not None and not isinstance(env, str) and not isinstance(env.action_space, spaces.Box):
+            raise TypeError(
+                f"MADDPG supports continuous (Box) actions only, the env has {type(env.action_space).__name__} actions: "
+                "build the env with continuous actions (mpe2: continuous_actions=True)."
+            )
+        super().__init__(
+            policy,
+            env,  # type: ignore[arg-type]  # None when loading
+            learning_rate,
+            buffer_size,
+            learning_starts,
+            batch_size,
+            tau,
+            gamma,
+            train_freq,
+            gradient_steps,
+            action_noise=action_noise,
+            replay_buffer_class=replay_buffer_class or MultiAgentReplayBuffer,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            device=device,
+            seed=seed,
+            sde_support=False,
+            supported_action_spaces=(spaces.Box,),
+            support_multi_env=True,
+        )
+        self.critic_sharing = critic_sharing
+        self.critic_sharing_kwargs = dict(critic_sharing_kwargs or {})
+        self.max_grad_norm = max_grad_norm
+        self.noise_std = noise_std
+        self.agent_layout: AgentLayout | None = None
+        self.selection: Selector | None = None
+        if self.env is not None:
+            self.agent_layout = _layout_of(self.env)
+            _refuse_reward_normalization(self.env)
+            if scheme.uses_selection:
+                self.selection = selection if selection is not None else NearestAgents(k=2)
+                if not isinstance(self.selection, Selector):
+                    raise TypeError(
+                        f"selection must be a sb3_maddpg.selection.Selector, got {type(selection).__name__}: wrap a "
+                        "function as CallableSelector(fn, k=...)."
+                    )
+                self.selection.validate(self.agent_layout)
+            elif selection is not None:
+                raise ValueError(
+                    f"selection is used only by schemes that read one (critic_sharing='selected'), got "
+                    f"critic_sharing={critic_sharing!r}: drop selection or use critic_sharing='selected'."
+                )
+            if self.action_noise is None and np.any(np.asarray(noise_std) > 0):
+                self.action_noise = self._default_noise(self.agent_layout, noise_std)
+        if _init_setup_model:
+            self._setup_model()
+
+    def _default_noise(self, layout: AgentLayout, noise_std: float | Sequence[float]) -> NormalActionNoise:
+        """Gaussian noise with each agent's std given in its own action units, converted to the [-1, 1] space."""
+        per_agent = np.broadcast_to(np.asarray(noise_std, dtype=np.float64), (layout.n_agents,))
+        assert isinstance(self.action_space, spaces.Box)
+        half_range = (self.action_space.high - self.action_space.low) / 2.0
+        sigma = np.concatenate([np.full(size, std) for std, size in zip(per_agent, layout.action_sizes)]) / half_range
+        return NormalActionNoise(mean=np.zeros(layout.action_dim), sigma=sigma)
+
+    def _setup_model(self) -> None:
+        if self.agent_layout is None:
+            raise ValueError("MADDPG needs an env to read the agent layout from (or a saved model to load).")
+        selection_size = self.selection.k if self.selection is not None else 0
+        if self.replay_buffer_class is not None and issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
+            self.replay_buffer_kwargs.update(layout=self.agent_layout, selector=self.selection)
+        self.policy_kwargs.update(
+            agent_layout=self.agent_layout,
+            critic_sharing=self.critic_sharing,
+            critic_sharing_kwargs=self.critic_sharing_kwargs,
+            selection_size=selection_size,
+        )
+        super()._setup_model()
+        self._create_aliases()
+        # own_action_mask[i, 0, d]: action dimension d belongs to agent i (for the actor update).
+        mask = th.zeros(self.agent_layout.n_agents, 1, self.agent_layout.action_dim, dtype=th.bool)
+        for i, action_slice in enumerate(self.agent_layout.action_slices):
+            mask[i, 0, action_slice] = True
+        self._own_action_mask = mask.to(self.device)
+
+    def _create_aliases(self) -> None:
+        self.actor = self.policy.actor
+        self.actor_target = self.policy.actor_target
+        self.critic = self.policy.critic
+        self.critic_target = self.policy.critic_target
+
+    def _sample_action(
+        self, learning_starts: int, action_noise: ActionNoise | None = None, n_envs: int = 1
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        The exploration action: every actor on its own observation, plus noise in the [-1, 1] space, clipped.
+
+        Same result as SB3's version, without ``predict``'s unscale-then-rescale round trip on every step.
+
+        :param learning_starts: Env steps of uniformly random actions before the actors act.
+        :param action_noise: Noise added to the actors' actions.
+        :param n_envs: Number of envs.
+        :return: The action for the env and the [-1, 1] action for the replay buffer.
+        """
+        if self.num_timesteps < learning_starts:
+            return super()._sample_action(learning_starts, action_noise, n_envs)
+        with th.no_grad():
+            observations = th.as_tensor(self._last_obs, dtype=th.float32, device=self.device)
+            buffer_action = self.actor(observations.reshape(n_envs, -1)).cpu().numpy()
+        if action_noise is not None:
+            buffer_action = np.clip(buffer_action + action_noise(), -1.0, 1.0)
+        return self.policy.unscale_action(buffer_action), buffer_action
+
+    def train(self, gradient_steps: int, batch_size: int = 100) -> None:
+        self.policy.set_training_mode(True)
+        self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
+        critic_losses, actor_losses = [], []
+        actor_params = list(self.actor.parameters())
+        for _ in range(gradient_steps):
+            self._n_updates += 1
+            data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
+
+            with th.no_grad():
+                # Every agent's target actor on its own next observation, then each critic's target (y_i).
+                next_actions = self.actor_target(data.next_observations)
+                next_q = self.critic_target(data.next_observations, next_actions, data.selections)
+                target_q = data.rewards + (1.0 - data.dones) * self.gamma * next_q
+
+            current_q = self.critic(data.observations, data.actions, data.selections)
+            critic_loss = F.mse_loss(current_q, target_q, reduction="none").mean(dim=0)  # one loss per agent
+            self.critic.optimizer.zero_grad()
+            critic_loss.sum().backward()  # agents' parameters are disjoint: each gets its own loss's gradient
+            if self.max_grad_norm is not None:
+                self.critic.clip_grad_norm_per_agent(self.max_grad_norm)
+            self.critic.optimizer.step()
+
+            # Critic i sees the sampled joint action with only a_i replaced by mu_i(o_i).
+            policy_actions = self.actor(data.observations)
+            per_critic_actions = th.where(self._own_action_mask, policy_actions.unsqueeze(0), data.actions.unsqueeze(0))
+            actor_loss = -self.critic(data.observations, per_critic_actions, data.selections).mean(dim=0)
+            self.actor.optimizer.zero_grad()
+            # Only the actors' gradients: the critics' are not needed here.
+            for param, grad in zip(actor_params, th.autograd.grad(actor_loss.sum(), actor_params)):
+                param.grad = grad
+            if self.max_grad_norm is not None:
+                self.actor.mlp.scale_grads(
+                    (self.max_grad_norm / (self.actor.mlp.squared_grad_norms().sqrt() + 1e-6)).clamp(max=1.0)
+                )
+            self.actor.optimizer.step()
+
+            polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
+            polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
+            critic_losses.append(critic_loss.detach())
+            actor_losses.append(actor_loss.detach())
+
+        self._log_losses(th.stack(critic_losses).mean(0), th.stack(actor_losses).mean(0))
+
+    def _log_losses(self, critic_losses: th.Tensor, actor_losses: th.Tensor) -> None:
+        assert self.agent_layout is not None
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        self.logger.record("train/critic_loss", critic_losses.mean().item())
+        self.logger.record("train/actor_loss", actor_losses.mean().item())
+        for agent, critic_loss, actor_loss in zip(self.agent_layout.agent_ids, critic_losses.tolist(), actor_losses.tolist()):
+            self.logger.record(f"train/{agent}/critic_loss", critic_loss)
+            self.logger.record(f"train/{agent}/actor_loss", actor_loss)
+
+    def learn(
+        self: SelfMADDPG,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        log_interval: int = 4,
+        tb_log_name: str = "MADDPG",
+        reset_num_timesteps: bool = True,
+        progress_bar: bool = False,
+    ) -> SelfMADDPG:
+        return super().learn(
+            total_timesteps=total_timesteps,
+            callback=callback,
+            log_interval=log_interval,
+            tb_log_name=tb_log_name,
+            reset_num_timesteps=reset_num_timesteps,
+            progress_bar=progress_bar,
+        )
+
+    def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
+        """
+        Use a new env; it must have the same agent layout as the model.
+
+        :param env: The new environment.
+        :param force_reset: Force a reset before the next ``learn``.
+        """
+        super().set_env(env, force_reset)
+        layout = _layout_of(self.env)  # type: ignore[arg-type]
+        if layout != self.agent_layout:
+            raise ValueError(f"The new env's agent layout {layout} differs from the model's {self.agent_layout}.")
+        _refuse_reward_normalization(self.env)  # type: ignore[arg-type]
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "actor", "critic", "actor_target", "critic_target", "_own_action_mask"]
+
+    def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
+        return ["policy", "actor.optimizer", "critic.optimizer"], []
+
+
+def _layout_of(env: VecEnv) -> AgentLayout:
+    try:
+        layouts = env.get_attr("agent_layout")
+    except AttributeError:
+        raise ValueError(
+            "The env has no agent_layout: MADDPG needs to know which part of the joint observation and action belongs "
+            "to which agent. Wrap your PettingZoo ParallelEnv in sb3_maddpg.envs.PettingZooToGym (or use "
+            "sb3_maddpg.envs.make_simple_spread)."
+        ) from None
+    if any(layout != layouts[0] for layout in layouts):
+        raise ValueError(f"All envs of the VecEnv must have the same agent layout, got {set(layouts)}.")
+    if not isinstance(layouts[0], AgentLayout):
+        raise TypeError(f"env.agent_layout must be an sb3_maddpg.AgentLayout, got {type(layouts[0]).__name__}.")
+    return layouts[0]
+
+
+def _refuse_reward_normalization(env: VecEnv) -> None:
+    vec_normalize = unwrap_vec_normalize(env)
+    if isinstance(vec_normalize, VecNormalize) and vec_normalize.norm_reward:
+        raise ValueError(
+            "VecNormalize(norm_reward=True) would normalise only the team's scalar reward, not the per-agent rewards "
+            "the critics learn from: use VecNormalize(env, norm_reward=False) (observation normalisation is fine)."
+        )

@@ -1,0 +1,331 @@
+"""The multi-agent policy: one actor and one critic per agent (and their targets), evaluated together."""
+
+from typing import Any
+
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
+from torch import nn
+
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.networks import AgentEnsembleMLP, stack_padded
+from sb3_maddpg.sharing import CriticFeaturesExtractor, resolve_scheme
+
+DEFAULT_NET_ARCH = {"pi": [64, 64], "qf": [64, 64, 64]}
+"""The paper's networks: actor of 3 and critic of 4 fully connected layers, 64 hidden units."""
+
+
+class MultiAgentActor(nn.Module):
+    """
+    Every agent's deterministic actor mu_i(o_i), squashed by ``tanh`` to [-1, 1].
+
+    :param layout: The team's agent layout.
+    :param hidden_sizes: Hidden layer sizes.
+    :param activation_fn: Activation function.
+    :param share_parameters: One actor network for all agents.
+    """
+
+    def __init__(
+        self, layout: AgentLayout, hidden_sizes: list[int], activation_fn: type[nn.Module], share_parameters: bool = False
+    ) -> None:
+        super().__init__()
+        self.layout = layout
+        self.mlp = AgentEnsembleMLP(
+            layout.obs_sizes,
+            layout.action_sizes,
+            hidden_sizes,
+            activation_fn,
+            squash_output=True,
+            share_parameters=share_parameters,
+        )
+        self.optimizer: th.optim.Optimizer
+
+    def forward(self, observations: th.Tensor) -> th.Tensor:
+        """
+        :param observations: Joint observations ``[batch, obs_dim]``.
+        :return: Joint actions in [-1, 1], ``[batch, action_dim]``; agent i's from its own observation only.
+        """
+        layout, batch = self.layout, observations.shape[0]
+        if layout.is_homogeneous:
+            per_agent = observations.view(batch, layout.n_agents, -1).transpose(0, 1)
+            return self.mlp(per_agent).transpose(0, 1).reshape(batch, layout.action_dim)
+        per_agent = stack_padded([observations[:, sl] for sl in layout.obs_slices], self.mlp.max_in_dim)
+        out = self.mlp(per_agent)
+        return th.cat([out[i, :, :size] for i, size in enumerate(layout.action_sizes)], dim=1)
+
+
+class MultiAgentCritic(nn.Module):
+    """
+    Every agent's critic Q_i(x_i), where ``x_i`` comes from agent i's :class:`CriticFeaturesExtractor`.
+
+    :param layout: The team's agent layout.
+    :param extractor_class: The sharing scheme.
+    :param extractor_kwargs: Extra keyword arguments for the extractor.
+    :param selection_size: ``k`` selected agents per agent (0 when the scheme uses no selection).
+    :param hidden_sizes: Hidden layer sizes.
+    :param activation_fn: Activation function.
+    :param share_parameters: One critic network for all agents (needs equal feature sizes).
+    """
+
+    def __init__(
+        self,
+        layout: AgentLayout,
+        extractor_class: type[CriticFeaturesExtractor],
+        extractor_kwargs: dict[str, Any],
+        selection_size: int,
+        hidden_sizes: list[int],
+        activation_fn: type[nn.Module],
+        share_parameters: bool = False,
+    ) -> None:
+        super().__init__()
+        self.layout = layout
+        extractors = [
+            extractor_class(layout, i, selection_size=selection_size, **extractor_kwargs) for i in range(layout.n_agents)
+        ]
+        self.extractors = nn.ModuleList(extractors)
+        features_dims = [extractor.features_dim for extractor in extractors]
+        self.mlp = AgentEnsembleMLP(
+            features_dims, [1] * layout.n_agents, hidden_sizes, activation_fn, share_parameters=share_parameters
+        )
+        self.optimizer: th.optim.Optimizer
+
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+        """
+        :param observations: Joint observations ``[batch, obs_dim]``.
+        :param actions: Joint actions in [-1, 1]: ``[batch, action_dim]`` for all critics, or
+            ``[n_agents, batch, action_dim]`` to give critic i its own joint action ``actions[i]``.
+        :param selection: Selected agents ``[batch, n_agents, k]``, for schemes that use one.
+        :return: Q-values ``[batch, n_agents]``.
+        """
+        per_critic = actions.dim() == 3
+        features = [
+            extractor(observations, actions[i] if per_critic else actions, selection)
+            for i, extractor in enumerate(self.extractors)
+        ]
+        return self.mlp(stack_padded(features, self.mlp.max_in_dim)).squeeze(-1).transpose(0, 1)
+
+    def clip_grad_norm_per_agent(self, max_norm: float) -> None:
+        """Clip each agent's gradient norm (its network slice and its extractor) separately, like N optimisers."""
+        squared = self.mlp.squared_grad_norms()
+        extractor_grads = [[p.grad for p in extractor.parameters() if p.grad is not None] for extractor in self.extractors]
+        if any(extractor_grads):
+            extra = th.stack([sum((grad.pow(2).sum() for grad in grads), th.zeros(())) for grads in extractor_grads])
+            squared = squared + (extra.sum(0, keepdim=True) if self.mlp.share_parameters else extra)
+        coefficients = (max_norm / (squared.sqrt() + 1e-6)).clamp(max=1.0)
+        self.mlp.scale_grads(coefficients)
+        for i, grads in enumerate(extractor_grads):
+            for grad in grads:
+                grad.mul_(coefficients[0 if self.mlp.share_parameters else i])
+
+
+class AgentActor(nn.Module):
+    """
+    A view of agent i's actor inside :class:`MultiAgentActor` (its parameters live there).
+
+    :param actor: The team's actor.
+    :param agent_index: The agent.
+    """
+
+    def __init__(self, actor: MultiAgentActor, agent_index: int) -> None:
+        super().__init__()
+        self._team = [actor]  # a list, so the shared module is not registered twice
+        self.agent_index = agent_index
+
+    def forward(self, observation: th.Tensor) -> th.Tensor:
+        """
+        :param observation: Agent i's observations ``[batch, obs_size_i]``.
+        :return: Agent i's actions in [-1, 1], ``[batch, action_size_i]``.
+        """
+        return self._team[0].mlp.forward_agent(self.agent_index, observation)
+
+
+class AgentCritic(nn.Module):
+    """
+    A view of agent i's critic inside :class:`MultiAgentCritic` (its parameters live there).
+
+    :param critic: The team's critic.
+    :param agent_index: The agent.
+    """
+
+    def __init__(self, critic: MultiAgentCritic, agent_index: int) -> None:
+        super().__init__()
+        self._team = [critic]
+        self.agent_index = agent_index
+
+    @property
+    def features_extractor(self) -> CriticFeaturesExtractor:
+        """The extractor that builds this critic's input."""
+        return self._team[0].extractors[self.agent_index]  # type: ignore[return-value]
+
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+        """
+        :param observations: Joint observations ``[batch, obs_dim]``.
+        :param actions: Joint actions in [-1, 1], ``[batch, action_dim]``.
+        :param selection: Selected agents ``[batch, n_agents, k]``, for schemes that use one.
+        :return: Q_i ``[batch, 1]``.
+        """
+        features = self.features_extractor(observations, actions, selection)
+        return self._team[0].mlp.forward_agent(self.agent_index, features)
+
+
+class MADDPGPolicy(BasePolicy):
+    """
+    Policy for MADDPG: per-agent actors, per-agent critics fed by a sharing scheme, and target copies.
+
+    :param observation_space: The joint observation space (a flat ``Box``).
+    :param action_space: The joint action space (a flat ``Box``).
+    :param lr_schedule: Learning rate schedule (for every optimiser).
+    :param agent_layout: The team's agent layout (MADDPG fills it in from the env).
+    :param critic_sharing: The sharing scheme: a name from :data:`~sb3_maddpg.sharing.SHARING_SCHEMES`,
+        an alias, or a :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor` subclass.
+    :param critic_sharing_kwargs: Extra keyword arguments for the extractor.
+    :param selection_size: ``k`` selected agents per agent (0 when the scheme uses no selection).
+    :param net_arch: Hidden sizes, ``dict(pi=[...], qf=[...])`` (default: the paper's ``pi=[64, 64], qf=[64, 64, 64]``)
+        or one list for both.
+    :param activation_fn: Activation function (ReLU, as in Lowe et al.).
+    :param share_parameters: One actor and one critic network for all agents (homogeneous teams only).
+    :param optimizer_class: Optimiser class (Adam). It must be element-wise (Adam, SGD, RMSprop...) so that
+        one optimiser over the agents' stacked parameters equals one optimiser per agent.
+    :param optimizer_kwargs: Extra keyword arguments for the optimiser.
+    :param normalize_images: Unused (observations are vectors); kept for SB3 compatibility.
+    """
+
+    def __init__(
+        self,
+        observation_space: spaces.Box,
+        action_space: spaces.Box,
+        lr_schedule: Schedule,
+        agent_layout: AgentLayout | None = None,
+        critic_sharing: str | type[CriticFeaturesExtractor] = "full",
+        critic_sharing_kwargs: dict[str, Any] | None = None,
+        selection_size: int = 0,
+        net_arch: list[int] | dict[str, list[int]] | None = None,
+        activation_fn: type[nn.Module] = nn.ReLU,
+        share_parameters: bool = False,
+        optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
+        optimizer_kwargs: dict[str, Any] | None = None,
+        normalize_images: bool = False,
+    ) -> None:
+        super().__init__(
+            observation_space,
+            action_space,
+            optimizer_class=optimizer_class,
+            optimizer_kwargs=optimizer_kwargs,
+            squash_output=True,
+            normalize_images=normalize_images,
+        )
+        if agent_layout is None:
+            raise ValueError("MADDPGPolicy needs agent_layout (MADDPG passes the env's layout; pass it in policy_kwargs).")
+        if agent_layout.obs_dim != int(observation_space.shape[0]) or agent_layout.action_dim != int(action_space.shape[0]):
+            raise ValueError(
+                f"The agent layout (obs {agent_layout.obs_dim}, action {agent_layout.action_dim}) does not match the spaces "
+                f"{observation_space.shape} and {action_space.shape}."
+            )
+        if net_arch is None:
+            net_arch = DEFAULT_NET_ARCH
+        self.net_arch = dict(net_arch) if isinstance(net_arch, dict) else {"pi": list(net_arch), "qf": list(net_arch)}
+        self.agent_layout = agent_layout
+        self.critic_sharing = critic_sharing
+        self.critic_sharing_kwargs = dict(critic_sharing_kwargs or {})
+        self.selection_size = int(selection_size)
+        self.activation_fn = activation_fn
+        self.share_parameters = share_parameters
+        self._build(lr_schedule)
+
+    def _build(self, lr_schedule: Schedule) -> None:
+        self.actor = self.make_actor()
+        self.actor_target = self.make_actor()
+        self.actor_target.load_state_dict(self.actor.state_dict())
+        self.critic = self.make_critic()
+        self.critic_target = self.make_critic()
+        self.critic_target.load_state_dict(self.critic.state_dict())
+        self.actor.optimizer = self.optimizer_class(  # type: ignore[call-arg]
+            self.actor.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs
+        )
+        self.critic.optimizer = self.optimizer_class(  # type: ignore[call-arg]
+            self.critic.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs
+        )
+        # Targets only follow (Polyak) and never train.
+        for target in (self.actor_target, self.critic_target):
+            target.train(False)
+            target.requires_grad_(False)
+        self._actor_views = [AgentActor(self.actor, i) for i in range(self.agent_layout.n_agents)]
+        self._critic_views = [AgentCritic(self.critic, i) for i in range(self.agent_layout.n_agents)]
+
+    def make_actor(self) -> MultiAgentActor:
+        """A new team actor."""
+        return MultiAgentActor(self.agent_layout, self.net_arch["pi"], self.activation_fn, self.share_parameters).to(
+            self.device
+        )
+
+    def make_critic(self) -> MultiAgentCritic:
+        """A new team critic."""
+        return MultiAgentCritic(
+            self.agent_layout,
+            resolve_scheme(self.critic_sharing),
+            self.critic_sharing_kwargs,
+            self.selection_size,
+            self.net_arch["qf"],
+            self.activation_fn,
+            self.share_parameters,
+        ).to(self.device)
+
+    @property
+    def actors(self) -> list[AgentActor]:
+        """Agent i's actor, ``actors[i](o_i) -> a_i`` in [-1, 1] (views into the team's actor)."""
+        return self._actor_views
+
+    @property
+    def critics(self) -> list[AgentCritic]:
+        """Agent i's critic, ``critics[i](obs, actions, selection) -> Q_i`` (views into the team's critic)."""
+        return self._critic_views
+
+    def q_values(self, obs: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+        """
+        Every agent's critic on a joint batch.
+
+        :param obs: Joint observations ``[batch, obs_dim]``.
+        :param actions: Joint actions in the policy's [-1, 1] space ``[batch, action_dim]``.
+        :param selection: LongTensor ``[batch, n_agents, k]`` of the agents each agent selected (itself
+            excluded); needed by schemes that use a selection.
+        :return: ``[batch, n_agents]``.
+        """
+        return self.critic(obs, actions, selection)
+
+    def forward(self, observation: th.Tensor, deterministic: bool = False) -> th.Tensor:
+        return self._predict(observation, deterministic=deterministic)
+
+    def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
+        # Deterministic actors: exploration noise is added by the algorithm, not here.
+        return self.actor(observation)
+
+    def set_training_mode(self, mode: bool) -> None:
+        """
+        Put the actors and critics (not the targets, which stay in eval mode) in training or eval mode.
+
+        :param mode: True for training.
+        """
+        # Called before every predict(): skip the module-tree walk when nothing changes.
+        if self.actor.training != mode or self.critic.training != mode:
+            self.actor.train(mode)
+            self.critic.train(mode)
+        self.training = mode
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data = super()._get_constructor_parameters()
+        data.update(
+            agent_layout=self.agent_layout,
+            critic_sharing=self.critic_sharing,
+            critic_sharing_kwargs=self.critic_sharing_kwargs,
+            selection_size=self.selection_size,
+            net_arch=self.net_arch,
+            activation_fn=self.activation_fn,
+            share_parameters=self.share_parameters,
+            optimizer_class=self.optimizer_class,
+            optimizer_kwargs=self.optimizer_kwargs,
+        )
+        return data
+
+
+MlpPolicy = MADDPGPolicy

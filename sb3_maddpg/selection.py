@@ -1,0 +1,200 @@
+"""Who each agent's critic listens to: the selection S_i of MADDPG-soa (paper, Algorithm 3).
+
+A selector maps a batch of joint observations to, for every agent i, the indices of the ``k`` other
+agents whose observations and actions critic i sees. The selection is made when a transition is
+stored (from the observation at time t), kept in the replay buffer with it, and reused for the
+next-state target.
+"""
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Hashable, Sequence
+
+import numpy as np
+
+from sb3_maddpg.layout import AgentLayout
+
+SelectionFn = Callable[[np.ndarray, AgentLayout], np.ndarray]
+"""``fn(observations [n_envs, obs_dim], layout) -> int array [n_envs, n_agents, k]``."""
+
+
+class Selector(ABC):
+    """
+    Base class: chooses ``k`` other agents for every agent.
+
+    Subclasses implement :meth:`_select`; :meth:`select` checks what they return.
+
+    :param k: How many other agents each agent selects (1 to ``n_agents - 1``).
+    """
+
+    checks_output: bool = True
+    """Whether :meth:`select` validates every output (built-in selectors are valid by construction)."""
+
+    def __init__(self, k: int) -> None:
+        if int(k) < 1:
+            raise ValueError(f"A selection needs k >= 1 agents, got k={k}.")
+        self.k = int(k)
+
+    def validate(self, layout: AgentLayout) -> None:
+        """
+        Check that this selector can serve a team with this layout.
+
+        :param layout: The team's agent layout.
+        """
+        if self.k > layout.n_agents - 1:
+            raise ValueError(
+                f"{type(self).__name__} selects k={self.k} other agents, but the team has only "
+                f"{layout.n_agents - 1} other agents per agent: use k <= {layout.n_agents - 1}."
+            )
+
+    def select(self, observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
+        """
+        :param observations: Joint observations, shape ``[n_envs, obs_dim]`` (raw, not normalised).
+        :param layout: The team's agent layout.
+        :return: Selected agent indices, int64 array ``[n_envs, n_agents, k]``; never the agent itself.
+        """
+        observations = np.asarray(observations).reshape(-1, layout.obs_dim)
+        selection = np.asarray(self._select(observations, layout))
+        if self.checks_output:
+            check_selection(selection, layout, self.k, n_rows=observations.shape[0], source=type(self).__name__)
+        return selection.astype(np.int64, copy=False)
+
+    @abstractmethod
+    def _select(self, observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
+        """Return the selection for ``observations`` ``[n_envs, obs_dim]``, shape ``[n_envs, n_agents, k]``."""
+
+
+class NearestAgents(Selector):
+    """
+    Each agent selects its ``k`` nearest other agents by Euclidean distance, nearest first
+    (ties: lower index first).
+
+    Positions are read from each agent's own observation. In MPE (``simple_spread``) an agent's
+    observation starts with ``[velocity (2), position (2), ...]``, hence the default ``slice(2, 4)``.
+
+    :param k: How many other agents each agent selects (paper's partially observable setting: 2).
+    :param position_slice: Where an agent's position lies within its own observation.
+    """
+
+    checks_output = False
+
+    def __init__(self, k: int = 2, position_slice: slice = slice(2, 4)) -> None:
+        super().__init__(k)
+        self.position_slice = position_slice
+
+    def validate(self, layout: AgentLayout) -> None:
+        super().validate(layout)
+        for agent, size in zip(layout.agent_ids, layout.obs_sizes):
+            start, stop, _ = self.position_slice.indices(size)
+            if stop <= start or (self.position_slice.stop is not None and self.position_slice.stop > size):
+                raise ValueError(
+                    f"position_slice={self.position_slice} does not fit agent {agent!r}'s observation of size {size}: "
+                    "pass NearestAgents(position_slice=...) pointing at the position inside each agent's observation."
+                )
+
+    def _select(self, observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
+        positions = np.stack([observations[:, sl][:, self.position_slice] for sl in layout.obs_slices], axis=1)
+        offsets = positions[:, :, None, :] - positions[:, None, :, :]
+        distances = np.einsum("bijk,bijk->bij", offsets, offsets)
+        # An agent never selects itself.
+        distances[:, np.arange(layout.n_agents), np.arange(layout.n_agents)] = np.inf
+        return np.argsort(distances, axis=-1, kind="stable")[:, :, : self.k]
+
+
+class FixedGraph(Selector):
+    """
+    A fixed neighbour graph: agent i always selects ``neighbors[i]`` (in that order).
+
+    :param neighbors: One list of ``k`` agent indices per agent, each without the agent itself.
+    """
+
+    checks_output = False  # the table is checked once, in validate()
+
+    def __init__(self, neighbors: Sequence[Sequence[int]]) -> None:
+        table = np.asarray(neighbors, dtype=np.int64)
+        if table.ndim != 2 or table.shape[1] < 1:
+            raise ValueError(
+                "FixedGraph needs one list of k >= 1 neighbour indices per agent, all of the same length "
+                f"(e.g. [[1, 2], [0, 2], [0, 1]]), got {neighbors!r}."
+            )
+        super().__init__(table.shape[1])
+        self.neighbors = table
+
+    @classmethod
+    def from_roles(cls, roles: Sequence[Hashable]) -> "FixedGraph":
+        """
+        Every agent selects all other agents with the same role (in index order).
+
+        :param roles: One role per agent, e.g. ``["scout", "scout", "carrier", "carrier"]``. Every role
+            must have the same number of agents (at least two), so every agent selects the same number.
+        :return: The graph.
+        """
+        roles = list(roles)
+        groups: dict[Hashable, list[int]] = {}
+        for index, role in enumerate(roles):
+            groups.setdefault(role, []).append(index)
+        sizes = {len(members) for members in groups.values()}
+        if len(sizes) != 1 or sizes.pop() < 2:
+            raise ValueError(
+                f"from_roles needs every role shared by the same number (>= 2) of agents, got groups "
+                f"{groups}; use FixedGraph(neighbors) for uneven roles."
+            )
+        return cls([[j for j in groups[role] if j != i] for i, role in enumerate(roles)])
+
+    def validate(self, layout: AgentLayout) -> None:
+        super().validate(layout)
+        if self.neighbors.shape[0] != layout.n_agents:
+            raise ValueError(
+                f"FixedGraph has neighbour lists for {self.neighbors.shape[0]} agents, the team has {layout.n_agents}."
+            )
+        check_selection(self.neighbors[None], layout, self.k, n_rows=1, source="FixedGraph")
+
+    def _select(self, observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
+        return np.broadcast_to(self.neighbors, (observations.shape[0], *self.neighbors.shape))
+
+
+class CallableSelector(Selector):
+    """
+    A user's rule: ``fn(observations, layout)`` returns the selection.
+
+    :param fn: ``fn(observations [n_envs, obs_dim], layout) -> int array [n_envs, n_agents, k]`` of the
+        other agents each agent selects. It must be picklable (cloudpickle) for ``save`` and ``SubprocVecEnv``.
+    :param k: How many agents ``fn`` selects for each agent.
+    """
+
+    def __init__(self, fn: SelectionFn, k: int) -> None:
+        if not callable(fn):
+            raise TypeError(f"CallableSelector needs a callable, got {type(fn).__name__}.")
+        super().__init__(k)
+        self.fn = fn
+
+    def _select(self, observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
+        return self.fn(observations, layout)
+
+
+def check_selection(selection: np.ndarray, layout: AgentLayout, k: int, n_rows: int, source: str) -> None:
+    """
+    Raise a clear error if a selection has the wrong shape, an index out of range or an agent selecting itself.
+
+    :param selection: The selection to check, ``[n_rows, n_agents, k]``.
+    :param layout: The team's layout.
+    :param k: The expected number of selected agents.
+    :param n_rows: The expected batch size.
+    :param source: Who made the selection (for the message).
+    """
+    expected = (n_rows, layout.n_agents, k)
+    if selection.shape != expected:
+        raise ValueError(
+            f"{source} returned a selection of shape {selection.shape}, expected {expected} ([n_envs, n_agents, k])."
+        )
+    if not np.issubdtype(selection.dtype, np.integer):
+        raise TypeError(f"{source} returned a selection of dtype {selection.dtype}; it must hold integer agent indices.")
+    if selection.size and (selection.min() < 0 or selection.max() >= layout.n_agents):
+        raise ValueError(
+            f"{source} selected agent index {int(selection.min()) if selection.min() < 0 else int(selection.max())}, "
+            f"out of range for {layout.n_agents} agents: indices must be in [0, {layout.n_agents - 1}]."
+        )
+    own = np.arange(layout.n_agents)[None, :, None]
+    if np.any(selection == own):
+        raise ValueError(
+            f"{source} made an agent select itself: S_i holds other agents only (its own o_i, a_i are always seen)."
+        )

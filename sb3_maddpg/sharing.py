@@ -1,0 +1,210 @@
+"""What each critic sees: the information-sharing schemes as critic features extractors.
+
+Critic i of MADDPG sees a vector x_i built from the joint observation, the joint action and (for
+selected sharing) the agents it selected. Each scheme of the paper (Table 1) is a subclass of
+:class:`CriticFeaturesExtractor`; a new scheme is a new subclass.
+
+The input order is stable, own agent first:
+
+============== ======= ===================================================================
+scheme         paper   x_i
+============== ======= ===================================================================
+independent    IDDPG   ``[o_i, a_i]``
+full           MADDPG  ``[o_i, o_others..., a_i, a_others...]`` (others in ascending index)
+observations   fo      ``[o_i, o_others..., a_i]``
+actions        fa      ``[o_i, a_i, a_others...]``
+selected       soa     ``[o_i, o_s1 .. o_sk, a_i, a_s1 .. a_sk]`` (selection order, nearest first)
+============== ======= ===================================================================
+"""
+
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import torch as th
+from torch import nn
+
+from sb3_maddpg.layout import AgentLayout
+
+
+class CriticFeaturesExtractor(nn.Module):
+    """
+    Base class: builds critic ``agent_index``'s input from the joint batch, in the spirit of SB3's
+    ``BaseFeaturesExtractor``. It may hold parameters (they train with the critic and have target
+    copies); the built-in schemes have none.
+
+    Subclasses take ``(layout, agent_index, selection_size=0, **kwargs)`` and pass their
+    ``features_dim`` to this constructor.
+
+    :param layout: The team's agent layout.
+    :param agent_index: Which agent's critic this extractor feeds.
+    :param features_dim: Length of the features it returns.
+    :param selection_size: ``k``, the number of selected agents per agent (0 when unused).
+    """
+
+    uses_selection: ClassVar[bool] = False
+    """Whether :meth:`forward` reads the stored selection (then MADDPG makes and stores one)."""
+
+    def __init__(self, layout: AgentLayout, agent_index: int, features_dim: int, selection_size: int = 0) -> None:
+        super().__init__()
+        if not 0 <= agent_index < layout.n_agents:
+            raise ValueError(f"agent_index {agent_index} is out of range for a team of {layout.n_agents} agents.")
+        if features_dim < 1:
+            raise ValueError(f"features_dim must be positive, got {features_dim}.")
+        self.layout = layout
+        self.agent_index = int(agent_index)
+        self.selection_size = int(selection_size)
+        self._features_dim = int(features_dim)
+
+    @property
+    def features_dim(self) -> int:
+        """Length of the critic input this extractor builds."""
+        return self._features_dim
+
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+        """
+        :param observations: Joint observations ``[batch, obs_dim]``.
+        :param actions: Joint actions in the policy's [-1, 1] space ``[batch, action_dim]``.
+        :param selection: Selected agents ``[batch, n_agents, k]`` (LongTensor), for schemes that use it.
+        :return: Critic input ``[batch, features_dim]``.
+        """
+        raise NotImplementedError
+
+    def agent_observation(self, observations: th.Tensor, agent: int) -> th.Tensor:
+        """Agent ``agent``'s part of the joint observation, ``[batch, obs_size]``."""
+        return observations[:, self.layout.obs_slices[agent]]
+
+    def agent_action(self, actions: th.Tensor, agent: int) -> th.Tensor:
+        """Agent ``agent``'s part of the joint action, ``[batch, action_size]``."""
+        return actions[:, self.layout.action_slices[agent]]
+
+
+class _FixedAgentsCriticFeatures(CriticFeaturesExtractor):
+    """Sees the observations of ``obs_agents`` and the actions of ``action_agents``, in that order (one gather each)."""
+
+    _obs_index: th.Tensor
+    _action_index: th.Tensor
+
+    def __init__(
+        self,
+        layout: AgentLayout,
+        agent_index: int,
+        obs_agents: Sequence[int],
+        action_agents: Sequence[int],
+        selection_size: int,
+    ) -> None:
+        obs_index = [d for j in obs_agents for d in range(layout.obs_slices[j].start, layout.obs_slices[j].stop)]
+        action_index = [d for j in action_agents for d in range(layout.action_slices[j].start, layout.action_slices[j].stop)]
+        super().__init__(layout, agent_index, len(obs_index) + len(action_index), selection_size)
+        self.obs_agents = tuple(obs_agents)
+        self.action_agents = tuple(action_agents)
+        self.register_buffer("_obs_index", th.tensor(obs_index, dtype=th.long), persistent=False)
+        self.register_buffer("_action_index", th.tensor(action_index, dtype=th.long), persistent=False)
+
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+        return th.cat((observations.index_select(1, self._obs_index), actions.index_select(1, self._action_index)), dim=1)
+
+
+def _own_first(layout: AgentLayout, agent_index: int) -> list[int]:
+    return [agent_index] + [j for j in range(layout.n_agents) if j != agent_index]
+
+
+class IndependentCriticFeatures(_FixedAgentsCriticFeatures):
+    """IDDPG: critic i sees ``[o_i, a_i]`` only."""
+
+    def __init__(self, layout: AgentLayout, agent_index: int, selection_size: int = 0) -> None:
+        super().__init__(layout, agent_index, [agent_index], [agent_index], selection_size)
+
+
+class FullCriticFeatures(_FixedAgentsCriticFeatures):
+    """MADDPG: critic i sees every observation and every action, ``[o_i, o_others..., a_i, a_others...]``."""
+
+    def __init__(self, layout: AgentLayout, agent_index: int, selection_size: int = 0) -> None:
+        order = _own_first(layout, agent_index)
+        super().__init__(layout, agent_index, order, order, selection_size)
+
+
+class ObservationsCriticFeatures(_FixedAgentsCriticFeatures):
+    """MADDPG-fo (Algorithm 1): critic i sees every observation and its own action, ``[o_i, o_others..., a_i]``."""
+
+    def __init__(self, layout: AgentLayout, agent_index: int, selection_size: int = 0) -> None:
+        super().__init__(layout, agent_index, _own_first(layout, agent_index), [agent_index], selection_size)
+
+
+class ActionsCriticFeatures(_FixedAgentsCriticFeatures):
+    """MADDPG-fa (Algorithm 2): critic i sees its own observation and every action, ``[o_i, a_i, a_others...]``."""
+
+    def __init__(self, layout: AgentLayout, agent_index: int, selection_size: int = 0) -> None:
+        super().__init__(layout, agent_index, [agent_index], _own_first(layout, agent_index), selection_size)
+
+
+class SelectedCriticFeatures(CriticFeaturesExtractor):
+    """
+    MADDPG-soa (Algorithm 3): critic i sees its own observation and action and those of the ``k``
+    agents it selected, ``[o_i, o_s1 .. o_sk, a_i, a_s1 .. a_sk]`` in selection order. The selection
+    is the one stored with the transition. Needs agents of equal observation and action sizes.
+    """
+
+    uses_selection = True
+
+    def __init__(self, layout: AgentLayout, agent_index: int, selection_size: int = 2) -> None:
+        if not layout.is_homogeneous:
+            raise ValueError(
+                "critic_sharing='selected' needs agents with equal observation and action sizes (a selected agent's "
+                f"data fills a fixed slot), got obs sizes {layout.obs_sizes} and action sizes {layout.action_sizes}: "
+                "use 'full', 'observations', 'actions' or 'independent' for this team, or pad the agents' spaces."
+            )
+        if not 1 <= selection_size <= layout.n_agents - 1:
+            raise ValueError(f"selection_size must be between 1 and {layout.n_agents - 1}, got {selection_size}.")
+        obs_size, action_size = layout.obs_sizes[0], layout.action_sizes[0]
+        super().__init__(layout, agent_index, (1 + selection_size) * (obs_size + action_size), selection_size)
+        self._obs_size, self._action_size = obs_size, action_size
+
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+        if selection is None:
+            raise ValueError("critic_sharing='selected' needs the selection [batch, n_agents, k] of each transition.")
+        batch, n_agents, k = observations.shape[0], self.layout.n_agents, self.selection_size
+        chosen = selection[:, self.agent_index, :]
+        # Own agent first, then the selected ones, for observations and for actions alike.
+        agents = th.cat((th.full_like(chosen[:, :1], self.agent_index), chosen), dim=1)
+        obs = observations.view(batch, n_agents, self._obs_size)
+        act = actions.reshape(batch, n_agents, self._action_size)
+        seen_obs = obs.gather(1, agents.unsqueeze(-1).expand(batch, k + 1, self._obs_size))
+        seen_act = act.gather(1, agents.unsqueeze(-1).expand(batch, k + 1, self._action_size))
+        return th.cat((seen_obs.reshape(batch, -1), seen_act.reshape(batch, -1)), dim=1)
+
+
+SHARING_SCHEMES: dict[str, type[CriticFeaturesExtractor]] = {
+    "independent": IndependentCriticFeatures,
+    "full": FullCriticFeatures,
+    "observations": ObservationsCriticFeatures,
+    "actions": ActionsCriticFeatures,
+    "selected": SelectedCriticFeatures,
+}
+"""The built-in schemes by name."""
+
+SCHEME_ALIASES: dict[str, str] = {
+    "iddpg": "independent",
+    "maddpg": "full",
+    "fo": "observations",
+    "fa": "actions",
+    "soa": "selected",
+}
+"""The paper's short names for the built-in schemes."""
+
+
+def resolve_scheme(scheme: Any) -> type[CriticFeaturesExtractor]:
+    """
+    The extractor class for a scheme name, a paper alias or a user's subclass.
+
+    :param scheme: ``"independent"``, ``"full"``, ``"observations"``, ``"actions"``, ``"selected"``,
+        one of the aliases in :data:`SCHEME_ALIASES`, or a :class:`CriticFeaturesExtractor` subclass.
+    :return: The class.
+    """
+    if isinstance(scheme, type) and issubclass(scheme, CriticFeaturesExtractor):
+        return scheme
+    if isinstance(scheme, str):
+        name = SCHEME_ALIASES.get(scheme.lower(), scheme.lower())
+        if name in SHARING_SCHEMES:
+            return SHARING_SCHEMES[name]
+    known = ", ".join(repr(name) for name in [*SHARING_SCHEMES, *SCHEME_ALIASES])
+    raise ValueError(f"Unknown critic_sharing {scheme!r}: use one of {known}, or a CriticFeaturesExtractor subclass.")
