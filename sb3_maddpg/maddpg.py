@@ -15,7 +15,7 @@ from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize, unwrap_vec_normalize
 from torch.nn import functional as F
 
-from sb3_maddpg.buffers import MultiAgentReplayBuffer
+from sb3_maddpg.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.selection import NearestAgents, Selector
@@ -231,32 +231,20 @@ class MADDPG(OffPolicyAlgorithm):
             self._n_updates += 1
             data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
 
-            with th.no_grad():
-                # Every agent's target actor on its own next observation, then each critic's target (y_i).
-                next_actions = self.actor_target(data.next_observations)
-                next_q = self.critic_target(data.next_observations, next_actions, data.selections)
-                target_q = data.rewards + (1.0 - data.dones) * self.gamma * next_q
-
-            current_q = self.critic(data.observations, data.actions, data.selections)
-            critic_loss = F.mse_loss(current_q, target_q, reduction="none").mean(dim=0)  # one loss per agent
+            critic_loss = self._critic_losses(data)
             self.critic.optimizer.zero_grad()
             critic_loss.sum().backward()  # agents' parameters are disjoint: each gets its own loss's gradient
             if self.max_grad_norm is not None:
                 self.critic.clip_grad_norm_per_agent(self.max_grad_norm)
             self.critic.optimizer.step()
 
-            # Critic i sees the sampled joint action with only a_i replaced by mu_i(o_i).
-            policy_actions = self.actor(data.observations)
-            per_critic_actions = th.where(self._own_action_mask, policy_actions.unsqueeze(0), data.actions.unsqueeze(0))
-            actor_loss = -self.critic(data.observations, per_critic_actions, data.selections).mean(dim=0)
+            actor_loss = self._actor_losses(data)
             self.actor.optimizer.zero_grad()
             # Only the actors' gradients: the critics' are not needed here.
             for param, grad in zip(actor_params, th.autograd.grad(actor_loss.sum(), actor_params)):
                 param.grad = grad
             if self.max_grad_norm is not None:
-                self.actor.mlp.scale_grads(
-                    (self.max_grad_norm / (self.actor.mlp.squared_grad_norms().sqrt() + 1e-6)).clamp(max=1.0)
-                )
+                self.actor.clip_grad_norm_per_agent(self.max_grad_norm)
             self.actor.optimizer.step()
 
             polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
@@ -265,6 +253,40 @@ class MADDPG(OffPolicyAlgorithm):
             actor_losses.append(actor_loss.detach())
 
         self._log_losses(th.stack(critic_losses).mean(0), th.stack(actor_losses).mean(0))
+
+    def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
+        """
+        y_i = r_i + gamma * (1 - done_i) * Q_i'(x_i'), with x_i' built from the next observations and every
+        agent's target action mu_j'(o_j'); done_i is a true termination (truncation bootstraps).
+
+        :param data: A replay batch.
+        :return: ``[batch, n_agents]``.
+        """
+        with th.no_grad():
+            next_actions = self.actor_target(data.next_observations)
+            next_q = self.critic_target(data.next_observations, next_actions, data.selections)
+            return data.rewards + (1.0 - data.dones) * self.gamma * next_q
+
+    def _critic_losses(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
+        """
+        Each critic's mean squared TD error on the batch.
+
+        :param data: A replay batch.
+        :return: One loss per agent, ``[n_agents]``.
+        """
+        current_q = self.critic(data.observations, data.actions, data.selections)
+        return F.mse_loss(current_q, self._critic_targets(data), reduction="none").mean(dim=0)
+
+    def _actor_losses(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
+        """
+        -Q_i(x_i) with only a_i replaced by mu_i(o_i); the other agents' actions are the sampled ones.
+
+        :param data: A replay batch.
+        :return: One loss per agent, ``[n_agents]``.
+        """
+        policy_actions = self.actor(data.observations)
+        per_critic_actions = th.where(self._own_action_mask, policy_actions.unsqueeze(0), data.actions.unsqueeze(0))
+        return -self.critic(data.observations, per_critic_actions, data.selections).mean(dim=0)
 
     def _log_losses(self, critic_losses: th.Tensor, actor_losses: th.Tensor) -> None:
         assert self.agent_layout is not None

@@ -113,11 +113,20 @@ class AgentEnsembleMLP(nn.Module):
                 total += param.grad.pow(2).sum(dim=(1, 2))
         return total
 
+    def clip_grad_norm_per_member(self, max_norm: float) -> None:
+        """Clip each member's gradient norm to ``max_norm`` separately."""
+        self.scale_grads(clip_coefficients(self.squared_grad_norms(), max_norm))
+
     def scale_grads(self, coefficients: th.Tensor) -> None:
         """Multiply member m's gradients by ``coefficients[m]``."""
         for param in [*self.weights, *self.biases]:
             if param.grad is not None:
                 param.grad.mul_(coefficients.view(-1, 1, 1))
+
+
+def clip_coefficients(squared_norms: th.Tensor, max_norm: float) -> th.Tensor:
+    """The factors that bring each norm down to ``max_norm`` (1 where it is already below), as ``clip_grad_norm_``."""
+    return (max_norm / (squared_norms.sqrt() + 1e-6)).clamp(max=1.0)
 
 
 def pad_features(features: th.Tensor, width: int) -> th.Tensor:

@@ -9,7 +9,7 @@ from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
 from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.networks import AgentEnsembleMLP, stack_padded
+from sb3_maddpg.networks import AgentEnsembleMLP, clip_coefficients, stack_padded
 from sb3_maddpg.sharing import CriticFeaturesExtractor, resolve_scheme
 
 DEFAULT_NET_ARCH = {"pi": [64, 64], "qf": [64, 64, 64]}
@@ -53,6 +53,10 @@ class MultiAgentActor(nn.Module):
         per_agent = stack_padded([observations[:, sl] for sl in layout.obs_slices], self.mlp.max_in_dim)
         out = self.mlp(per_agent)
         return th.cat([out[i, :, :size] for i, size in enumerate(layout.action_sizes)], dim=1)
+
+    def clip_grad_norm_per_agent(self, max_norm: float) -> None:
+        """Clip each agent's actor gradient norm separately, like N optimisers."""
+        self.mlp.clip_grad_norm_per_member(max_norm)
 
 
 class MultiAgentCritic(nn.Module):
@@ -112,7 +116,7 @@ class MultiAgentCritic(nn.Module):
         if any(extractor_grads):
             extra = th.stack([sum((grad.pow(2).sum() for grad in grads), th.zeros(())) for grads in extractor_grads])
             squared = squared + (extra.sum(0, keepdim=True) if self.mlp.share_parameters else extra)
-        coefficients = (max_norm / (squared.sqrt() + 1e-6)).clamp(max=1.0)
+        coefficients = clip_coefficients(squared, max_norm)
         self.mlp.scale_grads(coefficients)
         for i, grads in enumerate(extractor_grads):
             for grad in grads:

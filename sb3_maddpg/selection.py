@@ -110,7 +110,10 @@ class FixedGraph(Selector):
     checks_output = False  # the table is checked once, in validate()
 
     def __init__(self, neighbors: Sequence[Sequence[int]]) -> None:
-        table = np.asarray(neighbors, dtype=np.int64)
+        try:
+            table = np.asarray(neighbors, dtype=np.int64)
+        except ValueError:  # ragged lists
+            table = np.zeros((0,), dtype=np.int64)
         if table.ndim != 2 or table.shape[1] < 1:
             raise ValueError(
                 "FixedGraph needs one list of k >= 1 neighbour indices per agent, all of the same length "

@@ -46,8 +46,7 @@ class CriticFeaturesExtractor(nn.Module):
 
     def __init__(self, layout: AgentLayout, agent_index: int, features_dim: int, selection_size: int = 0) -> None:
         super().__init__()
-        if not 0 <= agent_index < layout.n_agents:
-            raise ValueError(f"agent_index {agent_index} is out of range for a team of {layout.n_agents} agents.")
+        _check_agent_index(layout, agent_index)
         if features_dim < 1:
             raise ValueError(f"features_dim must be positive, got {features_dim}.")
         self.layout = layout
@@ -92,6 +91,7 @@ class _FixedAgentsCriticFeatures(CriticFeaturesExtractor):
         action_agents: Sequence[int],
         selection_size: int,
     ) -> None:
+        _check_agent_index(layout, agent_index)
         obs_index = [d for j in obs_agents for d in range(layout.obs_slices[j].start, layout.obs_slices[j].stop)]
         action_index = [d for j in action_agents for d in range(layout.action_slices[j].start, layout.action_slices[j].stop)]
         super().__init__(layout, agent_index, len(obs_index) + len(action_index), selection_size)
@@ -102,6 +102,11 @@ class _FixedAgentsCriticFeatures(CriticFeaturesExtractor):
 
     def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
         return th.cat((observations.index_select(1, self._obs_index), actions.index_select(1, self._action_index)), dim=1)
+
+
+def _check_agent_index(layout: AgentLayout, agent_index: int) -> None:
+    if not 0 <= agent_index < layout.n_agents:
+        raise ValueError(f"agent_index {agent_index} is out of range for a team of {layout.n_agents} agents.")
 
 
 def _own_first(layout: AgentLayout, agent_index: int) -> list[int]:

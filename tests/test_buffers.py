@@ -1,0 +1,117 @@
+"""The multi-agent replay buffer: joint rows, per-agent rewards and terminations, stored selections."""
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch as th
+from gymnasium import spaces
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.buffers import MultiAgentReplayBuffer
+from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.selection import NearestAgents
+
+LAYOUT = AgentLayout(("a", "b", "c"), (4, 4, 4), (2, 2, 2))
+OBS_SPACE = spaces.Box(-np.inf, np.inf, (12,), np.float32)
+ACTION_SPACE = spaces.Box(-1, 1, (6,), np.float32)
+
+
+def make_buffer(n_envs: int = 2, selector: NearestAgents | None = None) -> MultiAgentReplayBuffer:
+    return MultiAgentReplayBuffer(50, OBS_SPACE, ACTION_SPACE, "cpu", n_envs=n_envs, layout=LAYOUT, selector=selector)
+
+
+def info(rewards: list[float], terminated: bool = False, truncated: bool = False) -> dict[str, Any]:
+    return {
+        "agent_rewards": np.array(rewards, dtype=np.float32),
+        "agent_terminations": np.array([terminated] * 3),
+        "TimeLimit.truncated": truncated,
+    }
+
+
+def test_rows_hold_per_agent_rewards_terminations_and_selection() -> None:
+    selector = NearestAgents(k=1)
+    buffer = make_buffer(selector=selector)
+    rng = np.random.default_rng(0)
+    obs = rng.normal(size=(2, 12)).astype(np.float32)
+    buffer.add(
+        obs,
+        obs + 1,
+        np.zeros((2, 6)),
+        np.array([6.0, 0.0]),
+        np.array([True, True]),
+        [info([1, 2, 3], terminated=True), info([-1, -2, -3], truncated=True)],
+    )
+    assert buffer.rewards[0].tolist() == [[1, 2, 3], [-1, -2, -3]]
+    assert buffer.dones[0].tolist() == [[1, 1, 1], [0, 0, 0]]  # truncation is not termination
+    assert buffer.timeouts[0].tolist() == [0, 1]
+    assert (buffer.selections[0] == selector.select(obs, LAYOUT)).all()  # made from the observation at time t
+
+
+def test_samples_align_every_agent_on_the_same_rows() -> None:
+    buffer = make_buffer(n_envs=1, selector=NearestAgents(k=2))
+    for t in range(20):
+        obs = np.full((1, 12), float(t), dtype=np.float32)
+        obs[0, [2, 6, 10]] = [0.0, t % 3, 5.0]  # positions vary, so selections vary by row
+        buffer.add(obs, obs + 0.5, np.full((1, 6), t / 20), np.zeros(1), np.zeros(1), [info([t, 10 * t, 100 * t])])
+    data = buffer.sample(64)
+    t = data.observations[:, 0]
+    assert th.equal(data.rewards, th.stack([t, 10 * t, 100 * t], dim=1))
+    assert th.allclose(data.next_observations[:, 0], t + 0.5)
+    assert th.allclose(data.actions[:, 0], t / 20)
+    assert data.selections is not None and data.selections.dtype == th.long and data.selections.shape == (64, 3, 2)
+
+
+def test_missing_agent_rewards_is_a_clear_error() -> None:
+    with pytest.raises(KeyError, match="agent_rewards.*PettingZooToGym"):
+        make_buffer(n_envs=1).add(np.zeros((1, 12)), np.zeros((1, 12)), np.zeros((1, 6)), np.zeros(1), np.zeros(1), [{}])
+
+
+def test_buffer_needs_layout_and_refuses_memory_optimisation() -> None:
+    with pytest.raises(ValueError, match="layout"):
+        MultiAgentReplayBuffer(10, OBS_SPACE, ACTION_SPACE)
+    with pytest.raises(ValueError, match="optimize_memory_usage"):
+        MultiAgentReplayBuffer(10, OBS_SPACE, ACTION_SPACE, optimize_memory_usage=True, layout=LAYOUT)
+
+
+def test_memory_formula_in_the_docstring() -> None:
+    """4 * (2 * obs_dim + action_dim + 2 * n_agents + 1) + 2 * n_agents * k bytes per row."""
+    env = make_simple_spread(n_agents=5)
+    layout = env.agent_layout
+    buffer = MultiAgentReplayBuffer(1000, env.observation_space, env.action_space, layout=layout, selector=NearestAgents(k=2))
+    per_row = 4 * (2 * layout.obs_dim + layout.action_dim + 2 * layout.n_agents + 1) + 2 * layout.n_agents * 2
+    assert buffer.nbytes() == 1000 * per_row
+    assert 1e6 * per_row / 1e9 == pytest.approx(1.36, abs=0.01)  # the figure stated for N=5 at 1e6 transitions
+
+
+class TerminatingTeam(gym.Env):
+    """Two agents; the episode truly terminates at step 3 (no time limit)."""
+
+    observation_space = spaces.Box(-10, 10, (4,), np.float32)
+    action_space = spaces.Box(-1, 1, (2,), np.float32)
+    agent_layout = AgentLayout(("x", "y"), (2, 2), (1, 1))
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        self.t = 0
+        return np.zeros(4, np.float32), {}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        self.t += 1
+        done = self.t == 3
+        rewards = np.array([1.0, -1.0], dtype=np.float32)
+        return np.full(4, self.t, np.float32), 0.0, done, False, {"agent_rewards": rewards, "agent_terminations": [done] * 2}
+
+
+def test_true_termination_stops_bootstrapping() -> None:
+    model = MADDPG("MlpPolicy", TerminatingTeam(), policy_kwargs=dict(net_arch=[8]), learning_starts=1000, batch_size=4)
+    model.learn(9)
+    buffer = model.replay_buffer
+    assert buffer.dones[:9, 0, 0].tolist() == [0, 0, 1] * 3
+    assert buffer.timeouts[:9].sum() == 0
+    data = buffer._get_samples(np.array([2, 5, 1]))
+    targets = model._critic_targets(data)
+    assert th.equal(targets[:2], data.rewards[:2])  # terminal rows: y = r
+    assert not th.equal(targets[2], data.rewards[2])  # a non-terminal row bootstraps

@@ -1,0 +1,165 @@
+"""The update equations: critic targets, termination masking, per-agent rewards, actor gradients, Polyak targets."""
+
+import copy
+
+import pytest
+import torch as th
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.policies import AgentCritic
+
+BATCH = 8
+
+
+def make_model(scheme: str = "full", **kwargs) -> MADDPG:
+    model = MADDPG(
+        "MlpPolicy",
+        make_simple_spread(n_agents=3),
+        critic_sharing=scheme,
+        policy_kwargs=dict(net_arch=[16, 16]),
+        learning_starts=10_000,  # only collect: no update happens while the buffer fills
+        buffer_size=1_000,
+        batch_size=BATCH,
+        seed=0,
+        **kwargs,
+    )
+    model.learn(60)
+    return model
+
+
+def sample(model: MADDPG) -> MultiAgentReplayBufferSamples:
+    data = model.replay_buffer.sample(BATCH)
+    # Distinct rewards per agent and a mix of terminal and non-terminal rows.
+    rewards = th.randn(BATCH, 3)
+    dones = th.zeros(BATCH, 3)
+    dones[::3] = 1.0
+    return data._replace(rewards=rewards, dones=dones)
+
+
+@pytest.mark.parametrize("scheme", ["full", "independent", "selected"])
+def test_critic_target_matches_hand_computation(scheme: str) -> None:
+    model = make_model(scheme)
+    data = sample(model)
+    layout = model.agent_layout
+    assert layout is not None
+    # Every agent's *target* actor on its own *next* observation, one agent at a time.
+    next_actions = th.cat(
+        [model.actor_target.mlp.forward_agent(j, data.next_observations[:, layout.obs_slices[j]]) for j in range(3)], dim=1
+    )
+    with th.no_grad():
+        for i in range(3):
+            next_q = AgentCritic(model.critic_target, i)(data.next_observations, next_actions, data.selections)[:, 0]
+            expected = data.rewards[:, i] + model.gamma * (1 - data.dones[:, i]) * next_q
+            assert th.allclose(model._critic_targets(data)[:, i], expected, atol=1e-6)
+    # At a true termination the target is the reward alone.
+    terminal = data.dones[:, 0] == 1
+    assert th.equal(model._critic_targets(data)[terminal], data.rewards[terminal])
+
+
+def test_targets_use_target_actors_not_online_ones() -> None:
+    model = make_model()
+    data = sample(model)
+    before = model._critic_targets(data)
+    with th.no_grad():
+        for param in model.actor.parameters():
+            param.add_(1.0)
+    assert th.equal(model._critic_targets(data), before)
+    with th.no_grad():
+        model.actor_target.mlp.weights[0][2].add_(1.0)  # agent 2's target actor
+    changed = (model._critic_targets(data) - before).abs().amax(dim=0) > 0
+    # With full sharing every critic sees agent 2's target action.
+    assert changed.tolist() == [True, True, True]
+
+
+def test_each_critic_learns_from_its_own_reward() -> None:
+    model = make_model()
+    data = sample(model)
+    base = model._critic_losses(data).detach()
+    rewards = data.rewards.clone()
+    rewards[:, 1] += 5.0
+    moved = model._critic_losses(data._replace(rewards=rewards)).detach()
+    assert moved[1] != base[1]
+    assert th.equal(moved[[0, 2]], base[[0, 2]])
+
+
+def test_critic_loss_reaches_only_its_own_critic() -> None:
+    model = make_model()
+    losses = model._critic_losses(sample(model))
+    for i in range(3):
+        grads = th.autograd.grad(losses[i], list(model.critic.mlp.weights), retain_graph=True)
+        for grad in grads:
+            assert grad[i].abs().sum() > 0
+            assert all(grad[j].abs().sum() == 0 for j in range(3) if j != i)
+
+
+@pytest.mark.parametrize("scheme", ["full", "actions", "selected"])
+def test_actor_loss_reaches_only_its_own_actor(scheme: str) -> None:
+    model = make_model(scheme)
+    losses = model._actor_losses(sample(model))
+    params = list(model.actor.parameters())
+    for i in range(3):
+        for grad in th.autograd.grad(losses[i], params, retain_graph=True):
+            assert grad[i].abs().sum() > 0
+            assert all(grad[j].abs().sum() == 0 for j in range(3) if j != i)
+
+
+def test_actor_loss_takes_other_agents_actions_from_the_sample() -> None:
+    model = make_model()
+    data = sample(model)
+    before = model._actor_losses(data).detach()
+    with th.no_grad():
+        model.actor.mlp.weights[-1][1].add_(1.0)  # change agent 1's actor only
+    after = model._actor_losses(data).detach()
+    assert after[1] != before[1]
+    assert th.equal(after[[0, 2]], before[[0, 2]])
+    # ...while the sampled actions of agent 1 do matter to critic 0 (it sees them).
+    actions = data.actions.clone()
+    actions[:, 5:10] = -actions[:, 5:10]
+    assert model._actor_losses(data._replace(actions=actions))[0] != after[0]
+
+
+def test_one_update_moves_targets_by_polyak_average() -> None:
+    model = make_model()
+    old_actor_target = copy.deepcopy(model.actor_target.state_dict())
+    old_critic_target = copy.deepcopy(model.critic_target.state_dict())
+    old_actor = copy.deepcopy(model.actor.state_dict())
+    model.train(gradient_steps=1, batch_size=BATCH)
+    for online, target, old_target, old_online in (
+        (model.actor, model.actor_target, old_actor_target, old_actor),
+        (model.critic, model.critic_target, old_critic_target, None),
+    ):
+        new_online, new_target = online.state_dict(), target.state_dict()
+        for name, value in new_target.items():
+            expected = (1 - model.tau) * old_target[name] + model.tau * new_online[name]
+            assert th.allclose(value, expected, atol=1e-6), name
+        if old_online is not None:  # the online actor did move
+            assert any(not th.equal(new_online[name], old_online[name]) for name in new_online)
+
+
+def test_learning_rate_schedule_reaches_both_optimizers() -> None:
+    model = make_model(learning_rate=lambda progress: 0.02 * progress)
+    model._current_progress_remaining = 0.25
+    model.train(gradient_steps=1, batch_size=BATCH)
+    for optimizer in (model.actor.optimizer, model.critic.optimizer):
+        assert optimizer.param_groups[0]["lr"] == pytest.approx(0.005)
+
+
+def test_targets_stay_in_eval_mode_and_frozen() -> None:
+    model = make_model()
+    model.policy.set_training_mode(True)
+    assert model.actor.training and model.critic.training
+    assert not model.actor_target.training and not model.critic_target.training
+    assert not any(param.requires_grad for param in model.critic_target.parameters())
+    model.policy.set_training_mode(False)
+    assert not model.actor.training and not model.critic.training
+
+
+def test_truncation_bootstraps_in_stored_transitions() -> None:
+    """simple_spread ends by truncation at max_cycles: its last transition must keep bootstrapping."""
+    model = make_model()  # 60 steps: episodes of 25 end at rows 24 and 49
+    buffer = model.replay_buffer
+    assert buffer.timeouts[24, 0] == 1 and buffer.timeouts[49, 0] == 1
+    assert buffer.timeouts[:60].sum() == 2
+    assert buffer.dones[:60].sum() == 0  # no true termination: every row bootstraps
