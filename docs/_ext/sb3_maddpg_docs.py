@@ -1,0 +1,117 @@
+"""Small Sphinx helpers for the sb3-maddpg docs (no extra dependency).
+
+- ``.. markdown-include:: ../CHANGELOG.md``: renders a simple Markdown file (headings, paragraphs,
+  bullet lists, inline code, bold, links) as reStructuredText, so the changelog has one source.
+- ``.. include-if-exists:: path``: includes a reStructuredText file when it exists at build time and
+  otherwise renders the directive's content (a fallback note), so generated results can be linked
+  before they are produced without breaking a ``-W`` build.
+"""
+
+import re
+from pathlib import Path
+from typing import Any
+
+from docutils import nodes
+from docutils.parsers.rst import directives
+from docutils.statemachine import StringList
+from sphinx.application import Sphinx
+from sphinx.util.docutils import SphinxDirective
+from sphinx.util.nodes import nested_parse_with_titles
+
+# Underline characters for Markdown heading levels 2, 3, 4 (level 1 is the page's own title).
+_UNDERLINES = {2: "-", 3: "~", 4: "^"}
+
+
+def _inline(text: str) -> str:
+    """Convert Markdown inline markup (code, links) to reStructuredText."""
+    parts = re.split(r"(`[^`]+`)", text)
+    out = ""
+    for index, part in enumerate(parts):
+        if index % 2 == 1:  # a code span
+            literal = f"``{part[1:-1]}``"
+            # reST inline markup must be delimited by spaces or punctuation: escape the joins Markdown allows.
+            if out and out[-1].isalnum():
+                literal = "\\ " + literal
+            following = parts[index + 1] if index + 1 < len(parts) else ""
+            if following[:1].isalnum():
+                literal += "\\ "
+            out += literal
+        else:
+            out += re.sub(r"\[([^\]]+)\]\(([^)]+)\)", r"`\1 <\2>`__", part)
+    return out
+
+
+def markdown_to_rst(markdown: str) -> list[str]:
+    """
+    Convert the Markdown subset used by the changelog to reStructuredText lines.
+
+    :param markdown: The Markdown text.
+    :return: reStructuredText lines; the level-1 heading is dropped (the page has its own title).
+    """
+    lines: list[str] = []
+    for raw in markdown.splitlines():
+        line = raw.rstrip()
+        heading = re.match(r"^(#+)\s+(.*)$", line)
+        if heading:
+            level = len(heading.group(1))
+            if level == 1:
+                continue
+            title = _inline(heading.group(2))
+            lines += ["", title, _UNDERLINES.get(level, "^") * max(len(title), 3), ""]
+        elif re.match(r"^\s*[-*]\s+", line):
+            indent = len(line) - len(line.lstrip())
+            lines.append(" " * indent + "- " + _inline(re.sub(r"^\s*[-*]\s+", "", line)))
+        elif line.startswith("  ") and lines and lines[-1].lstrip().startswith("- "):
+            lines[-1] += " " + _inline(line.strip())
+        elif line.startswith("  ") and lines and lines[-1] and not lines[-1].startswith(" ") and line.strip():
+            lines.append(_inline(line))
+        else:
+            lines.append(_inline(line))
+    return lines
+
+
+class MarkdownInclude(SphinxDirective):
+    """Render a simple Markdown file as reStructuredText."""
+
+    required_arguments = 1
+    has_content = False
+
+    def run(self) -> list[nodes.Node]:
+        _, path = self.env.relfn2path(self.arguments[0])
+        self.env.note_dependency(path)
+        text = Path(path).read_text(encoding="utf-8")
+        container = nodes.section()
+        container.document = self.state.document
+        nested_parse_with_titles(self.state, StringList(markdown_to_rst(text), source=path), container)
+        return container.children
+
+
+class IncludeIfExists(SphinxDirective):
+    """Include a reStructuredText file if it exists, else render the directive's content."""
+
+    required_arguments = 1
+    has_content = True
+    option_spec = {"literal": directives.flag}
+
+    def run(self) -> list[nodes.Node]:
+        _, path = self.env.relfn2path(self.arguments[0])
+        source = Path(path)
+        if source.is_file():
+            self.env.note_dependency(path)
+            text = source.read_text(encoding="utf-8")
+            if "literal" in self.options:
+                block = nodes.literal_block(text, text)
+                return [block]
+            lines = StringList(text.splitlines(), source=str(source))
+        else:
+            lines = self.content
+        container = nodes.section()
+        container.document = self.state.document
+        nested_parse_with_titles(self.state, lines, container)
+        return container.children
+
+
+def setup(app: Sphinx) -> dict[str, Any]:
+    app.add_directive("markdown-include", MarkdownInclude)
+    app.add_directive("include-if-exists", IncludeIfExists)
+    return {"version": "0.1", "parallel_read_safe": True, "parallel_write_safe": True}
