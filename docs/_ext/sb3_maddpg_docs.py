@@ -37,6 +37,9 @@ def _inline(text: str) -> str:
                 literal += "\\ "
             out += literal
         else:
+            # A lone ``*`` (e.g. "p < .05 *") or a word ending in ``_`` would be reST markup: escape them.
+            part = re.sub(r"(?<![*\w])\*(?![*\w])", r"\\*", part)
+            part = re.sub(r"(?<=\w)_(?=\s|$|[.,;:)])", r"\\_", part)
             out += re.sub(r"\[([^\]]+)\]\(([^)]+)\)", r"`\1 <\2>`__", part)
     return out
 
@@ -49,8 +52,17 @@ def markdown_to_rst(markdown: str) -> list[str]:
     :return: reStructuredText lines; the level-1 heading is dropped (the page has its own title).
     """
     lines: list[str] = []
+    in_fence = False
     for raw in markdown.splitlines():
         line = raw.rstrip()
+        fence = re.match(r"^\s*```\s*(\w*)", line)
+        if fence:
+            in_fence = not in_fence
+            lines += ["", f".. code-block:: {fence.group(1) or 'text'}", ""] if in_fence else [""]
+            continue
+        if in_fence:
+            lines.append("   " + line)
+            continue
         heading = re.match(r"^(#+)\s+(.*)$", line)
         if heading:
             level = len(heading.group(1))
