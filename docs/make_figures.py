@@ -200,11 +200,52 @@ def draw(scheme: str, paper_name: str, description: str, seen: Seen) -> str:
     return "\n".join(parts) + "\n"
 
 
+def draw_overview(seen_by_scheme: dict[str, Seen]) -> str:
+    """
+    The five schemes side by side: for each, which observations (top row) and actions (bottom row) critic ``OWN`` sees.
+
+    :return: The SVG document.
+    """
+    cell, panel_w = 26, 152
+    width, height = 20 + panel_w * len(SCHEMES), 150
+    parts = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {width} {height}" '
+        'font-family="DejaVu Sans, Arial, Helvetica, sans-serif">',
+        f"<title>{escape(f'What critic {OWN} sees under each scheme')}</title>",
+        f'<rect x="0" y="0" width="{width}" height="{height}" fill="#ffffff"/>',
+    ]
+    for n, (scheme, paper_name, _) in enumerate(SCHEMES):
+        seen = seen_by_scheme[scheme]
+        obs_seen = {agent for kind, agent in seen.blocks if kind == "o"}
+        act_seen = {agent for kind, agent in seen.blocks if kind == "a"}
+        x0 = 20 + n * panel_w
+        parts.append(_text(x0 + cell * N_AGENTS / 2, 22, paper_name, size=13, weight="bold"))
+        parts.append(_text(x0 + cell * N_AGENTS / 2, 40, f'"{scheme}"', size=11, fill="#555"))
+        for agent in range(N_AGENTS):
+            for row, (kind, seen_set, color) in enumerate((("o", obs_seen, OBS_COLOR), ("a", act_seen, ACT_COLOR))):
+                on = agent in seen_set
+                x, y = x0 + cell * agent, 52 + cell * row
+                stroke = f'stroke="{OWN_COLOR}" stroke-width="2.5"' if agent == OWN else 'stroke="#ffffff" stroke-width="1.5"'
+                size = cell - 3
+                fill = color if on else OFF_COLOR
+                box = f'x="{x + 1.5}" y="{y + 1.5}" width="{size}" height="{size}"'
+                parts.append(f'<rect {box} rx="3" fill="{fill}" {stroke}/>')
+                parts.append(_sub(x + cell / 2, y + cell / 2 + 3, kind, agent, size=11, fill="#fff" if on else "#999"))
+            parts.append(_text(x0 + cell * agent + cell / 2, 52 + 2 * cell + 14, str(agent), size=10, fill="#777"))
+        extra = f"k = {len(seen.selection)} nearest: {', '.join(map(str, seen.selection))}" if seen.selection else ""
+        parts.append(_text(x0 + cell * N_AGENTS / 2, 136, extra, size=10, fill="#555"))
+    parts.append("</svg>")
+    return "\n".join(parts) + "\n"
+
+
 def render_all() -> dict[str, str]:
     """
     :return: The SVG text of every figure, by file name.
     """
-    return {f"{scheme}.svg": draw(scheme, paper, description, probe(scheme)) for scheme, paper, description in SCHEMES}
+    seen = {scheme: probe(scheme) for scheme, _, _ in SCHEMES}
+    figures = {f"{scheme}.svg": draw(scheme, paper, description, seen[scheme]) for scheme, paper, description in SCHEMES}
+    figures["overview.svg"] = draw_overview(seen)
+    return figures
 
 
 def main(argv: list[str] | None = None) -> int:
