@@ -5,6 +5,8 @@
 - ``.. include-if-exists:: path``: includes a reStructuredText file when it exists at build time and
   otherwise renders the directive's content (a fallback note), so generated results can be linked
   before they are produced without breaking a ``-W`` build.
+- ``.. results-directory:: path``: shows the Markdown tables and the figures of a report directory
+  written by ``sb3-maddpg report``, or the directive's content when there is none.
 """
 
 import re
@@ -37,8 +39,8 @@ def _inline(text: str) -> str:
                 literal += "\\ "
             out += literal
         else:
-            # A lone ``*`` (e.g. "p < .05 *") or a word ending in ``_`` would be reST markup: escape them.
-            part = re.sub(r"(?<![*\w])\*(?![*\w])", r"\\*", part)
+            # Lone asterisks (e.g. "p < .05 **") or a word ending in ``_`` would be reST markup: escape them.
+            part = re.sub(r"(?<![\w*])(\*+)(?![\w*])", lambda match: "\\*" * len(match.group(1)), part)
             part = re.sub(r"(?<=\w)_(?=\s|$|[.,;:)])", r"\\_", part)
             out += re.sub(r"\[([^\]]+)\]\(([^)]+)\)", r"`\1 <\2>`__", part)
     return out
@@ -53,8 +55,17 @@ def markdown_to_rst(markdown: str) -> list[str]:
     """
     lines: list[str] = []
     in_fence = False
-    for raw in markdown.splitlines():
+    table: list[list[str]] = []
+    for raw in [*markdown.splitlines(), ""]:
         line = raw.rstrip()
+        if line.lstrip().startswith("|") and not in_fence:
+            cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+            if not all(re.fullmatch(r":?-{3,}:?", cell) for cell in cells):
+                table.append(cells)
+            continue
+        if table:
+            lines += _list_table(table)
+            table = []
         fence = re.match(r"^\s*```\s*(\w*)", line)
         if fence:
             in_fence = not in_fence
@@ -80,6 +91,17 @@ def markdown_to_rst(markdown: str) -> list[str]:
         else:
             lines.append(_inline(line))
     return lines
+
+
+def _list_table(rows: list[list[str]]) -> list[str]:
+    """A Markdown pipe table (first row: header) as a reST ``list-table``."""
+    width = max(len(row) for row in rows)
+    out = ["", ".. list-table::", "   :header-rows: 1", ""]
+    for row in rows:
+        cells = [*row, *[""] * (width - len(row))]
+        out.append(f"   * - {_inline(cells[0]) or ' '}")
+        out += [f"     - {_inline(cell) or ' '}" for cell in cells[1:]]
+    return [*out, ""]
 
 
 class MarkdownInclude(SphinxDirective):
@@ -123,7 +145,49 @@ class IncludeIfExists(SphinxDirective):
         return container.children
 
 
+class ResultsDirectory(SphinxDirective):
+    """
+    Show a results directory written by ``sb3-maddpg report`` (or a copy of it), if it exists: its
+    ``index.rst`` or ``results.rst`` if it has one; else ``README.md`` or ``description.md`` first, then
+    every ``table_*.md``, then every figure (``*.svg``, ``*.png``). Otherwise render the directive's content.
+    """
+
+    required_arguments = 1
+    has_content = True
+
+    def run(self) -> list[nodes.Node]:
+        rel_dir, abs_dir = self.env.relfn2path(self.arguments[0])
+        directory = Path(abs_dir)
+        for name in ("index.rst", "results.rst"):
+            if (directory / name).is_file():  # a hand-written page of the results takes precedence
+                self.env.note_dependency(str(directory / name))
+                text = (directory / name).read_text(encoding="utf-8")
+                return self._parse(StringList(text.splitlines(), source=str(directory / name)))
+        texts = [directory / name for name in ("README.md", "description.md") if (directory / name).is_file()]
+        texts += sorted(directory.glob("table_*.md")) if directory.is_dir() else []
+        figures = sorted([*directory.glob("*.svg"), *directory.glob("*.png")]) if directory.is_dir() else []
+        if not texts and not figures:
+            lines = self.content
+        else:
+            rst: list[str] = []
+            for path in texts:
+                self.env.note_dependency(str(path))
+                rst += [*markdown_to_rst(path.read_text(encoding="utf-8")), ""]
+            for path in figures:
+                alt = path.stem.replace("_", " ")
+                rst += [f".. image:: /{rel_dir}/{path.name}", f"   :alt: {alt}", "   :width: 100%", ""]
+            lines = StringList(rst, source=str(directory))
+        return self._parse(lines)
+
+    def _parse(self, lines: StringList) -> list[nodes.Node]:
+        container = nodes.section()
+        container.document = self.state.document
+        nested_parse_with_titles(self.state, lines, container)
+        return container.children
+
+
 def setup(app: Sphinx) -> dict[str, Any]:
     app.add_directive("markdown-include", MarkdownInclude)
     app.add_directive("include-if-exists", IncludeIfExists)
+    app.add_directive("results-directory", ResultsDirectory)
     return {"version": "0.1", "parallel_read_safe": True, "parallel_write_safe": True}
