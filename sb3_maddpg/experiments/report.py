@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES
+from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, SCHEMES
 from sb3_maddpg.experiments.runner import DONE_FILE, SUMMARY_FILE
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, aggregate
 from sb3_maddpg.experiments.sweep import EXPERIMENT_FILE
@@ -75,7 +75,8 @@ def format_markdown(
     info = METRICS.get(metric, Metric(metric, metric))
     experiments = experiments or {}
     settings = list(dict.fromkeys(cell.setting for cell in cells))
-    schemes = list(dict.fromkeys(cell.scheme for cell in cells))
+    present = {cell.scheme for cell in cells}
+    schemes = [scheme for scheme in SCHEMES if scheme in present] + sorted(present - set(SCHEMES))
     by_key = {(cell.setting, cell.scheme): cell for cell in cells}
     header = ["setting", *(PAPER_NAMES.get(scheme, scheme) for scheme in schemes)]
     lines = [

@@ -1,0 +1,175 @@
+"""Tests of team evaluation (``evaluate_team``) and its training callback (``TeamEvalCallback``)."""
+
+import csv
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium import spaces
+from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+from stable_baselines3.common.logger import configure
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.evaluation import EVAL_KEYS, TeamEvalCallback, evaluate_team
+
+TINY = dict(
+    learning_starts=50, batch_size=32, buffer_size=2_000, train_freq=25, policy_kwargs=dict(net_arch=dict(pi=[8], qf=[8]))
+)
+
+
+class ScriptedEnv(gym.Env):
+    """
+    A two-agent env with scripted episodes: episode e lasts ``lengths[e % len(lengths)]`` steps, gives
+    reward e + 1 per step split 1:3 between the agents, and reports metrics that depend on the step
+    (so that last-step and summed metrics differ from any other reading).
+    """
+
+    observation_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+    action_space = spaces.Box(0.0, 1.0, (2,), np.float32)
+
+    def __init__(self, lengths: tuple[int, ...] = (3, 5), with_metrics: bool = True) -> None:
+        self.lengths = lengths
+        self.with_metrics = with_metrics
+        self.episode = -1
+        self.t = 0
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        self.episode += 1
+        self.t = 0
+        return np.zeros(2, np.float32), {}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        self.t += 1
+        length = self.lengths[self.episode % len(self.lengths)]
+        reward = float(self.episode + 1)
+        info: dict[str, Any] = {"agent_rewards": np.array([0.25 * reward, 0.75 * reward], np.float32)}
+        if self.with_metrics:
+            last = self.t == length
+            info.update(
+                success=float(last and self.episode % 2 == 0),  # success only at the last step of even episodes
+                coverage=0.5 if last else 1.0,  # the last step's coverage differs from every other step's
+                collisions=float(self.t),  # summed over the episode: 1 + 2 + ... + length
+                min_dist_sum=float(10 * self.episode + self.t),
+            )
+        return np.zeros(2, np.float32), reward, False, self.t == length, info
+
+
+class ConstantModel:
+    """A 'model' whose ``predict`` returns the same action everywhere."""
+
+    def __init__(self, action: np.ndarray) -> None:
+        self.action = action
+
+    def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = False) -> tuple:
+        batch = np.asarray(observation).shape[0]
+        return np.tile(self.action, (batch, 1)), None
+
+
+def test_evaluate_team_reads_last_step_and_sums_collisions() -> None:
+    env = ScriptedEnv(lengths=(3, 5))
+    result = evaluate_team(ConstantModel(np.zeros(2, np.float32)), env, n_episodes=4)
+    # Episodes 0..3 last 3, 5, 3, 5 steps and give rewards 1, 2, 3, 4 per step.
+    returns = np.array([3 * 1, 5 * 2, 3 * 3, 5 * 4], dtype=float)
+    assert result["n_episodes"] == 4
+    assert result["success_rate"] == pytest.approx(0.5)  # episodes 0 and 2
+    assert result["coverage"] == pytest.approx(0.5)  # the last step's value, not the mean over steps
+    assert result["collisions"] == pytest.approx(np.mean([6, 15, 6, 15]))  # summed over each episode
+    assert result["min_dist_sum"] == pytest.approx(np.mean([3, 15, 23, 35]))  # 10 * episode + last step
+    assert result["return_mean"] == pytest.approx(returns.mean())
+    assert result["return_std"] == pytest.approx(returns.std())
+    assert result["episode_length"] == pytest.approx(4.0)
+    assert result["agent_returns"] == pytest.approx([0.25 * returns.mean(), 0.75 * returns.mean()])
+
+
+def test_evaluate_team_without_metrics_gives_nan() -> None:
+    result = evaluate_team(ConstantModel(np.zeros(2, np.float32)), ScriptedEnv(with_metrics=False), n_episodes=2)
+    for key in ("success_rate", "coverage", "collisions", "min_dist_sum"):
+        assert math.isnan(result[key])
+    assert result["return_mean"] == pytest.approx((3 * 1 + 5 * 2) / 2)
+
+
+def test_evaluate_team_spreads_episodes_over_vec_envs() -> None:
+    vec_env = DummyVecEnv([lambda: ScriptedEnv(lengths=(2,)), lambda: ScriptedEnv(lengths=(7,))])
+    result = evaluate_team(ConstantModel(np.zeros(2, np.float32)), vec_env, n_episodes=5)
+    # Episodes spread evenly (2 + 3), so the short env does not fill the count alone.
+    assert result["n_episodes"] == 5
+    assert result["episode_length"] == pytest.approx((2 * 2 + 3 * 7) / 5)
+
+
+def simple_spread_by_hand(action: np.ndarray, n_episodes: int, seed: int) -> dict[str, float]:
+    """The metrics of a constant-action team, computed with a plain loop over the gymnasium env."""
+    env = make_simple_spread(n_agents=3)
+    success, coverage, collisions, min_dist = [], [], [], []
+    env.reset(seed=seed)
+    for episode in range(n_episodes):
+        if episode > 0:
+            env.reset()
+        total_collisions, done = 0.0, False
+        while not done:
+            _, _, terminated, truncated, info = env.step(action)
+            total_collisions += info["collisions"]
+            done = terminated or truncated
+        success.append(info["success"])
+        coverage.append(info["coverage"])
+        min_dist.append(info["min_dist_sum"])
+        collisions.append(total_collisions)
+    return {
+        "success_rate": float(np.mean(success)),
+        "coverage": float(np.mean(coverage)),
+        "collisions": float(np.mean(collisions)),
+        "min_dist_sum": float(np.mean(min_dist)),
+    }
+
+
+def test_evaluate_team_on_simple_spread_matches_a_hand_loop() -> None:
+    rng = np.random.default_rng(0)
+    action = rng.uniform(0, 1, size=15).astype(np.float32)
+    result = evaluate_team(ConstantModel(action), make_simple_spread(n_agents=3), n_episodes=6, seed=123)
+    expected = simple_spread_by_hand(action, n_episodes=6, seed=123)
+    for key, value in expected.items():
+        assert result[key] == pytest.approx(value), key
+    assert set(EVAL_KEYS) <= set(result)
+    assert len(result["agent_returns"]) == 3
+
+
+def test_evaluate_team_seed_makes_evaluations_repeatable() -> None:
+    model = MADDPG("MlpPolicy", make_simple_spread(n_agents=3), seed=0, **TINY)
+    env = make_simple_spread(n_agents=3)
+    first = evaluate_team(model, env, n_episodes=4, seed=7)
+    second = evaluate_team(model, env, n_episodes=4, seed=7)
+    other = evaluate_team(model, env, n_episodes=4, seed=8)
+    assert first == second
+    assert first["min_dist_sum"] != other["min_dist_sum"]
+    with pytest.raises(ValueError, match="n_episodes"):
+        evaluate_team(model, env, n_episodes=0)
+
+
+def test_team_eval_callback_logs_beside_eval_callback(tmp_path: Any) -> None:
+    model = MADDPG("MlpPolicy", make_simple_spread(n_agents=3), seed=1, **TINY)
+    model.set_logger(configure(str(tmp_path), ["csv"]))
+    curve_path = tmp_path / "curve.csv"
+    team_eval = TeamEvalCallback(
+        make_simple_spread(n_agents=3), eval_freq=100, n_eval_episodes=2, seed=5, log_path=str(curve_path), eval_at_start=True
+    )
+    sb3_eval = EvalCallback(make_simple_spread(n_agents=3), eval_freq=100, n_eval_episodes=2, warn=False)
+    model.learn(300, callback=CallbackList([team_eval, sb3_eval]))
+
+    assert [row["timesteps"] for row in team_eval.history] == [0, 100, 200, 300]
+    with open(curve_path, newline="") as file:
+        rows = list(csv.DictReader(file))
+    assert [float(row["timesteps"]) for row in rows] == [0, 100, 200, 300]
+    assert float(rows[-1]["min_dist_sum"]) == pytest.approx(team_eval.history[-1]["min_dist_sum"])
+    with open(tmp_path / "progress.csv", newline="") as file:
+        progress = list(csv.DictReader(file))
+    columns = set(progress[0])
+    assert {f"eval/{key}" for key in EVAL_KEYS} <= columns
+    assert "eval/mean_reward" in columns  # SB3's EvalCallback still logs its own keys
+    logged = [float(row["eval/min_dist_sum"]) for row in progress if row["eval/min_dist_sum"]]
+    assert logged == pytest.approx([row["min_dist_sum"] for row in team_eval.history])
+    with pytest.raises(ValueError, match="eval_freq"):
+        TeamEvalCallback(make_simple_spread(n_agents=3), eval_freq=0)

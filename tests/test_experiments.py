@@ -1,0 +1,297 @@
+"""Tests of the paper's protocol: configs, statistics, runs, resume, both backends, the report and the CLI."""
+
+import csv
+import dataclasses
+import json
+import math
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy.stats import mannwhitneyu
+
+from sb3_maddpg.experiments import EXP1, EXP2, SCHEMES, SMOKE, RunConfig, make_report, run_sweep
+from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.experiments.report import format_markdown, load_summaries
+from sb3_maddpg.experiments.runner import DONE_FILE, RESULT_FILES, execute_run, is_finished
+from sb3_maddpg.experiments.stats import aggregate, mann_whitney, mean_std, significance_stars
+
+# ---------------------------------------------------------------------------------------------------------------
+# Configs
+
+
+def test_paper_presets() -> None:
+    assert (EXP1.n_agents, EXP1.num_agent_neighbors, EXP1.episodes) == (5, None, 100_000)
+    assert (EXP2.n_agents, EXP2.num_agent_neighbors, EXP2.episodes) == (5, 2, 150_000)
+    for experiment in (EXP1, EXP2):
+        runs = experiment.runs()
+        assert len(runs) == 5 * 31
+        assert {run.scheme for run in runs} == set(SCHEMES)
+        assert sorted({run.seed for run in runs}) == list(range(31))
+        assert len({run.run_id for run in runs}) == len(runs)
+    # 20 models over episodes 80k-100k and 30 over 120k-150k, every 1,000 episodes, the last at the end.
+    assert EXP1.runs()[0].checkpoint_episodes() == list(range(81_000, 100_001, 1_000))
+    assert EXP2.runs()[0].checkpoint_episodes() == list(range(121_000, 150_001, 1_000))
+    assert EXP1.runs()[0].checkpoint_steps()[-1] == EXP1.runs()[0].total_timesteps == 2_500_000
+    assert SMOKE.n_agents == 3 and len(SMOKE.seeds) == 2 and SMOKE.schemes == SCHEMES
+
+
+def test_overrides_and_validation() -> None:
+    small = EXP1.replace(n_agents=3, episodes=500, seeds=(4, 5), schemes=("full", "selected"), n_checkpoints=10, name=None)
+    assert small.name == "exp1" and small.n_agents == 3  # None overrides are ignored
+    runs = small.runs()
+    assert [(run.seed, run.scheme) for run in runs] == [(4, "full"), (4, "selected"), (5, "full"), (5, "selected")]
+    assert runs[0].checkpoint_episodes() == list(range(410, 501, 10))  # 1% of the budget over the last 20%
+    assert runs[0].total_timesteps == 500 * 25
+    run = runs[0]
+    assert RunConfig.from_dict(json.loads(json.dumps(run.to_dict()))).same_as(run)
+    assert not dataclasses.replace(run, seed=9).same_as(run)
+    with pytest.raises(ValueError, match="checkpoints do not fit"):
+        EXP1.replace(episodes=50, n_checkpoints=20).runs()
+    with pytest.raises(ValueError, match="checkpoint_fraction"):
+        dataclasses.replace(run, checkpoint_fraction=0.0)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Statistics on fixed arrays
+
+FIXED_PAIRS = [
+    ([0.61, 0.72, 0.55, 0.80, 0.67], [0.41, 0.38, 0.52, 0.45, 0.49]),  # separated: exact p = 2/252
+    ([0.1, 0.2, 0.3, 0.4], [0.15, 0.25, 0.35, 0.45]),  # interleaved
+    ([0.0, 0.0, 0.2, 0.2, 0.4], [0.0, 0.2, 0.2, 0.6, 0.6, 0.8]),  # ties: normal approximation
+    ([1.0, 2.0, 3.0], [4.0, 5.0, 6.0]),
+]
+
+
+@pytest.mark.parametrize(("x", "y"), FIXED_PAIRS)
+def test_mann_whitney_matches_scipy(x: list[float], y: list[float]) -> None:
+    expected = mannwhitneyu(x, y, alternative="two-sided")
+    u_statistic, p_value = mann_whitney(x, y)
+    assert u_statistic == pytest.approx(expected.statistic)
+    assert p_value == pytest.approx(expected.pvalue)
+
+
+def test_mann_whitney_known_values_and_edge_cases() -> None:
+    # Five against five, completely separated: U = 25 and the exact two-sided p = 2 / C(10, 5) = 2/252.
+    u_statistic, p_value = mann_whitney(*FIXED_PAIRS[0])
+    assert u_statistic == 25.0
+    assert p_value == pytest.approx(2 / 252)
+    assert mann_whitney([0.0, 0.0, 0.0], [0.0, 0.0]) == (3.0, 1.0)  # all equal: no difference
+    assert all(math.isnan(value) for value in mann_whitney([], [1.0, 2.0]))
+
+
+@pytest.mark.parametrize(
+    ("p_value", "stars"),
+    [(0.0001, "**"), (0.0099, "**"), (0.01, "*"), (0.03, "*"), (0.0499, "*"), (0.05, ""), (0.5, ""), (math.nan, "")],
+)
+def test_significance_stars(p_value: float, stars: str) -> None:
+    assert significance_stars(p_value) == stars
+
+
+def make_summaries(scores: dict[str, dict[str, list[float]]], metric: str = "success_rate") -> list[dict[str, Any]]:
+    summaries = []
+    for setting, by_scheme in scores.items():
+        for scheme, values in by_scheme.items():
+            for seed, value in enumerate(values):
+                summaries.append({"experiment": setting, "scheme": scheme, "seed": seed, "score": {metric: value}})
+    return summaries
+
+
+def test_table2_aggregation() -> None:
+    scores = {
+        "exp1": {
+            "selected": [0.70, 0.74, 0.69, 0.78, 0.71],
+            "full": [0.61, 0.66, 0.58, 0.64, 0.60],
+            "independent": [0.41, 0.47, 0.44, 0.39, 0.50],
+            "actions": [0.60, 0.65, 0.62, 0.59, 0.66],
+        },
+        "exp2": {"full": [0.3, 0.2], "observations": [0.1, 0.4]},
+    }
+    # Seeds in shuffled order must give the same cells (scores are matched by seed, not by order).
+    summaries = make_summaries(scores)[::-1]
+    cells = aggregate(summaries, "success_rate")
+    assert [(cell.setting, cell.scheme) for cell in cells] == [
+        ("exp2", "full"),
+        ("exp2", "observations"),
+        ("exp1", "full"),
+        ("exp1", "independent"),
+        ("exp1", "actions"),
+        ("exp1", "selected"),
+    ]
+    by_key = {(cell.setting, cell.scheme): cell for cell in cells}
+    for (setting, scheme), cell in by_key.items():
+        percent = 100 * np.array(scores[setting][scheme])
+        assert cell.scores == pytest.approx(tuple(percent))
+        assert cell.mean == pytest.approx(percent.mean())
+        assert cell.std == pytest.approx(percent.std(ddof=1))
+        assert cell.method in {"MADDPG", "IDDPG", "MADDPG-fo", "MADDPG-fa", "MADDPG-soa"}
+        if scheme == "full":
+            assert math.isnan(cell.p_value) and cell.stars == ""
+        else:
+            expected = mannwhitneyu(percent, 100 * np.array(scores[setting]["full"]), alternative="two-sided")
+            assert cell.p_value == pytest.approx(expected.pvalue)
+            assert cell.stars == significance_stars(expected.pvalue)
+    assert by_key[("exp1", "selected")].stars == "**"  # completely above MADDPG, 5 vs 5
+    assert by_key[("exp1", "independent")].stars == "**"
+    assert by_key[("exp1", "actions")].stars == ""
+    markdown = format_markdown(cells, "success_rate")
+    header = "| setting | MADDPG | IDDPG | MADDPG-fo | MADDPG-fa | MADDPG-soa |"
+    assert header in markdown
+    selected = by_key[("exp1", "selected")]
+    assert f"{selected.mean:.2f} ({selected.std:.2f}) **" in markdown
+    # min_dist_sum is reported in its own units, not in percent.
+    raw = aggregate(make_summaries({"s": {"full": [1.5, 2.5]}}, "min_dist_sum"), "min_dist_sum")
+    assert raw[0].mean == pytest.approx(2.0)
+    assert mean_std([3.0]) == (3.0, 0.0)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Runs, resume and backends (the smoke configuration: N=3, tiny budget and networks)
+
+
+def tiny(experiment_name: str = "smoke", **changes: Any) -> Any:
+    return SMOKE.replace(name=experiment_name, **changes)
+
+
+def read_rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as file:
+        return list(csv.DictReader(file))
+
+
+def test_run_directory_resume_and_purity(tmp_path: Path) -> None:
+    config = tiny(schemes=("selected",), seeds=(3,)).runs()[0]
+    first = execute_run(config, tmp_path / "a", verbose=0)
+    directory = tmp_path / "a" / config.run_id
+    for name in (*RESULT_FILES, DONE_FILE):
+        assert (directory / name).exists(), name
+    assert not (directory / "checkpoints").exists()  # the smoke config drops model files after evaluation
+    evaluations = read_rows(directory / "checkpoint_evals.csv")
+    assert [int(row["timesteps"]) for row in evaluations] == config.checkpoint_steps()
+    # The score is the mean over the checkpoints.
+    assert first["score"]["min_dist_sum"] == pytest.approx(np.mean([float(row["min_dist_sum"]) for row in evaluations]))
+    curve = read_rows(directory / "learning_curve.csv")
+    assert float(curve[0]["timesteps"]) == 0 and float(curve[-1]["timesteps"]) == config.total_timesteps
+    assert "rollout/ep_rew_mean" in read_rows(directory / "progress.csv")[0]
+
+    # A finished run is not repeated ...
+    done_stamp = (directory / DONE_FILE).stat().st_mtime_ns
+    assert execute_run(config, tmp_path / "a", verbose=0)["score"] == first["score"]
+    assert (directory / DONE_FILE).stat().st_mtime_ns == done_stamp
+    # ... a run is a pure function of its config: the same config elsewhere gives the same evaluations ...
+    execute_run(config, tmp_path / "b", verbose=0)
+    assert read_rows(tmp_path / "b" / config.run_id / "checkpoint_evals.csv") == evaluations
+    # ... and a finished run with another config in the same place is refused.
+    with pytest.raises(ValueError, match="another config"):
+        is_finished(tmp_path / "a", dataclasses.replace(config, eval_episodes=3))
+
+
+def test_interrupted_sweep_resumes(tmp_path: Path) -> None:
+    experiment = tiny(schemes=("full", "independent"), seeds=(0,))
+    runs = experiment.runs()
+    # Simulate an interruption: one run finished, the other started (its directory exists, no done marker).
+    execute_run(runs[0], tmp_path, verbose=0)
+    unfinished = tmp_path / runs[1].run_id
+    unfinished.mkdir(parents=True)
+    (unfinished / "stale.txt").write_text("from the interrupted sweep")
+    finished_stamp = (tmp_path / runs[0].run_id / DONE_FILE).stat().st_mtime_ns
+
+    result = run_sweep([experiment], tmp_path, workers=1, verbose=0)
+    assert result.ok and result.skipped == 1 and [s["run_id"] for s in result.completed] == [runs[1].run_id]
+    assert (tmp_path / runs[0].run_id / DONE_FILE).stat().st_mtime_ns == finished_stamp
+    assert (unfinished / DONE_FILE).exists() and not (unfinished / "stale.txt").exists()  # restarted cleanly
+
+    again = run_sweep([experiment], tmp_path, workers=1, verbose=0)
+    assert again.ok and again.skipped == 2 and not again.completed
+    log = (tmp_path / "sweep.log").read_text()
+    assert "1 finished before, 1 to run" in log and "2 finished before, 0 to run" in log
+
+
+@pytest.fixture(scope="module")
+def local_results(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The whole smoke configuration (five schemes, two seeds) on the local backend with two workers."""
+    results = tmp_path_factory.mktemp("local")
+    result = run_sweep([SMOKE], results, backend="local", workers=2, verbose=0)
+    assert result.ok, result.failed
+    assert result.total == 10 and len(result.completed) == 10
+    return results
+
+
+def test_local_backend_runs_the_smoke_sweep(local_results: Path) -> None:
+    summaries = load_summaries(local_results)
+    assert len(summaries) == 10
+    assert {(s["scheme"], s["seed"]) for s in summaries} == {(scheme, seed) for scheme in SCHEMES for seed in (0, 1)}
+    for summary in summaries:
+        assert summary["n_checkpoints"] == 2
+        assert 0.0 <= summary["score"]["success_rate"] <= 1.0
+        assert summary["score"]["min_dist_sum"] > 0
+        assert summary["train_steps_per_s"] > 0
+    assert "sweep finished: 10 run(s)" in (local_results / "sweep.log").read_text()
+
+
+def test_ray_backend_runs_the_smoke_sweep(tmp_path: Path, local_results: Path) -> None:
+    pytest.importorskip("ray", reason="the Ray backend test needs ray (installed in CI through the dev extra)")
+    result = run_sweep([SMOKE], tmp_path, backend="ray", workers=2, verbose=0)
+    assert result.ok, result.failed
+    assert len(result.completed) == 10
+    # Ray tasks return their result files; they are in the results directory, with the same scores as the
+    # local backend's (a run is a pure function of its config).
+    ray_scores = {s["run_id"]: s["score"] for s in load_summaries(tmp_path)}
+    local_scores = {s["run_id"]: s["score"] for s in load_summaries(local_results)}
+    assert ray_scores.keys() == local_scores.keys()
+    for run_id, score in ray_scores.items():
+        assert score == pytest.approx(local_scores[run_id]), run_id
+
+
+def test_report_writes_table_and_plots(local_results: Path, tmp_path: Path) -> None:
+    written = make_report(local_results, tmp_path, metrics=("success_rate", "min_dist_sum"))
+    names = sorted(path.name for path in written)
+    assert names == sorted(
+        f"{kind}_{metric}.{ext}"
+        for metric in ("success_rate", "min_dist_sum")
+        for kind, ext in (("table", "md"), ("table", "csv"), ("learning_curves", "png"), ("boxplot", "png"))
+    )
+    for path in written:
+        assert path.stat().st_size > 0
+        if path.suffix == ".png":
+            assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    rows = read_rows(tmp_path / "table_min_dist_sum.csv")
+    assert [row["method"] for row in rows] == ["MADDPG", "IDDPG", "MADDPG-fo", "MADDPG-fa", "MADDPG-soa"]
+    summaries = load_summaries(local_results)
+    for row in rows:
+        values = [s["score"]["min_dist_sum"] for s in summaries if s["scheme"] == row["scheme"]]
+        assert float(row["mean"]) == pytest.approx(np.mean(values))
+        assert int(row["n"]) == 2
+    assert "smoke (N=3, full obs., 40 ep.)" in (tmp_path / "table_success_rate.md").read_text()
+    # Regenerating gives the same table.
+    before = (tmp_path / "table_min_dist_sum.md").read_text()
+    make_report(local_results, tmp_path, metrics=("min_dist_sum",), plots=False)
+    assert (tmp_path / "table_min_dist_sum.md").read_text() == before
+    with pytest.raises(ValueError, match="Unknown metric"):
+        make_report(local_results, tmp_path, metrics=("nonsense",), plots=False)
+
+
+def test_cli_run_and_report(tmp_path: Path, local_results: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    results, report = tmp_path / "results", tmp_path / "report"
+    argv = ["run", "--config", "smoke", "--results", str(results), "--schemes", "full,actions", "--seeds", "1"]
+    assert main([*argv, "--dry-run"]) == 0
+    assert "2 run(s) to do, 0 finished" in capsys.readouterr().out
+    assert main([*argv, "--episodes", "30", "--n-checkpoints", "3", "--neighbors", "1", "--quiet"]) == 0
+    output = capsys.readouterr().out
+    assert "[2/2]" in output and "left" in output  # sweep progress: runs done of total, time left
+    config = json.loads((results / "smoke" / "actions" / "seed_000" / "config.json").read_text())
+    assert (config["episodes"], config["n_checkpoints"], config["num_agent_neighbors"]) == (30, 3, 1)
+
+    # Report from a copy of the local sweep plus this one: two settings, both with MADDPG.
+    shutil.copytree(local_results / "smoke", results / "smoke_local")
+    for path in (results / "smoke_local").glob("*/seed_*/summary.json"):
+        summary = json.loads(path.read_text())
+        path.write_text(json.dumps({**summary, "experiment": "smoke_local"}))
+    assert main(["report", str(results), "--out", str(report), "--metric", "coverage", "--metric", "return_mean"]) == 0
+    for metric in ("coverage", "return_mean"):
+        for name in (f"table_{metric}.md", f"table_{metric}.csv", f"learning_curves_{metric}.png", f"boxplot_{metric}.png"):
+            assert (report / name).exists(), name
+    table = (report / "table_coverage.md").read_text()
+    assert "| smoke (N=3, 1 nearest obs., 30 ep.) |" in table
+    assert "| smoke_local" in table
