@@ -1,8 +1,9 @@
 """Reproduce the paper's experiments with the ``sb3-maddpg`` command line, at three scales.
 
     python examples/reproduce_paper.py --fast                   # seconds: the pipeline on a tiny budget (CI)
-    python examples/reproduce_paper.py --scale small --workers 4   # hours on a multi-core CPU
-    python examples/reproduce_paper.py --scale full --workers 32   # the paper's protocol: 31 seeds x 5 schemes x 2 settings
+    python examples/reproduce_paper.py --scale small --workers 4           # 25 runs of 150k steps: hours on a CPU
+    python examples/reproduce_paper.py --scale small-partial --workers 8   # partial observability, a tenth of exp2
+    python examples/reproduce_paper.py --scale full --workers 32           # the paper: 31 seeds x 5 schemes x 2 settings
 
 Every scale trains each (scheme, seed) run, saves checkpoints over the last 20% of training,
 evaluates them, and writes a report: the paper's Table 2 (mean success rate, std, Mann-Whitney U
@@ -24,9 +25,14 @@ from sb3_maddpg.experiments.cli import main as sb3_maddpg_cli
 SCALES: dict[str, str] = {
     # The pipeline only: 3 agents, 40 episodes, tiny networks, one seed per scheme.
     "smoke": "--config smoke --seeds 1",
-    # Both settings of the paper (N=5, full and partial observability) at a budget a workstation finishes:
-    # a tenth of the episodes, 5 seeds instead of 31, 10 checkpoints of 50 evaluation episodes each.
-    "small": "--config exp1 --config exp2 --episodes 10000 --seeds 5 --n-checkpoints 10 --eval-episodes 50 --curve-points 20",
+    # The measured small-scale comparison shown in the docs (benchmarks/paper_small/config.json): experiment 1's
+    # protocol with 3 agents, 6,000 episodes (150k steps), 5 seeds, 50 evaluation episodes per checkpoint.
+    "small": (
+        "--config exp1 --name n3_full --n-agents 3 --episodes 6000 --seeds 5 --eval-episodes 50 "
+        "--curve-points 15 --curve-eval-episodes 20 --no-keep-checkpoints"
+    ),
+    # Experiment 2's setting (5 agents, each observing its 2 nearest) at a tenth of its budget, 5 seeds.
+    "small-partial": "--config exp2 --name exp2_small --episodes 15000 --seeds 5 --n-checkpoints 10 --eval-episodes 50",
     # The paper: N=5, 100,000 (exp1) and 150,000 (exp2) episodes, 31 seeds, 20 and 30 checkpoints.
     "full": "--config exp1 --config exp2",
 }
