@@ -1,4 +1,4 @@
-"""Reproduce the paper's experiments with the ``sb3-maddpg`` command line, at three scales.
+"""Reproduce the paper's experiments with the ``sb3-maddpg`` command line, from a smoke test to full scale.
 
     python examples/reproduce_paper.py --fast                   # seconds: the pipeline on a tiny budget (CI)
     python examples/reproduce_paper.py --scale small --workers 4           # 25 runs of 150k steps: hours on a CPU

@@ -5,10 +5,12 @@
 - ``.. include-if-exists:: path``: includes a reStructuredText file when it exists at build time and
   otherwise renders the directive's content (a fallback note), so generated results can be linked
   before they are produced without breaking a ``-W`` build.
+- ``.. example-scripts:: dir``: every example script in full, with a summary table.
 - ``.. results-directory:: path``: shows the Markdown tables and the figures of a report directory
   written by ``sb3-maddpg report``, or the directive's content when there is none.
 """
 
+import ast
 import re
 from pathlib import Path
 from typing import Any
@@ -186,8 +188,45 @@ class ResultsDirectory(SphinxDirective):
         return container.children
 
 
+class ExampleScripts(SphinxDirective):
+    """
+    Every ``*.py`` in a directory, in full: a summary table (script, first docstring line), then one
+    section per script with its source. Scripts named in ``:order:`` come first, the others after
+    in alphabetical order, so a new example is documented as soon as it exists.
+    """
+
+    required_arguments = 1
+    has_content = False
+    option_spec = {"order": directives.unchanged}
+
+    def run(self) -> list[nodes.Node]:
+        rel_dir, abs_dir = self.env.relfn2path(self.arguments[0])
+        directory = Path(abs_dir)
+        order = self.options.get("order", "").split()
+        rank = {name: index for index, name in enumerate(order)}
+        scripts = sorted(directory.glob("*.py"), key=lambda path: (rank.get(path.name, len(order)), path.name))
+        summaries = {}
+        for path in scripts:
+            self.env.note_dependency(str(path))
+            docstring = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or path.stem
+            summaries[path.name] = docstring.strip().splitlines()[0].rstrip(".")
+        rst = [".. list-table::", "   :header-rows: 1", "   :widths: 30 70", "", "   * - script", "     - what it shows"]
+        for name, summary in summaries.items():
+            rst += [f"   * - :ref:`{name} <example-{Path(name).stem}>`", f"     - {summary}"]
+        rst.append("")
+        for path in scripts:
+            title = f"``{path.name}``"
+            rst += [f".. _example-{path.stem}:", "", title, "-" * len(title), "", f"{summaries[path.name]}.", ""]
+            rst += [f".. literalinclude:: /{rel_dir}/{path.name}", "   :language: python", ""]
+        container = nodes.section()
+        container.document = self.state.document
+        nested_parse_with_titles(self.state, StringList(rst, source=str(directory)), container)
+        return container.children
+
+
 def setup(app: Sphinx) -> dict[str, Any]:
     app.add_directive("markdown-include", MarkdownInclude)
     app.add_directive("include-if-exists", IncludeIfExists)
     app.add_directive("results-directory", ResultsDirectory)
+    app.add_directive("example-scripts", ExampleScripts)
     return {"version": "0.1", "parallel_read_safe": True, "parallel_write_safe": True}
