@@ -73,5 +73,6 @@ warnings.filterwarnings("ignore", message=".*set_application.*is deprecated", ca
 html_theme = "sphinx_rtd_theme"
 html_theme_options = {"navigation_depth": 3, "collapse_navigation": False}
 html_static_path = ["_static"]
+html_css_files = ["css/custom.css"]
 html_title = f"sb3-maddpg {release}"
 html_show_sourcelink = True
