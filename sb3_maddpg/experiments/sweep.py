@@ -54,8 +54,7 @@ class SweepProgress:
     def __init__(self, total: int, skipped: int, parallel: int, log_path: str | None = None, echo: bool = True) -> None:
         self.total = total
         self.done = skipped
-        self.to_run = total - skipped
-        self.finished_here = 0
+        self.durations: list[float] = []
         self.parallel = max(1, parallel)
         self.log_path = log_path
         self.echo = echo
@@ -71,22 +70,24 @@ class SweepProgress:
             with open(self.log_path, "a") as file:
                 file.write(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {line}\n")
 
-    def update(self, run_id: str, message: str) -> None:
+    def update(self, run_id: str, message: str, duration: float | None = None) -> None:
         """
         :param run_id: The run that ended.
         :param message: What happened to it.
+        :param duration: The run's wall time, for the time-left estimate (``None`` for a failed run).
         """
         self.done += 1
-        self.finished_here += 1
+        if duration is not None:
+            self.durations.append(duration)
         elapsed = time.perf_counter() - self.start
         remaining = self.total - self.done
-        # Runs start in waves of `parallel`: the time left is the mean time per run times the waves left.
-        per_run = elapsed * min(self.parallel, self.to_run) / self.finished_here
-        left = per_run * remaining / min(self.parallel, max(remaining, 1))
-        self.log(
-            f"[{self.done}/{self.total}] {run_id} {message} | elapsed {_format_seconds(elapsed)}, "
-            f"left ~{_format_seconds(left)}"
-        )
+        if self.durations and remaining:
+            # The runs left (some already started) share the parallel slots: mean run time x runs left / slots.
+            mean_duration = sum(self.durations) / len(self.durations)
+            left = f"left ~{_format_seconds(mean_duration * remaining / min(self.parallel, remaining))}"
+        else:
+            left = "left ~0m00s" if not remaining else "left: unknown"
+        self.log(f"[{self.done}/{self.total}] {run_id} {message} | elapsed {_format_seconds(elapsed)}, {left}")
 
 
 def plan_sweep(experiments: Sequence[ExperimentConfig], results_dir: str | os.PathLike[str]) -> tuple[list[RunConfig], int]:
@@ -156,6 +157,7 @@ def run_sweep(
                 config.run_id,
                 f"done in {_format_seconds(summary['wall_time_s'])} ({summary['train_steps_per_s']:,.0f} steps/s, "
                 f"success {100 * score['success_rate']:.1f}%, coverage {100 * score['coverage']:.1f}%)",
+                duration=summary["wall_time_s"],
             )
         else:
             result.failed[config.run_id] = error or ""
