@@ -18,6 +18,7 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # before pygame (imported by 
 
 import imageio.v3 as iio
 import numpy as np
+from PIL import Image
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread
@@ -42,6 +43,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=3, help="episodes in the GIF")
     parser.add_argument("--eval-episodes", type=int, default=100, help="episodes for the success rate")
     parser.add_argument("--fps", type=int, default=10)
+    parser.add_argument("--scale", type=float, default=1.0, help="resize the frames (0.5: half size, a smaller file)")
     args = parser.parse_args()
 
     if args.model is not None:
@@ -80,6 +82,10 @@ def main() -> None:
         print(f"episode {episode}: coverage at the end {100 * info['coverage']:.0f}%, success {bool(info['success'])}")
     env.close()
 
+    if args.scale != 1.0:
+        height, width = frames[0].shape[:2]
+        size = (round(width * args.scale), round(height * args.scale))
+        frames = [np.asarray(Image.fromarray(frame).resize(size, Image.Resampling.LANCZOS)) for frame in frames]
     output.parent.mkdir(parents=True, exist_ok=True)
     iio.imwrite(output, np.stack(frames), duration=1000 / args.fps, loop=0)
     print(f"wrote {len(frames)} frames to {output}")
