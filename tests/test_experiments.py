@@ -15,7 +15,7 @@ from scipy.stats import mannwhitneyu
 from sb3_maddpg.experiments import EXP1, EXP2, SCHEMES, SMOKE, RunConfig, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.report import format_markdown, load_summaries
-from sb3_maddpg.experiments.runner import DONE_FILE, RESULT_FILES, execute_run, is_finished
+from sb3_maddpg.experiments.runner import DONE_FILE, RESULT_FILES, execute_run, is_finished, write_result_files
 from sb3_maddpg.experiments.stats import aggregate, mann_whitney, mean_std, significance_stars
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -182,6 +182,11 @@ def test_run_directory_resume_and_purity(tmp_path: Path) -> None:
     # ... a run is a pure function of its config: the same config elsewhere gives the same evaluations ...
     execute_run(config, tmp_path / "b", verbose=0)
     assert read_rows(tmp_path / "b" / config.run_id / "checkpoint_evals.csv") == evaluations
+    # ... the result carries its files, so a remote worker's run can be written where the sweep collects it ...
+    write_result_files(tmp_path / "collected", first)
+    assert is_finished(tmp_path / "collected", config)
+    assert read_rows(tmp_path / "collected" / config.run_id / "checkpoint_evals.csv") == evaluations
+    assert load_summaries(tmp_path / "collected")[0]["score"] == first["score"]
     # ... and a finished run with another config in the same place is refused.
     with pytest.raises(ValueError, match="another config"):
         is_finished(tmp_path / "a", dataclasses.replace(config, eval_episodes=3))
