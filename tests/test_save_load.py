@@ -1,0 +1,161 @@
+"""Save and load in SB3's style, for every sharing scheme: parameters, optimisers, replay buffer, selectors."""
+
+import numpy as np
+import pytest
+import torch as th
+from stable_baselines3.common.env_util import make_vec_env
+
+from sb3_maddpg import MADDPG, AgentLayout
+from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.selection import CallableSelector
+
+SCHEMES = ("independent", "full", "observations", "actions", "selected")
+N_AGENTS = 3
+FAST = dict(
+    learning_starts=50,
+    batch_size=32,
+    buffer_size=1_000,
+    train_freq=10,
+    policy_kwargs=dict(net_arch=[16, 16]),
+    seed=0,
+)
+
+
+def make_team(n_agents: int = N_AGENTS):
+    return make_simple_spread(n_agents=n_agents)
+
+
+def reverse_ring(observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
+    """Agent i selects agent i - 1 (module level, so that save/load can pickle it by reference)."""
+    n = layout.n_agents
+    return np.broadcast_to((np.arange(n)[:, None] - 1) % n, (observations.shape[0], n, 1))
+
+
+def assert_state_dicts_equal(expected, actual, path: str = "") -> None:
+    """Recursive equality of (optimiser) state dicts holding tensors, numbers, lists and dicts."""
+    if isinstance(expected, dict):
+        assert isinstance(actual, dict) and set(expected) == set(actual), path
+        for key in expected:
+            assert_state_dicts_equal(expected[key], actual[key], f"{path}/{key}")
+    elif isinstance(expected, list | tuple):
+        assert len(expected) == len(actual), path
+        for index, (a, b) in enumerate(zip(expected, actual)):
+            assert_state_dicts_equal(a, b, f"{path}/{index}")
+    elif isinstance(expected, th.Tensor):
+        assert th.equal(expected.cpu(), actual.cpu()), path
+    else:
+        assert expected == actual, path
+
+
+def joint_batch(model: MADDPG, n: int = 16) -> tuple[np.ndarray, th.Tensor, th.Tensor, th.Tensor | None]:
+    """Observations seen by the model, random [-1, 1] actions, and the selection made from the observations."""
+    buffer = model.replay_buffer
+    obs = buffer.observations[:n, 0]
+    rng = np.random.default_rng(1)
+    actions = th.as_tensor(rng.uniform(-1, 1, size=(n, model.agent_layout.action_dim)), dtype=th.float32)
+    selection = None
+    if model.selection is not None:
+        selection = th.as_tensor(model.selection.select(obs, model.agent_layout))
+    return obs, th.as_tensor(obs), actions, selection
+
+
+def assert_same_model(model: MADDPG, loaded: MADDPG, obs: np.ndarray, obs_t, actions_t, selection) -> None:
+    np.testing.assert_array_equal(model.predict(obs, deterministic=True)[0], loaded.predict(obs, deterministic=True)[0])
+    with th.no_grad():
+        q_model = model.policy.q_values(obs_t, actions_t, selection)
+        q_loaded = loaded.policy.q_values(obs_t, actions_t, selection)
+    assert q_model.shape == (len(obs), N_AGENTS)
+    assert th.equal(q_model, q_loaded)
+    assert_state_dicts_equal(model.policy.state_dict(), loaded.policy.state_dict())  # targets included
+    assert_state_dicts_equal(model.actor.optimizer.state_dict(), loaded.actor.optimizer.state_dict())
+    assert_state_dicts_equal(model.critic.optimizer.state_dict(), loaded.critic.optimizer.state_dict())
+    assert loaded.agent_layout == model.agent_layout
+    assert loaded.critic_sharing == model.critic_sharing
+    assert type(loaded.critic.extractors[0]) is type(model.critic.extractors[0])
+    assert loaded.num_timesteps == model.num_timesteps and loaded._n_updates == model._n_updates
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_save_load(tmp_path, scheme):
+    model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=scheme, **FAST)
+    model.learn(total_timesteps=200)
+    assert model._n_updates > 0
+    # Optimisers that have stepped hold state (Adam moments): the comparison below is not vacuous.
+    assert model.actor.optimizer.state_dict()["state"] and model.critic.optimizer.state_dict()["state"]
+    batch = joint_batch(model)
+    path = tmp_path / "model.zip"
+    model.save(path)
+
+    loaded = MADDPG.load(path)  # env=None: the layout comes from the file
+    assert loaded.get_env() is None
+    assert_same_model(model, loaded, *batch)
+
+    loaded_with_env = MADDPG.load(path, env=make_vec_env(make_team, n_envs=2))
+    assert_same_model(model, loaded_with_env, *batch)
+    # Training goes on from where it stopped.
+    loaded_with_env.learn(total_timesteps=100, reset_num_timesteps=False)
+    assert loaded_with_env.num_timesteps == 300
+    assert loaded_with_env._n_updates > model._n_updates
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_replay_buffer_round_trip(tmp_path, scheme):
+    model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=scheme, **FAST)
+    model.learn(total_timesteps=150)
+    path = tmp_path / "buffer.pkl"
+    model.save_replay_buffer(path)
+
+    other = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=scheme, **FAST)
+    other.load_replay_buffer(path)
+    saved, loaded = model.replay_buffer, other.replay_buffer
+    assert loaded.pos == saved.pos > 0 and loaded.full == saved.full
+    for name in ("observations", "next_observations", "actions", "rewards", "dones", "timeouts", "selections"):
+        np.testing.assert_array_equal(getattr(loaded, name), getattr(saved, name), err_msg=name)
+    assert loaded.rewards.shape == (FAST["buffer_size"] // 2, 2, N_AGENTS)
+    assert np.any(loaded.rewards != 0)
+    if scheme == "selected":
+        assert loaded.selections.shape[-1] == 2 and np.any(loaded.selections[: loaded.pos] != 0)
+    assert loaded.layout == saved.layout
+    # Learning goes on with the loaded buffer.
+    other.learn(total_timesteps=60)
+    assert other._n_updates > 0
+
+
+def test_callable_selector_survives_save_load(tmp_path):
+    selector = CallableSelector(reverse_ring, k=1)
+    model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selection=selector, **FAST)
+    model.learn(total_timesteps=100)
+    model.save(tmp_path / "model.zip")
+    loaded = MADDPG.load(tmp_path / "model.zip", env=make_team())
+    assert isinstance(loaded.selection, CallableSelector)
+    assert loaded.selection.fn is reverse_ring and loaded.selection.k == 1
+    assert loaded.replay_buffer.selector is loaded.selection
+    loaded.learn(total_timesteps=100, reset_num_timesteps=False)
+    stored = loaded.replay_buffer.selections[: loaded.replay_buffer.pos, 0]
+    np.testing.assert_array_equal(stored, np.broadcast_to([[2], [0], [1]], stored.shape))
+
+
+def test_load_with_other_layout(tmp_path):
+    model = MADDPG("MlpPolicy", make_team(), **FAST)
+    model.save(tmp_path / "model.zip")
+    with pytest.raises(ValueError, match="(?i)spaces do not match|agent layout"):
+        MADDPG.load(tmp_path / "model.zip", env=make_team(n_agents=4))
+    loaded = MADDPG.load(tmp_path / "model.zip")
+    with pytest.raises(ValueError, match="(?i)spaces do not match|agent layout"):
+        loaded.set_env(make_team(n_agents=4))
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="BUG (sb3_maddpg/maddpg.py): MADDPG.load(path, env=...) checks only the spaces (SB3's check); the saved "
+    "agent_layout then overwrites the env's, so an env with the same spaces but another layout is accepted. "
+    "Override load (or _setup_model) to compare _layout_of(env) with the saved layout.",
+)
+def test_load_with_same_spaces_other_layout(tmp_path):
+    model = MADDPG("MlpPolicy", make_team(), **FAST)
+    model.save(tmp_path / "model.zip")
+    other = make_team()
+    layout = other.agent_layout
+    other.agent_layout = AgentLayout(("a", "b", "c"), layout.obs_sizes, layout.action_sizes)
+    with pytest.raises(ValueError, match="agent layout"):
+        MADDPG.load(tmp_path / "model.zip", env=other)
