@@ -177,6 +177,8 @@ class MADDPG(OffPolicyAlgorithm):
     def _setup_model(self) -> None:
         if self.agent_layout is None:
             raise ValueError("MADDPG needs an env to read the agent layout from (or a saved model to load).")
+        if self.env is not None:  # on load(path, env=...), SB3 compares only the spaces
+            _check_same_layout(_layout_of(self.env), self.agent_layout)
         selection_size = self.selection.k if self.selection is not None else 0
         if self.replay_buffer_class is not None and issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
             self.replay_buffer_kwargs.update(layout=self.agent_layout, selector=self.selection)
@@ -322,11 +324,11 @@ class MADDPG(OffPolicyAlgorithm):
         :param env: The new environment.
         :param force_reset: Force a reset before the next ``learn``.
         """
-        super().set_env(env, force_reset)
-        layout = _layout_of(self.env)  # type: ignore[arg-type]
-        if layout != self.agent_layout:
-            raise ValueError(f"The new env's agent layout {layout} differs from the model's {self.agent_layout}.")
-        _refuse_reward_normalization(self.env)  # type: ignore[arg-type]
+        # Check before replacing: a refused env must not stay in the model.
+        wrapped = self._wrap_env(env, self.verbose)
+        _check_same_layout(_layout_of(wrapped), self.agent_layout)
+        _refuse_reward_normalization(wrapped)
+        super().set_env(wrapped, force_reset)
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "actor", "critic", "actor_target", "critic_target", "_own_action_mask"]
@@ -349,6 +351,14 @@ def _layout_of(env: VecEnv) -> AgentLayout:
     if not isinstance(layouts[0], AgentLayout):
         raise TypeError(f"env.agent_layout must be an sb3_maddpg.AgentLayout, got {type(layouts[0]).__name__}.")
     return layouts[0]
+
+
+def _check_same_layout(env_layout: AgentLayout, model_layout: AgentLayout | None) -> None:
+    if env_layout != model_layout:
+        raise ValueError(
+            f"The env's agent layout {env_layout} differs from the model's agent layout {model_layout}: "
+            "use an env with the same agents, in the same order, with the same observation and action sizes."
+        )
 
 
 def _refuse_reward_normalization(env: VecEnv) -> None:

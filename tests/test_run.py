@@ -233,11 +233,6 @@ def test_set_env():
         model.set_env(make_team(n_agents=4))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG (sb3_maddpg/maddpg.py, MADDPG.set_env): super().set_env(env) replaces self.env before the layout "
-    "and norm_reward checks raise, so a refused env stays in the model; check the wrapped env first.",
-)
 def test_set_env_same_spaces_other_layout_keeps_model_env():
     # Same joint spaces, other agent ids: only the layout check can catch it.
     model = MADDPG("MlpPolicy", make_team(), **FAST)

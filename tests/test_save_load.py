@@ -145,12 +145,6 @@ def test_load_with_other_layout(tmp_path):
         loaded.set_env(make_team(n_agents=4))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG (sb3_maddpg/maddpg.py): MADDPG.load(path, env=...) checks only the spaces (SB3's check); the saved "
-    "agent_layout then overwrites the env's, so an env with the same spaces but another layout is accepted. "
-    "Override load (or _setup_model) to compare _layout_of(env) with the saved layout.",
-)
 def test_load_with_same_spaces_other_layout(tmp_path):
     model = MADDPG("MlpPolicy", make_team(), **FAST)
     model.save(tmp_path / "model.zip")
