@@ -114,6 +114,8 @@ class MarkdownInclude(SphinxDirective):
 
     def run(self) -> list[nodes.Node]:
         _, path = self.env.relfn2path(self.arguments[0])
+        if not Path(path).is_file():
+            return [self.state.document.reporter.warning(f"markdown-include: no file {path}", line=self.lineno)]
         self.env.note_dependency(path)
         text = Path(path).read_text(encoding="utf-8")
         container = nodes.section()
@@ -177,7 +179,7 @@ class ResultsDirectory(SphinxDirective):
                 rst += [*markdown_to_rst(path.read_text(encoding="utf-8")), ""]
             for path in figures:
                 alt = path.stem.replace("_", " ")
-                rst += [f".. image:: /{rel_dir}/{path.name}", f"   :alt: {alt}", "   :width: 100%", ""]
+                rst += [f".. image:: /{rel_dir}/{path.name}", f"   :alt: {alt}", "   :width: 85%", ""]
             lines = StringList(rst, source=str(directory))
         return self._parse(lines)
 
@@ -210,6 +212,8 @@ class ExampleScripts(SphinxDirective):
             self.env.note_dependency(str(path))
             docstring = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or path.stem
             summaries[path.name] = docstring.strip().splitlines()[0].rstrip(".")
+        if not scripts:
+            return [nodes.paragraph(text=f"No example scripts found in {self.arguments[0]}.")]
         rst = [".. list-table::", "   :header-rows: 1", "   :widths: 30 70", "", "   * - script", "     - what it shows"]
         for name, summary in summaries.items():
             rst += [f"   * - :ref:`{name} <example-{Path(name).stem}>`", f"     - {summary}"]
