@@ -101,8 +101,13 @@ def plot_learning_curves(
             color = COLORS.get(scheme)
             axis.plot(steps, mean, label=PAPER_NAMES.get(scheme, scheme), color=color)
             axis.fill_between(steps, mean - std, mean + std, color=color, alpha=0.2, linewidth=0)
+        experiment = (experiments or {}).get(setting)
+        if experiment and curves.get(setting):
+            # The window the runs' scores are taken over (the checkpoints of the last 20% of training).
+            total = experiment["episodes"] * experiment["episode_length"]
+            axis.axvspan(total * (1 - experiment["checkpoint_fraction"]), total, color="0.85", alpha=0.5, linewidth=0)
         axis.set_title(_title(setting, experiments), fontsize=10)
-        axis.set_xlabel("env steps")
+        axis.set_xlabel("env steps (shaded: checkpoints scored)" if experiment else "env steps")
         axis.set_ylabel(METRICS.get(metric, Metric(metric, metric)).label)
         axis.grid(alpha=0.3)
         if curves.get(setting):
@@ -135,7 +140,9 @@ def plot_boxplots(
     for axis, setting in zip(axes[0], settings):
         row = [cell for cell in cells if cell.setting == setting]
         positions = np.arange(1, len(row) + 1)
-        boxes = axis.boxplot([cell.scores for cell in row], positions=positions, widths=0.6, patch_artist=True)
+        boxes = axis.boxplot(
+            [cell.scores for cell in row], positions=positions, widths=0.6, patch_artist=True, medianprops={"color": "black"}
+        )
         for patch, cell in zip(boxes["boxes"], row):
             patch.set_facecolor(COLORS.get(cell.scheme, "tab:gray"))
             patch.set_alpha(0.35)
