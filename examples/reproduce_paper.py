@@ -1,7 +1,7 @@
 """Reproduce the paper's experiments with the ``sb3-maddpg`` command line, from a smoke test to full scale.
 
     python examples/reproduce_paper.py --fast                   # seconds: the pipeline on a tiny budget (CI)
-    python examples/reproduce_paper.py --scale small --workers 4           # 25 runs of 150k steps: hours on a CPU
+    python examples/reproduce_paper.py --scale small --workers 4           # 40 runs of 150k steps: an hour or more
     python examples/reproduce_paper.py --scale small-partial --workers 8   # partial observability, a tenth of exp2
     python examples/reproduce_paper.py --scale full --workers 32           # the paper: 31 seeds x 5 schemes x 2 settings
 
@@ -25,10 +25,10 @@ from sb3_maddpg.experiments.cli import main as sb3_maddpg_cli
 SCALES: dict[str, str] = {
     # The pipeline only: 3 agents, 40 episodes, tiny networks, one seed per scheme.
     "smoke": "--config smoke --seeds 1",
-    # The measured small-scale comparison shown in the docs (benchmarks/paper_small/config.json): experiment 1's
-    # protocol with 3 agents, 6,000 episodes (150k steps), 5 seeds, 50 evaluation episodes per checkpoint.
+    # The measured small-scale comparison shown in the docs (the same as benchmarks/paper_small/config.json):
+    # experiment 1's protocol with 3 agents, 6,000 episodes (150k steps), 8 seeds, 50 evaluation episodes.
     "small": (
-        "--config exp1 --name n3_full --n-agents 3 --episodes 6000 --seeds 5 --eval-episodes 50 "
+        "--config exp1 --name n3_full --n-agents 3 --episodes 6000 --seeds 8 --eval-episodes 50 "
         "--curve-points 15 --curve-eval-episodes 20 --no-keep-checkpoints"
     ),
     # Experiment 2's setting (5 agents, each observing its 2 nearest) at a tenth of its budget, 5 seeds.
