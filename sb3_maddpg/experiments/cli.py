@@ -59,7 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
     execution = run.add_argument_group("execution")
     execution.add_argument("--backend", choices=("local", "ray"), default="local", help="local process pool or Ray")
     execution.add_argument(
-        "--workers", type=int, default=1, help="parallel runs (local); CPUs of a local Ray instance (ray, 0: all)"
+        "--workers",
+        type=int,
+        default=None,
+        help="parallel runs (local, default 1); CPUs of a local Ray instance (ray, default 0: all of this machine's)",
     )
     execution.add_argument("--threads", type=int, default=1, help="torch threads per run (default: 1)")
     execution.add_argument(
@@ -138,7 +141,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             experiments,
             args.results,
             backend=args.backend,
-            workers=args.workers,
+            workers=args.workers if args.workers is not None else (1 if args.backend == "local" else 0),
             threads=args.threads,
             ray_address=args.ray_address,
             verbose=1 if args.quiet else 2,
