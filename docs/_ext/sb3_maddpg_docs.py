@@ -162,6 +162,8 @@ class ResultsDirectory(SphinxDirective):
     def run(self) -> list[nodes.Node]:
         rel_dir, abs_dir = self.env.relfn2path(self.arguments[0])
         directory = Path(abs_dir)
+        # Re-read this page when the directory appears or its files change (a missing one counts as changed).
+        self.env.note_dependency(abs_dir)
         for name in ("index.rst", "results.rst"):
             if (directory / name).is_file():  # a hand-written page of the results takes precedence
                 self.env.note_dependency(str(directory / name))
@@ -169,7 +171,9 @@ class ResultsDirectory(SphinxDirective):
                 return self._parse(StringList(text.splitlines(), source=str(directory / name)))
         texts = [directory / name for name in ("README.md", "description.md") if (directory / name).is_file()]
         texts += sorted(directory.glob("table_*.md")) if directory.is_dir() else []
-        figures = sorted([*directory.glob("*.svg"), *directory.glob("*.png")]) if directory.is_dir() else []
+        figures = [*directory.glob("*.svg"), *directory.glob("*.png")] if directory.is_dir() else []
+        # Learning curves before boxplots, as in the paper's figures; then by name.
+        figures.sort(key=lambda path: (not path.name.startswith("learning_curves"), path.name))
         if not texts and not figures:
             lines = self.content
         else:
@@ -204,6 +208,7 @@ class ExampleScripts(SphinxDirective):
     def run(self) -> list[nodes.Node]:
         rel_dir, abs_dir = self.env.relfn2path(self.arguments[0])
         directory = Path(abs_dir)
+        self.env.note_dependency(abs_dir)  # a new script changes the directory's modification time
         order = self.options.get("order", "").split()
         rank = {name: index for index, name in enumerate(order)}
         scripts = sorted(directory.glob("*.py"), key=lambda path: (rank.get(path.name, len(order)), path.name))
