@@ -300,3 +300,29 @@ def test_cli_run_and_report(tmp_path: Path, local_results: Path, capsys: pytest.
     table = (report / "table_coverage.md").read_text()
     assert "| smoke (N=3, 1 nearest obs., 30 ep.) |" in table
     assert "| smoke_local" in table
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The committed small-scale result
+
+REPO = Path(__file__).resolve().parents[1]
+PAPER_SMALL_RESULTS = REPO / "benchmarks" / "paper_small" / "results"
+PAPER_SMALL_REPORT = REPO / "docs" / "_static" / "paper_small"
+
+
+def test_report_regenerates_the_committed_small_scale_result(tmp_path: Path) -> None:
+    committed_tables = sorted(PAPER_SMALL_REPORT.glob("table_*.md"))
+    assert committed_tables, f"no committed tables in {PAPER_SMALL_REPORT}"
+    metrics = [path.stem.removeprefix("table_") for path in committed_tables]
+    written = make_report(PAPER_SMALL_RESULTS, tmp_path, metrics=metrics)
+    for path in written:
+        committed = PAPER_SMALL_REPORT / path.name
+        assert committed.exists(), committed
+        if path.suffix in (".md", ".csv"):
+            assert path.read_text() == committed.read_text(), path.name
+    config = json.loads((REPO / "benchmarks" / "paper_small" / "config.json").read_text())
+    summaries = load_summaries(PAPER_SMALL_RESULTS)
+    assert {s["experiment"] for s in summaries} == {config["name"]}
+    # Every scheme has the same seeds: a sweep cut short still compares like with like.
+    seeds = {scheme: sorted(s["seed"] for s in summaries if s["scheme"] == scheme) for scheme in config["schemes"]}
+    assert len({tuple(value) for value in seeds.values()}) == 1 and len(seeds["full"]) >= 3
