@@ -141,7 +141,12 @@ def plot_boxplots(
         row = [cell for cell in cells if cell.setting == setting]
         positions = np.arange(1, len(row) + 1)
         boxes = axis.boxplot(
-            [cell.scores for cell in row], positions=positions, widths=0.6, patch_artist=True, medianprops={"color": "black"}
+            [cell.scores for cell in row],
+            positions=positions,
+            widths=0.6,
+            patch_artist=True,
+            medianprops={"color": "black"},
+            showfliers=False,
         )
         for patch, cell in zip(boxes["boxes"], row):
             patch.set_facecolor(COLORS.get(cell.scheme, "tab:gray"))
