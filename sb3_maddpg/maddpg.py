@@ -180,9 +180,11 @@ class MADDPG(OffPolicyAlgorithm):
         if self.env is not None:  # on load(path, env=...), SB3 compares only the spaces
             _check_same_layout(_layout_of(self.env), self.agent_layout)
         selection_size = self.selection.k if self.selection is not None else 0
+        # New dicts: SB3 keeps the caller's, which must not change under them.
         if self.replay_buffer_class is not None and issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
-            self.replay_buffer_kwargs.update(layout=self.agent_layout, selector=self.selection)
-        self.policy_kwargs.update(
+            self.replay_buffer_kwargs = {**self.replay_buffer_kwargs, "layout": self.agent_layout, "selector": self.selection}
+        self.policy_kwargs = dict(
+            self.policy_kwargs,
             agent_layout=self.agent_layout,
             critic_sharing=self.critic_sharing,
             critic_sharing_kwargs=self.critic_sharing_kwargs,

@@ -163,3 +163,11 @@ def test_truncation_bootstraps_in_stored_transitions() -> None:
     assert buffer.timeouts[24, 0] == 1 and buffer.timeouts[49, 0] == 1
     assert buffer.timeouts[:60].sum() == 2
     assert buffer.dones[:60].sum() == 0  # no true termination: every row bootstraps
+
+
+def test_caller_kwargs_are_not_modified() -> None:
+    policy_kwargs = dict(net_arch=[8])
+    replay_buffer_kwargs: dict = {}
+    MADDPG("MlpPolicy", make_simple_spread(n_agents=3), policy_kwargs=policy_kwargs, replay_buffer_kwargs=replay_buffer_kwargs)
+    assert policy_kwargs == dict(net_arch=[8])
+    assert replay_buffer_kwargs == {}
