@@ -82,6 +82,21 @@ def make_env(config: RunConfig) -> Any:
     )
 
 
+def log_line(line: str, log_path: str | None, echo: bool) -> None:
+    """
+    Print a progress line and append it, time-stamped, to a log file.
+
+    :param line: The line.
+    :param log_path: A text file the line is appended to, or ``None``.
+    :param echo: Print the line too.
+    """
+    if echo:
+        print(line, flush=True)
+    if log_path is not None:
+        with open(log_path, "a") as file:
+            file.write(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {line}\n")
+
+
 class CheckpointAtSteps(BaseCallback):
     """
     Save the model when training reaches given env steps (``<save_dir>/model_<steps>_steps.zip``).
@@ -149,11 +164,7 @@ class ProgressLogCallback(BaseCallback):
         """
         :param line: A line for stdout and the log file.
         """
-        if self.echo:
-            print(line, flush=True)
-        if self.log_path is not None:
-            with open(self.log_path, "a") as file:
-                file.write(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {line}\n")
+        log_line(line, self.log_path, self.echo)
 
 
 def execute_run(

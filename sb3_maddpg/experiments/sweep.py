@@ -10,7 +10,7 @@ from typing import Any
 
 from sb3_maddpg.experiments.backends import BACKENDS, run_local, run_ray
 from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
-from sb3_maddpg.experiments.runner import _format_seconds, is_finished
+from sb3_maddpg.experiments.runner import _format_seconds, is_finished, log_line
 
 EXPERIMENT_FILE = "experiment.json"
 SWEEP_LOG = "sweep.log"
@@ -64,11 +64,7 @@ class SweepProgress:
         """
         :param line: A line for stdout and the sweep log.
         """
-        if self.echo:
-            print(line, flush=True)
-        if self.log_path is not None:
-            with open(self.log_path, "a") as file:
-                file.write(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {line}\n")
+        log_line(line, self.log_path, self.echo)
 
     def update(self, run_id: str, message: str, duration: float | None = None) -> None:
         """
