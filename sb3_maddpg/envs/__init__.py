@@ -3,6 +3,7 @@
 from sb3_maddpg.envs.adapter import MetricsFn, PettingZooToGym
 from sb3_maddpg.envs.registration import SIMPLE_SPREAD_ID, register_envs
 from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS, SimpleSpreadMetrics, make_simple_spread
+from sb3_maddpg.envs.simple_spread_vec_env import SimpleSpreadVecEnv
 
 __all__ = [
     "CAPTURE_RADIUS",
@@ -10,6 +11,7 @@ __all__ = [
     "MetricsFn",
     "PettingZooToGym",
     "SimpleSpreadMetrics",
+    "SimpleSpreadVecEnv",
     "make_simple_spread",
     "register_envs",
 ]

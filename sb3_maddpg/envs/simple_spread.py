@@ -60,6 +60,40 @@ class SimpleSpreadMetrics:
         }
 
 
+def check_simple_spread_arguments(
+    n_agents: int,
+    num_agent_neighbors: int | None,
+    max_cycles: int,
+    local_ratio: float,
+    num_landmark_neighbors: int | None,
+) -> None:
+    """
+    Refuse simple_spread settings that mpe2 would reject or silently misread, naming the bound.
+
+    :param n_agents: Number of agents (at least 2).
+    :param num_agent_neighbors: ``None``, or 1 to ``n_agents - 1``.
+    :param max_cycles: At least 1.
+    :param local_ratio: In [0, 1].
+    :param num_landmark_neighbors: ``None``, or 1 to ``n_agents``.
+    """
+    if n_agents < 2:
+        raise ValueError(f"simple_spread needs at least 2 agents, got n_agents={n_agents}.")
+    if num_agent_neighbors is not None and not 1 <= num_agent_neighbors <= n_agents - 1:
+        raise ValueError(
+            f"num_agent_neighbors must be between 1 and n_agents - 1 = {n_agents - 1} (or None for full "
+            f"observability), got {num_agent_neighbors}."
+        )
+    if num_landmark_neighbors is not None and not 1 <= num_landmark_neighbors <= n_agents:
+        raise ValueError(
+            f"num_landmark_neighbors must be between 1 and n_agents = {n_agents} (or None to observe every "
+            f"landmark), got {num_landmark_neighbors}."
+        )
+    if max_cycles < 1:
+        raise ValueError(f"max_cycles (the episode length) must be at least 1, got {max_cycles}.")
+    if not 0.0 <= local_ratio <= 1.0:
+        raise ValueError(f"local_ratio is a weight in [0, 1] (0: shared reward only), got {local_ratio}.")
+
+
 def make_simple_spread(
     n_agents: int = 5,
     num_agent_neighbors: int | None = None,
@@ -92,13 +126,9 @@ def make_simple_spread(
     """
     from mpe2 import simple_spread_v3  # imported here so that `import sb3_maddpg` stays light
 
-    if n_agents < 2:
-        raise ValueError(f"simple_spread needs at least 2 agents, got n_agents={n_agents}.")
-    if num_agent_neighbors is not None and not 1 <= num_agent_neighbors <= n_agents - 1:
-        raise ValueError(
-            f"num_agent_neighbors must be between 1 and n_agents - 1 = {n_agents - 1} (or None for full "
-            f"observability), got {num_agent_neighbors}."
-        )
+    check_simple_spread_arguments(
+        n_agents, num_agent_neighbors, max_cycles, local_ratio, mpe_kwargs.get("num_landmark_neighbors")
+    )
     parallel_env = simple_spread_v3.parallel_env(
         N=n_agents,
         local_ratio=local_ratio,
