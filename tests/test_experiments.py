@@ -52,6 +52,14 @@ def test_overrides_and_validation() -> None:
         EXP1.replace(episodes=50, n_checkpoints=20).runs()
     with pytest.raises(ValueError, match="checkpoint_fraction"):
         dataclasses.replace(run, checkpoint_fraction=0.0)
+    assert (run.vec_env, run.n_envs) == ("batched", 100)  # the paper's presets train on the batched env
+    with pytest.raises(ValueError, match="vec_env must be one of"):
+        EXP1.replace(vec_env="gpu")
+    with pytest.raises(ValueError, match="n_envs must be at least 1"):
+        dataclasses.replace(run, n_envs=0)
+    # Configs written before vec_env existed describe runs on one mpe2 env.
+    legacy = {key: value for key, value in run.to_dict().items() if key not in ("vec_env", "n_envs")}
+    assert (RunConfig.from_dict(legacy).vec_env, RunConfig.from_dict(legacy).n_envs) == ("mpe2", 1)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -190,6 +198,13 @@ def test_run_directory_resume_and_purity(tmp_path: Path) -> None:
     # ... and a finished run with another config in the same place is refused.
     with pytest.raises(ValueError, match="another config"):
         is_finished(tmp_path / "a", dataclasses.replace(config, eval_episodes=3))
+
+
+def test_a_run_on_mpe2_itself(tmp_path: Path) -> None:
+    config = tiny(schemes=("full",), seeds=(0,), vec_env="mpe2", n_envs=2).runs()[0]
+    result = execute_run(config, tmp_path, verbose=0)
+    assert result["n_checkpoints"] == 2 and np.isfinite(result["score"]["return_mean"])
+    assert "on 2 mpe2 env(s)" in (tmp_path / config.run_id / "train.log").read_text()
 
 
 def test_interrupted_sweep_resumes(tmp_path: Path) -> None:

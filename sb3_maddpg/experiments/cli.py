@@ -5,7 +5,7 @@ import json
 import sys
 from collections.abc import Sequence
 
-from sb3_maddpg.experiments.config import EXPERIMENTS, ExperimentConfig, load_experiment
+from sb3_maddpg.experiments.config import DEFAULT_N_ENVS, EXPERIMENTS, VEC_ENVS, ExperimentConfig, load_experiment
 from sb3_maddpg.experiments.stats import METRICS
 
 DEFAULT_RESULTS = "runs/experiments"
@@ -55,6 +55,12 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument(
         "--model-kwargs", type=json.loads, help="JSON merged into the MADDPG kwargs, e.g. '{\"batch_size\": 256}'"
     )
+    group.add_argument(
+        "--vec-env",
+        choices=VEC_ENVS,
+        help="batched: SimpleSpreadVecEnv (the same MDP as mpe2, arrays; default); mpe2: DummyVecEnv over mpe2 itself",
+    )
+    group.add_argument("--n-envs", type=int, help=f"worlds stepped together in training (default {DEFAULT_N_ENVS})")
     group.add_argument("--keep-checkpoints", action=argparse.BooleanOptionalAction, default=None, help="keep model files")
     execution = run.add_argument_group("execution")
     execution.add_argument("--backend", choices=("local", "ray"), default="local", help="local process pool or Ray")
@@ -111,6 +117,8 @@ def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
             curve_eval_episodes=args.curve_eval_episodes,
             model_kwargs=model_kwargs,
             keep_checkpoints=args.keep_checkpoints,
+            vec_env=args.vec_env,
+            n_envs=args.n_envs,
         )
         if args.neighbors is not None:
             neighbors = None if args.neighbors == "all" else int(args.neighbors)

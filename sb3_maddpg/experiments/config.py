@@ -15,6 +15,13 @@ SCHEMES = ("full", "independent", "observations", "actions", "selected")
 DEFAULT_ALGORITHM = "sb3_maddpg:MADDPG"
 """The algorithm every run trains, as ``"module:Class"``."""
 
+VEC_ENVS = ("batched", "mpe2")
+"""How a run steps simple_spread: ``"batched"`` (:class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`, the same MDP as
+mpe2, arrays) or ``"mpe2"`` (``DummyVecEnv`` over the adapter and mpe2 itself)."""
+
+DEFAULT_N_ENVS = 100
+"""Worlds stepped together: with the paper's one update per 100 transitions, one update per vectorised step."""
+
 BASELINE_SCHEME = "full"
 """The scheme every other one is tested against (MADDPG)."""
 
@@ -26,6 +33,13 @@ PAPER_NAMES = {
     "selected": "MADDPG-soa",
 }
 """The paper's name of each scheme."""
+
+
+def _check_vec_env(vec_env: str, n_envs: int) -> None:
+    if vec_env not in VEC_ENVS:
+        raise ValueError(f"vec_env must be one of {VEC_ENVS}, got {vec_env!r}.")
+    if n_envs < 1:
+        raise ValueError(f"n_envs must be at least 1, got {n_envs}.")
 
 
 @dataclass(frozen=True)
@@ -51,6 +65,9 @@ class RunConfig:
     :param model_kwargs: Keyword arguments for the algorithm (overriding the paper's defaults).
     :param algorithm: The algorithm class as ``"module:Class"``; it is built as
         ``Class("MlpPolicy", env, critic_sharing=scheme, seed=seed, **model_kwargs)``.
+    :param vec_env: ``"batched"`` (:class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`) or ``"mpe2"`` (``DummyVecEnv``
+        over mpe2 through the adapter): the same MDP, the first 100-200x faster.
+    :param n_envs: Worlds (envs) stepped together during training.
     """
 
     experiment: str
@@ -68,8 +85,11 @@ class RunConfig:
     keep_checkpoints: bool = True
     model_kwargs: dict[str, Any] = field(default_factory=dict)
     algorithm: str = DEFAULT_ALGORITHM
+    vec_env: str = "batched"
+    n_envs: int = DEFAULT_N_ENVS
 
     def __post_init__(self) -> None:
+        _check_vec_env(self.vec_env, self.n_envs)
         if self.episodes < 1 or self.episode_length < 1:
             raise ValueError(f"episodes and episode_length must be positive, got {self.episodes}, {self.episode_length}.")
         if not 0 < self.checkpoint_fraction <= 1:
@@ -129,10 +149,11 @@ class RunConfig:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "RunConfig":
         """
-        :param data: A dict from :meth:`to_dict` (unknown keys are an error).
+        :param data: A dict from :meth:`to_dict` (unknown keys are an error). Configs written before 0.2 have
+            no ``vec_env`` and ``n_envs``: those runs stepped one mpe2 env.
         :return: The config.
         """
-        return cls(**data)
+        return cls(**{"vec_env": "mpe2", "n_envs": 1, **data})
 
     def same_as(self, other: "RunConfig") -> bool:
         """
@@ -164,6 +185,8 @@ class ExperimentConfig:
     :param model_kwargs: Keyword arguments for ``MADDPG`` (the paper's hyperparameters are its defaults).
     :param algorithm: The algorithm class as ``"module:Class"``.
     :param description: One line for reports.
+    :param vec_env: ``"batched"`` or ``"mpe2"`` (see :class:`RunConfig`).
+    :param n_envs: Worlds (envs) stepped together during training.
     """
 
     name: str
@@ -182,6 +205,11 @@ class ExperimentConfig:
     model_kwargs: dict[str, Any] = field(default_factory=dict)
     algorithm: str = DEFAULT_ALGORITHM
     description: str = ""
+    vec_env: str = "batched"
+    n_envs: int = DEFAULT_N_ENVS
+
+    def __post_init__(self) -> None:
+        _check_vec_env(self.vec_env, self.n_envs)
 
     def runs(self) -> list[RunConfig]:
         """:return: One run config per (scheme, seed), seeds outermost so partial sweeps stay balanced."""
@@ -202,6 +230,8 @@ class ExperimentConfig:
                 keep_checkpoints=self.keep_checkpoints,
                 model_kwargs=copy.deepcopy(self.model_kwargs),
                 algorithm=self.algorithm,
+                vec_env=self.vec_env,
+                n_envs=self.n_envs,
             )
             for seed in self.seeds
             for scheme in self.schemes
@@ -269,6 +299,7 @@ SMOKE = ExperimentConfig(
     num_agent_neighbors=None,
     episodes=40,
     seeds=(0, 1),
+    n_envs=4,
     n_checkpoints=2,
     eval_episodes=4,
     curve_points=2,

@@ -13,6 +13,7 @@ from typing import Any
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.logger import configure
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor
 
 from sb3_maddpg.evaluation import EVAL_KEYS, TeamEvalCallback, evaluate_team, write_rows
 from sb3_maddpg.experiments.config import PAPER_NAMES, RunConfig
@@ -70,16 +71,28 @@ def load_algorithm(path: str) -> type[BaseAlgorithm]:
     return getattr(importlib.import_module(module_name), class_name)
 
 
-def make_env(config: RunConfig) -> Any:
+def make_env(config: RunConfig, n_envs: int | None = None) -> VecEnv:
     """
     :param config: The run.
-    :return: The run's simple_spread env (a new one on each call).
+    :param n_envs: Worlds (default: the run's ``n_envs``).
+    :return: The run's simple_spread VecEnv, batched or over mpe2 as the config says (a new one on each call).
     """
-    from sb3_maddpg.envs import make_simple_spread
+    from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
 
-    return make_simple_spread(
-        n_agents=config.n_agents, num_agent_neighbors=config.num_agent_neighbors, max_cycles=config.episode_length
-    )
+    n_envs = config.n_envs if n_envs is None else n_envs
+    kwargs = dict(n_agents=config.n_agents, num_agent_neighbors=config.num_agent_neighbors, max_cycles=config.episode_length)
+    if config.vec_env == "batched":
+        return SimpleSpreadVecEnv(n_envs, **kwargs)  # type: ignore[arg-type]
+    return DummyVecEnv([lambda: make_simple_spread(**kwargs) for _ in range(n_envs)])  # type: ignore[arg-type]
+
+
+def make_eval_env(config: RunConfig, n_episodes: int) -> VecEnv:
+    """
+    :param config: The run.
+    :param n_episodes: Episodes per evaluation.
+    :return: An evaluation env: on the batched env, one world per episode, so an evaluation takes one episode's steps.
+    """
+    return make_env(config, n_episodes if config.vec_env == "batched" else 1)
 
 
 def log_line(line: str, log_path: str | None, echo: bool) -> None:
@@ -206,10 +219,10 @@ def execute_run(
 
     started = time.perf_counter()
     algorithm: Any = load_algorithm(config.algorithm)
-    eval_env = make_env(config)
+    curve_env = make_eval_env(config, config.curve_eval_episodes)
     # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.
     model = algorithm(
-        "MlpPolicy", make_env(config), critic_sharing=config.scheme, seed=config.seed, **copy.deepcopy(config.model_kwargs)
+        "MlpPolicy", VecMonitor(make_env(config)), critic_sharing=config.scheme, seed=config.seed, **copy.deepcopy(config.model_kwargs)
     )
     model.set_logger(configure(str(directory), ["csv"]))
 
@@ -220,7 +233,7 @@ def execute_run(
         n_envs = model.get_env().num_envs  # type: ignore[union-attr]
         callbacks.append(
             TeamEvalCallback(
-                eval_env,
+                curve_env,
                 eval_freq=max(1, config.curve_interval // n_envs),
                 n_eval_episodes=config.curve_eval_episodes,
                 seed=config.eval_seed,
@@ -228,13 +241,18 @@ def execute_run(
                 eval_at_start=True,
             )
         )
-    progress.log(f"{config.run_id}: training {config.total_timesteps:,} steps ({config.episodes:,} episodes)")
+    progress.log(
+        f"{config.run_id}: training {config.total_timesteps:,} steps ({config.episodes:,} episodes) on "
+        f"{config.n_envs} {config.vec_env} env(s)"
+    )
     model.learn(config.total_timesteps, callback=CallbackList(callbacks), log_interval=max(1, config.episodes // 100))
     train_time = time.perf_counter() - started
     model.get_env().close()  # type: ignore[union-attr]
     del model
 
+    curve_env.close()
     eval_started = time.perf_counter()
+    eval_env = make_eval_env(config, config.eval_episodes)
     rows = []
     for steps, path in checkpoints.saved:
         checkpoint = algorithm.load(path, device="cpu")
