@@ -295,3 +295,21 @@ def test_maddpg_trains_under_sb3_wrappers_and_callbacks() -> None:
     # VecMonitor saw 16 episodes of exactly 25 steps.
     assert model.ep_info_buffer is not None and len(model.ep_info_buffer) == 400 // 25
     assert all(episode["l"] == 25 for episode in model.ep_info_buffer)
+
+
+def test_training_on_it_equals_training_on_mpe2() -> None:
+    """The same seed gives the same training on both paths: same episodes, same buffer, same networks."""
+    models = []
+    for env in (SimpleSpreadVecEnv(2, n_agents=3), mpe2_vec_env(2, n_agents=3)):
+        model = MADDPG("MlpPolicy", env, seed=4, **TINY)  # type: ignore[arg-type]
+        model.learn(300)
+        models.append(model)
+    ours, reference = models
+    rows = reference.replay_buffer.pos
+    assert rows == ours.replay_buffer.pos == 150
+    for name in ("observations", "next_observations", "actions", "rewards", "timeouts"):
+        np.testing.assert_allclose(
+            getattr(ours.replay_buffer, name)[:rows], getattr(reference.replay_buffer, name)[:rows], atol=1e-4, err_msg=name
+        )
+    for param, ref_param in zip(ours.policy.parameters(), reference.policy.parameters()):
+        np.testing.assert_allclose(param.detach().numpy(), ref_param.detach().numpy(), atol=1e-4)
