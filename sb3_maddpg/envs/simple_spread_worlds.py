@@ -102,7 +102,7 @@ class SimpleSpreadWorlds:
         move = np.stack([actions[..., 2] - actions[..., 1], actions[..., 4] - actions[..., 3]], axis=-1)
         force = move.astype(np.float64) * SENSITIVITY
         offsets = self.agent_pos[:, self._others] - self.agent_pos[:, :, None]  # other minus self, [E, N, N-1, 2]
-        distances = np.sqrt(np.sum(np.square(offsets), axis=-1))
+        distances = _norm(offsets)
         # Softplus penetration on every pair (no cutoff, as mpe2): force on i from j along (p_i - p_j).
         penetration = np.logaddexp(0, -(distances - 2 * AGENT_SIZE) / CONTACT_MARGIN) * CONTACT_MARGIN
         contact = CONTACT_FORCE * -offsets / distances[..., None] * penetration[..., None]
@@ -117,8 +117,8 @@ class SimpleSpreadWorlds:
         offsets = self.agent_pos[:, self._others] - self.agent_pos[:, :, None]
         to_landmarks = self.landmark_pos[:, :, None] - self.agent_pos[:, None]  # [E, landmark, agent, 2]
         return WorldDistances(
-            others=np.sqrt(np.sum(np.square(offsets), axis=-1)),
-            to_landmarks=np.sqrt(np.sum(np.square(to_landmarks), axis=-1)),
+            others=_norm(offsets),
+            to_landmarks=_norm(to_landmarks),
         )
 
     def rewards(self, distances: WorldDistances) -> np.ndarray:
@@ -174,6 +174,12 @@ class SimpleSpreadWorlds:
             "collisions": (distances.others < 2 * AGENT_SIZE).sum(axis=(1, 2)) / 2.0,  # each pair seen from both ends
             "min_dist_sum": nearest.sum(axis=1),
         }
+
+
+def _norm(offsets: np.ndarray) -> np.ndarray:
+    """Euclidean length over the last axis (of size 2): mpe2's ``np.sqrt(np.sum(np.square(delta)))``, bit for bit."""
+    x, y = offsets[..., 0], offsets[..., 1]
+    return np.sqrt(x * x + y * y)
 
 
 def _nearest(offsets: np.ndarray, distances: np.ndarray, count: int) -> np.ndarray:
