@@ -60,7 +60,7 @@ def _bare_runner(n_agents: int, actions: np.ndarray, seed: int) -> Callable[[], 
     return run
 
 
-def _adapter_runner(n_agents: int, actions: np.ndarray, seed: int, metrics: bool) -> Callable[[], tuple[float, float]]:
+def adapter_runner(n_agents: int, actions: np.ndarray, seed: int, metrics: bool) -> Callable[[], tuple[float, float]]:
     from mpe2 import simple_spread_v3
 
     from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
@@ -104,14 +104,14 @@ def measure_env_rates(n_agents: int, steps: int = 20_000, repeats: int = 3, seed
     actions = rng.uniform(0.0, 1.0, size=(steps, n_agents, ACTION_SIZE)).astype(np.float32)
     runners = {
         "bare": _bare_runner(n_agents, actions, seed),
-        "adapter": _adapter_runner(n_agents, actions, seed, metrics=False),
-        "adapter+metrics": _adapter_runner(n_agents, actions, seed, metrics=True),
+        "adapter": adapter_runner(n_agents, actions, seed, metrics=False),
+        "adapter+metrics": adapter_runner(n_agents, actions, seed, metrics=True),
     }
     # Warm-up: one short pass of each (imports, caches, first allocations).
     warm_up = {
         "bare": _bare_runner(n_agents, actions[:100], seed),
-        "adapter": _adapter_runner(n_agents, actions[:100], seed, metrics=False),
-        "adapter+metrics": _adapter_runner(n_agents, actions[:100], seed, metrics=True),
+        "adapter": adapter_runner(n_agents, actions[:100], seed, metrics=False),
+        "adapter+metrics": adapter_runner(n_agents, actions[:100], seed, metrics=True),
     }
     for run in warm_up.values():
         run()

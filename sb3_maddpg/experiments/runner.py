@@ -136,17 +136,25 @@ class CheckpointAtSteps(BaseCallback):
 
 class ProgressLogCallback(BaseCallback):
     """
-    Report a run's progress (steps, throughput, time left) every ``every`` of training to stdout and a log file.
+    Report a run's progress (steps, throughput, recent team return, time left) to stdout and a log file,
+    every ``every`` of training or every ``every_seconds`` seconds, whichever comes first.
 
     :param run_id: The name printed with each line.
     :param total_timesteps: The run's budget.
     :param log_path: A text file the lines are appended to, or ``None``.
     :param every: The fraction of training between two lines.
     :param echo: Print the lines too.
+    :param every_seconds: Also report when this many seconds have passed since the last line (``None``: never).
     """
 
     def __init__(
-        self, run_id: str, total_timesteps: int, log_path: str | None = None, every: float = 0.1, echo: bool = True
+        self,
+        run_id: str,
+        total_timesteps: int,
+        log_path: str | None = None,
+        every: float = 0.1,
+        echo: bool = True,
+        every_seconds: float | None = None,
     ) -> None:
         super().__init__()
         self.run_id = run_id
@@ -154,24 +162,35 @@ class ProgressLogCallback(BaseCallback):
         self.log_path = log_path
         self.interval = max(1, int(total_timesteps * every))
         self.echo = echo
+        self.every_seconds = every_seconds
         self._next = self.interval
-        self._start = time.perf_counter()
+        self._start = self._last_line = time.perf_counter()
 
     def _on_training_start(self) -> None:
-        self._start = time.perf_counter()
+        self._start = self._last_line = time.perf_counter()
 
     def _on_step(self) -> bool:
-        if self.num_timesteps >= self._next:
-            self._next += self.interval
-            elapsed = time.perf_counter() - self._start
+        now = time.perf_counter()
+        due_by_time = self.every_seconds is not None and now - self._last_line >= self.every_seconds
+        if self.num_timesteps >= self._next or due_by_time:
+            while self._next <= self.num_timesteps:
+                self._next += self.interval
+            self._last_line = now
+            elapsed = now - self._start
             rate = self.num_timesteps / max(elapsed, 1e-9)
             left = (self.total_timesteps - self.num_timesteps) / max(rate, 1e-9)
             self.log(
                 f"{self.run_id}: {self.num_timesteps:,}/{self.total_timesteps:,} steps "
                 f"({self.num_timesteps / self.total_timesteps:.0%}), {rate:,.0f} steps/s, "
-                f"{_format_seconds(elapsed)} elapsed, {_format_seconds(left)} left"
+                f"{_format_seconds(elapsed)} elapsed, {_format_seconds(left)} left{self._recent_return()}"
             )
         return True
+
+    def _recent_return(self) -> str:
+        episodes = getattr(self.model, "ep_info_buffer", None)  # filled by a Monitor or VecMonitor
+        if not episodes:
+            return ""
+        return f", team return {sum(episode['r'] for episode in episodes) / len(episodes):.1f} (last {len(episodes)} episodes)"
 
     def log(self, line: str) -> None:
         """
