@@ -54,6 +54,27 @@ class MultiAgentActor(nn.Module):
         out = self.mlp(per_agent)
         return th.cat([out[i, :, :size] for i, size in enumerate(layout.action_sizes)], dim=1)
 
+    def forward_with_preactivation(self, observations: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """
+        The joint actions and the actors' outputs before ``tanh``, from one forward pass (the actor update
+        needs both: the actions for the critic, the pre-activations for the regulariser).
+
+        :param observations: Joint observations ``[batch, obs_dim]``.
+        :return: ``(actions, preactivations)``, both ``[batch, action_dim]``, with ``actions = tanh(preactivations)``;
+            only each agent's real action components (no padding).
+        """
+        # forward's body with the squash moved out, not a shared helper: forward runs at batch 1 on every
+        # env step, where each extra Python call is a measurable part of its cost.
+        layout, batch = self.layout, observations.shape[0]
+        if layout.is_homogeneous:
+            per_agent = observations.view(batch, layout.n_agents, -1).transpose(0, 1)
+            preactivations = self.mlp.forward_preactivation(per_agent).transpose(0, 1).reshape(batch, layout.action_dim)
+        else:
+            per_agent = stack_padded([observations[:, sl] for sl in layout.obs_slices], self.mlp.max_in_dim)
+            out = self.mlp.forward_preactivation(per_agent)
+            preactivations = th.cat([out[i, :, :size] for i, size in enumerate(layout.action_sizes)], dim=1)
+        return th.tanh(preactivations), preactivations
+
     def clip_grad_norm_per_agent(self, max_norm: float) -> None:
         """Clip each agent's actor gradient norm separately, like N optimisers."""
         self.mlp.clip_grad_norm_per_member(max_norm)
