@@ -1,7 +1,8 @@
 """MADDPG on SB3's off-policy base, with the critic's information sharing as a swappable part."""
 
+import math
 from collections.abc import Sequence
-from typing import Any, ClassVar, TypeVar
+from typing import Any, ClassVar, NamedTuple, TypeVar
 
 import numpy as np
 import torch as th
@@ -22,6 +23,20 @@ from sb3_maddpg.selection import NearestAgents, Selector
 from sb3_maddpg.sharing import CriticFeaturesExtractor, resolve_scheme
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
+
+SATURATION_THRESHOLD = 0.99
+"""An action component with ``|a| >`` this, in the policy's [-1, 1] space, counts as saturated in the logs."""
+
+
+class ActorLossTerms(NamedTuple):
+    """The parts of the agents' actor losses on one batch, ``[n_agents]`` each."""
+
+    policy_loss: th.Tensor
+    """-Q_i: the policy-gradient part."""
+    reg_loss: th.Tensor
+    """``actor_reg_coef`` times the mean squared pre-``tanh`` output of actor i (zeros when the coefficient is 0)."""
+    saturation: th.Tensor
+    """Fraction of agent i's action components with ``|a| > SATURATION_THRESHOLD`` (no gradient)."""
 
 
 class MADDPG(OffPolicyAlgorithm):
@@ -61,6 +76,9 @@ class MADDPG(OffPolicyAlgorithm):
         per agent. 0 disables it. Ignored when ``action_noise`` is given.
     :param max_grad_norm: Clip each agent's actor and critic gradient norm to this (as Lowe et al.'s code);
         None to disable.
+    :param actor_reg_coef: Weight of the penalty on each actor's pre-``tanh`` output, added to its loss as
+        ``actor_reg_coef * mean(pre-activation ** 2)`` over the batch and the agent's action components (Lowe et al.'s
+        code, 1e-3). It keeps the actors out of ``tanh`` saturation; 0 turns it off.
     :param critic_sharing_kwargs: Extra keyword arguments for the sharing scheme's extractor.
     :param replay_buffer_class: Replay buffer class (default :class:`~sb3_maddpg.buffers.MultiAgentReplayBuffer`).
     :param replay_buffer_kwargs: Keyword arguments for the replay buffer.
@@ -98,6 +116,7 @@ class MADDPG(OffPolicyAlgorithm):
         action_noise: ActionNoise | None = None,
         noise_std: float | Sequence[float] = 0.1,
         max_grad_norm: float | None = 0.5,
+        actor_reg_coef: float = 1e-3,
         critic_sharing_kwargs: dict[str, Any] | None = None,
         replay_buffer_class: type[ReplayBuffer] | None = None,
         replay_buffer_kwargs: dict[str, Any] | None = None,
@@ -110,6 +129,11 @@ class MADDPG(OffPolicyAlgorithm):
         _init_setup_model: bool = True,
     ) -> None:
         scheme = resolve_scheme(critic_sharing)  # fail early on an unknown name
+        if not (math.isfinite(actor_reg_coef) and actor_reg_coef >= 0):
+            raise ValueError(
+                f"actor_reg_coef must be a finite number >= 0, got {actor_reg_coef}: use 1e-3 (Lowe et al.'s value) "
+                "or 0 to turn the actor regulariser off."
+            )
         if env is not None and not isinstance(env, str) and not isinstance(env.action_space, spaces.Box):
             raise TypeError(
                 f"MADDPG supports continuous (Box) actions only, the env has {type(env.action_space).__name__} actions: "
@@ -142,6 +166,7 @@ class MADDPG(OffPolicyAlgorithm):
         self.critic_sharing = critic_sharing
         self.critic_sharing_kwargs = dict(critic_sharing_kwargs or {})
         self.max_grad_norm = max_grad_norm
+        self.actor_reg_coef = float(actor_reg_coef)
         self.noise_std = noise_std
         self.agent_layout: AgentLayout | None = None
         self.selection: Selector | None = None
@@ -197,6 +222,9 @@ class MADDPG(OffPolicyAlgorithm):
         for i, action_slice in enumerate(self.agent_layout.action_slices):
             mask[i, 0, action_slice] = True
         self._own_action_mask = mask.to(self.device)
+        # Row i averages over agent i's own action components: [n_agents, action_dim] @ [action_dim] -> per agent.
+        sizes = th.tensor(self.agent_layout.action_sizes, dtype=th.float32).unsqueeze(1)
+        self._own_action_mean = (mask[:, 0].float() / sizes).to(self.device)
 
     def _create_aliases(self) -> None:
         self.actor = self.policy.actor
@@ -229,7 +257,7 @@ class MADDPG(OffPolicyAlgorithm):
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         self.policy.set_training_mode(True)
         self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
-        critic_losses, actor_losses = [], []
+        critic_losses, actor_losses, actor_reg_losses, saturations = [], [], [], []
         actor_params = list(self.actor.parameters())
         for _ in range(gradient_steps):
             self._n_updates += 1
@@ -242,7 +270,8 @@ class MADDPG(OffPolicyAlgorithm):
                 self.critic.clip_grad_norm_per_agent(self.max_grad_norm)
             self.critic.optimizer.step()
 
-            actor_loss = self._actor_losses(data)
+            actor_terms = self._actor_loss_terms(data)
+            actor_loss = actor_terms.policy_loss + actor_terms.reg_loss
             self.actor.optimizer.zero_grad()
             # Only the actors' gradients: the critics' are not needed here.
             for param, grad in zip(actor_params, th.autograd.grad(actor_loss.sum(), actor_params)):
@@ -253,10 +282,18 @@ class MADDPG(OffPolicyAlgorithm):
 
             polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
             polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
+            # Kept on the device: one transfer per train() call, not one per gradient step.
             critic_losses.append(critic_loss.detach())
-            actor_losses.append(actor_loss.detach())
+            actor_losses.append(actor_terms.policy_loss.detach())
+            actor_reg_losses.append(actor_terms.reg_loss.detach())
+            saturations.append(actor_terms.saturation)
 
-        self._log_losses(th.stack(critic_losses).mean(0), th.stack(actor_losses).mean(0))
+        self._log_losses(
+            th.stack(critic_losses).mean(0),
+            th.stack(actor_losses).mean(0),
+            th.stack(actor_reg_losses).mean(0),
+            th.stack(saturations).mean(0),
+        )
 
     def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
         """
@@ -283,23 +320,56 @@ class MADDPG(OffPolicyAlgorithm):
 
     def _actor_losses(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
         """
-        -Q_i(x_i) with only a_i replaced by mu_i(o_i); the other agents' actions are the sampled ones.
+        Each actor's loss: -Q_i(x_i) plus its regulariser (see :meth:`_actor_loss_terms`).
 
         :param data: A replay batch.
         :return: One loss per agent, ``[n_agents]``.
         """
-        policy_actions = self.actor(data.observations)
-        per_critic_actions = th.where(self._own_action_mask, policy_actions.unsqueeze(0), data.actions.unsqueeze(0))
-        return -self.critic(data.observations, per_critic_actions, data.selections).mean(dim=0)
+        terms = self._actor_loss_terms(data)
+        return terms.policy_loss + terms.reg_loss
 
-    def _log_losses(self, critic_losses: th.Tensor, actor_losses: th.Tensor) -> None:
+    def _actor_loss_terms(self, data: MultiAgentReplayBufferSamples) -> ActorLossTerms:
+        """
+        The actor losses' parts from one forward pass of the actors.
+
+        Policy loss: -Q_i(x_i) with only a_i replaced by mu_i(o_i); the other agents' actions are the sampled
+        ones. Regulariser: ``actor_reg_coef`` times the mean over the batch and agent i's action components of
+        its pre-``tanh`` output squared, as Lowe et al.'s ``p_reg``; it depends on actor i only.
+
+        :param data: A replay batch.
+        :return: The policy loss, the regulariser and the action saturation, ``[n_agents]`` each.
+        """
+        policy_actions, preactivations = self.actor.forward_with_preactivation(data.observations)
+        per_critic_actions = th.where(self._own_action_mask, policy_actions.unsqueeze(0), data.actions.unsqueeze(0))
+        policy_loss = -self.critic(data.observations, per_critic_actions, data.selections).mean(dim=0)
+        if self.actor_reg_coef > 0:
+            reg_loss = self.actor_reg_coef * (self._own_action_mean @ preactivations.pow(2).mean(dim=0))
+        else:
+            reg_loss = th.zeros_like(policy_loss)
+        with th.no_grad():
+            saturated = (policy_actions.abs() > SATURATION_THRESHOLD).float().mean(dim=0)
+            saturation = self._own_action_mean @ saturated
+        return ActorLossTerms(policy_loss, reg_loss, saturation)
+
+    def _log_losses(
+        self, critic_losses: th.Tensor, actor_losses: th.Tensor, actor_reg_losses: th.Tensor, saturation: th.Tensor
+    ) -> None:
+        """
+        Record the train call's per-agent means, each agent's and the team's (the mean over agents).
+
+        :param critic_losses: ``[n_agents]``.
+        :param actor_losses: The policy-gradient part of the actor losses, ``[n_agents]``.
+        :param actor_reg_losses: The actor regulariser, ``[n_agents]``.
+        :param saturation: Fraction of saturated action components, ``[n_agents]``.
+        """
         assert self.agent_layout is not None
+        names = ("critic_loss", "actor_loss", "actor_reg_loss", "action_saturation")
+        per_agent = th.stack((critic_losses, actor_losses, actor_reg_losses, saturation)).tolist()  # one transfer
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
-        self.logger.record("train/critic_loss", critic_losses.mean().item())
-        self.logger.record("train/actor_loss", actor_losses.mean().item())
-        for agent, critic_loss, actor_loss in zip(self.agent_layout.agent_ids, critic_losses.tolist(), actor_losses.tolist()):
-            self.logger.record(f"train/{agent}/critic_loss", critic_loss)
-            self.logger.record(f"train/{agent}/actor_loss", actor_loss)
+        for name, values in zip(names, per_agent):
+            self.logger.record(f"train/{name}", sum(values) / len(values))
+            for agent, value in zip(self.agent_layout.agent_ids, values):
+                self.logger.record(f"train/{agent}/{name}", value)
 
     def learn(
         self: SelfMADDPG,
@@ -333,7 +403,15 @@ class MADDPG(OffPolicyAlgorithm):
         super().set_env(wrapped, force_reset)
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "actor", "critic", "actor_target", "critic_target", "_own_action_mask"]
+        return [
+            *super()._excluded_save_params(),
+            "actor",
+            "critic",
+            "actor_target",
+            "critic_target",
+            "_own_action_mask",
+            "_own_action_mean",
+        ]
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         return ["policy", "actor.optimizer", "critic.optimizer"], []
