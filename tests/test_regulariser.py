@@ -104,7 +104,7 @@ def test_zero_coefficient_leaves_the_policy_gradient_loss(scheme: str) -> None:
     layout = model.agent_layout
     assert layout is not None
     losses = model._actor_losses(data)
-    assert th.equal(model._actor_loss_terms(data).reg_loss, th.zeros(3))
+    assert th.equal(model._actor_loss_terms(data).reg_loss, th.zeros(3, device=model.device))
     # -Q_i computed independently: agent i's own action from its own actor, the others' from the sample.
     with th.no_grad():
         for i in range(3):
@@ -247,7 +247,7 @@ def learn_fast(actor_reg_coef: float, seed: int) -> tuple[float, float]:
         seed=seed,
     )
     model.learn(600)  # 500 updates
-    observations = th.as_tensor(model.replay_buffer.observations[: model.replay_buffer.pos, 0])
+    observations = th.as_tensor(model.replay_buffer.observations[: model.replay_buffer.pos, 0], device=model.device)
     with th.no_grad():
         actions, pre = model.actor.forward_with_preactivation(observations)
     return (actions.abs() > 0.99).float().mean().item(), pre.abs().median().item()
