@@ -8,10 +8,11 @@ import numpy as np
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.noise import ActionNoise, NormalActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
 from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize, unwrap_vec_normalize
 from torch.nn import functional as F
@@ -66,9 +67,15 @@ class MADDPG(OffPolicyAlgorithm):
     :param batch_size: Minibatch size of each gradient step (the same rows for every agent).
     :param tau: Polyak coefficient of the target networks.
     :param gamma: Discount factor.
-    :param train_freq: Update the model every ``train_freq`` steps (SB3 semantics: vectorised env steps, so
-        ``n_envs`` transitions each; or a ``(n, "episode")`` tuple).
-    :param gradient_steps: Gradient steps per update (-1: as many as env steps collected).
+    :param train_freq: Update the model every ``train_freq`` vectorised env steps (``n_envs`` transitions each) or
+        with a ``(n, "episode")`` tuple, SB3's semantics. None (default): every
+        ``max(1, transitions_per_update // n_envs)`` vectorised steps.
+    :param gradient_steps: Gradient steps per update (-1: as many as transitions collected), SB3's semantics.
+        None (default): the gradient steps the collected transitions have earned, one per ``transitions_per_update``
+        transitions past ``learning_starts`` (a remainder carries over to the next update).
+    :param transitions_per_update: Transitions (all envs counted) per gradient step when ``gradient_steps`` is
+        None: the paper's one update per 100 transitions, whatever ``n_envs`` is (with ``n_envs=100``, one
+        gradient step per vectorised step). An explicit ``train_freq``/``gradient_steps`` keeps SB3's meaning.
     :param action_noise: Exploration noise over the joint action in the policy's [-1, 1] space (any SB3
         ``ActionNoise``). None: Gaussian noise of ``noise_std``.
     :param noise_std: Standard deviation of the default Gaussian exploration noise, in each agent's own
@@ -111,8 +118,9 @@ class MADDPG(OffPolicyAlgorithm):
         batch_size: int = 1024,
         tau: float = 0.01,
         gamma: float = 0.95,
-        train_freq: int | tuple[int, str] = 100,
-        gradient_steps: int = 1,
+        train_freq: int | tuple[int, str] | None = None,
+        gradient_steps: int | None = None,
+        transitions_per_update: int = 100,
         action_noise: ActionNoise | None = None,
         noise_std: float | Sequence[float] = 0.1,
         max_grad_norm: float | None = 0.5,
@@ -134,6 +142,15 @@ class MADDPG(OffPolicyAlgorithm):
                 f"actor_reg_coef must be a finite number >= 0, got {actor_reg_coef}: use 1e-3 (Lowe et al.'s value) "
                 "or 0 to turn the actor regulariser off."
             )
+        if (
+            isinstance(transitions_per_update, bool)
+            or not isinstance(transitions_per_update, int)
+            or transitions_per_update < 1
+        ):
+            raise ValueError(
+                f"transitions_per_update must be a positive integer (transitions per gradient step), got "
+                f"{transitions_per_update!r}: the paper's is 100."
+            )
         if env is not None and not isinstance(env, str) and not isinstance(env.action_space, spaces.Box):
             raise TypeError(
                 f"MADDPG supports continuous (Box) actions only, the env has {type(env.action_space).__name__} actions: "
@@ -148,8 +165,8 @@ class MADDPG(OffPolicyAlgorithm):
             batch_size,
             tau,
             gamma,
-            train_freq,
-            gradient_steps,
+            1 if train_freq is None else train_freq,  # None: derived from n_envs in _setup_model
+            1 if gradient_steps is None else gradient_steps,  # None: earned per rollout in collect_rollouts
             action_noise=action_noise,
             replay_buffer_class=replay_buffer_class or MultiAgentReplayBuffer,
             replay_buffer_kwargs=replay_buffer_kwargs,
@@ -167,6 +184,11 @@ class MADDPG(OffPolicyAlgorithm):
         self.critic_sharing_kwargs = dict(critic_sharing_kwargs or {})
         self.max_grad_norm = max_grad_norm
         self.actor_reg_coef = float(actor_reg_coef)
+        self.transitions_per_update = transitions_per_update
+        self._train_freq_from_ratio = train_freq is None
+        self._earn_gradient_steps = gradient_steps is None
+        self._update_credit = 0  # transitions past learning_starts not yet spent on a gradient step
+        self._credited_timesteps = 0  # num_timesteps when the credit was last counted
         self.noise_std = noise_std
         self.agent_layout: AgentLayout | None = None
         self.selection: Selector | None = None
@@ -215,6 +237,8 @@ class MADDPG(OffPolicyAlgorithm):
             critic_sharing_kwargs=self.critic_sharing_kwargs,
             selection_size=selection_size,
         )
+        if self._train_freq_from_ratio:
+            self._derive_train_freq()
         super()._setup_model()
         self._create_aliases()
         # own_action_mask[i, 0, d]: action dimension d belongs to agent i (for the actor update).
@@ -225,6 +249,64 @@ class MADDPG(OffPolicyAlgorithm):
         # Row i averages over agent i's own action components: [n_agents, action_dim] @ [action_dim] -> per agent.
         sizes = th.tensor(self.agent_layout.action_sizes, dtype=th.float32).unsqueeze(1)
         self._own_action_mean = (mask[:, 0].float() / sizes).to(self.device)
+
+    def _derive_train_freq(self) -> None:
+        """Update every ``transitions_per_update // n_envs`` vectorised steps (at least every step)."""
+        self.train_freq = TrainFreq(max(1, self.transitions_per_update // self.n_envs), TrainFrequencyUnit.STEP)  # type: ignore[assignment]
+
+    @property
+    def update_schedule(self) -> str:
+        """When the model updates, in words (e.g. for a log line)."""
+        freq = self.train_freq
+        assert isinstance(freq, TrainFreq), "_setup_model() converts train_freq"
+        every = f"every {freq.frequency} {freq.unit.value}(s) of {self.n_envs} env(s)"
+        if self._earn_gradient_steps:
+            return (
+                f"one gradient step (batch {self.batch_size}) per {self.transitions_per_update} transitions after "
+                f"step {self.learning_starts:,}, taken {every}"
+            )
+        steps = f"{self.gradient_steps} gradient step(s)" if self.gradient_steps >= 0 else "a gradient step per transition"
+        return f"{steps} (batch {self.batch_size}) {every}, after step {self.learning_starts:,} (SB3's train_freq semantics)"
+
+    def collect_rollouts(
+        self,
+        env: VecEnv,
+        callback: BaseCallback,
+        train_freq: TrainFreq,
+        replay_buffer: ReplayBuffer,
+        action_noise: ActionNoise | None = None,
+        learning_starts: int = 0,
+        log_interval: int | None = None,
+    ) -> RolloutReturn:
+        rollout = super().collect_rollouts(
+            env, callback, train_freq, replay_buffer, action_noise, learning_starts, log_interval
+        )
+        if self._earn_gradient_steps:
+            # SB3's learn() reads self.gradient_steps right after this call: the steps this rollout earned.
+            self.gradient_steps = self._earned_gradient_steps()
+        return rollout
+
+    def _earned_gradient_steps(self) -> int:
+        """Gradient steps earned since the last call: one per ``transitions_per_update`` transitions past learning_starts."""
+        counted_from = max(self._credited_timesteps, self.learning_starts)
+        self._update_credit += max(0, self.num_timesteps - counted_from)
+        self._credited_timesteps = self.num_timesteps
+        steps, self._update_credit = divmod(self._update_credit, self.transitions_per_update)
+        return steps
+
+    def _setup_learn(
+        self,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        reset_num_timesteps: bool = True,
+        tb_log_name: str = "run",
+        progress_bar: bool = False,
+    ) -> tuple[int, BaseCallback]:
+        result = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
+        if reset_num_timesteps:  # timesteps count from 0 again, and so does the credit
+            self._update_credit = 0
+            self._credited_timesteps = 0
+        return result
 
     def _create_aliases(self) -> None:
         self.actor = self.policy.actor

@@ -242,6 +242,7 @@ def learn_fast(actor_reg_coef: float, seed: int) -> tuple[float, float]:
         batch_size=32,
         buffer_size=1_000,
         train_freq=1,
+        gradient_steps=1,
         policy_kwargs=dict(net_arch=[16, 16]),
         actor_reg_coef=actor_reg_coef,
         seed=seed,
