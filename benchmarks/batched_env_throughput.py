@@ -87,7 +87,9 @@ def measure(n_agents: int, n_envs_list: list[int], steps: int, repeats: int, see
 def markdown_table(results: list[dict[str, Any]]) -> str:
     """One row per team size: mpe2's rate, then each batched size's rate and its ratio to mpe2."""
     names = [name for name in results[0]["median"] if name != "mpe2"]
-    header = "| N | mpe2 (steps/s) | " + " | ".join(f"{name.replace('batched ', 'batched E=')} (steps/s, ratio)" for name in names)
+    header = "| N | mpe2 (steps/s) | " + " | ".join(
+        f"{name.replace('batched ', 'batched E=')} (steps/s, ratio)" for name in names
+    )
     lines = [header + " |", "|---|---|" + "---|" * len(names)]
     for result in results:
         cells = [f"{result['median'][name]:,.0f} ({result['ratio'][name]:.0f}x)" for name in names]

@@ -57,11 +57,11 @@ def assert_same_step(ours: tuple, reference: tuple, context: str) -> None:
 def test_physics_constants_are_mpe2s() -> None:
     world = World()
     spread_world = simple_spread_v3.raw_env(N=2).world
-    assert worlds_module.DT == world.dt
-    assert worlds_module.DAMPING == world.damping
-    assert worlds_module.CONTACT_FORCE == world.contact_force
-    assert worlds_module.CONTACT_MARGIN == world.contact_margin
-    assert worlds_module.DIM_C == spread_world.dim_c
+    assert world.dt == worlds_module.DT
+    assert world.damping == worlds_module.DAMPING
+    assert world.contact_force == worlds_module.CONTACT_FORCE
+    assert world.contact_margin == worlds_module.CONTACT_MARGIN
+    assert spread_world.dim_c == worlds_module.DIM_C
     assert all(agent.size == worlds_module.AGENT_SIZE for agent in spread_world.agents)
     assert all(agent.accel is None and agent.max_speed is None and agent.u_noise is None for agent in spread_world.agents)
 
@@ -79,7 +79,9 @@ def test_spaces_and_layout_equal_the_adapters(num_agent_neighbors: int | None) -
     ("n_agents", "num_agent_neighbors", "local_ratio", "max_cycles"),
     [(2, None, 0.5, 25), (3, None, 0.5, 25), (3, 1, 0.0, 25), (5, None, 0.5, 25), (5, 2, 1.0, 25), (8, 3, 0.3, 10)],
 )
-def test_seeded_rollouts_replay_mpe2(n_agents: int, num_agent_neighbors: int | None, local_ratio: float, max_cycles: int) -> None:
+def test_seeded_rollouts_replay_mpe2(
+    n_agents: int, num_agent_neighbors: int | None, local_ratio: float, max_cycles: int
+) -> None:
     """Several whole episodes with auto-reset from one seed, never re-synced: every step equals mpe2's."""
     n_envs, episodes = 3, 3
     kwargs = dict(n_agents=n_agents, num_agent_neighbors=num_agent_neighbors, local_ratio=local_ratio, max_cycles=max_cycles)
@@ -263,7 +265,9 @@ class FixedActions:
     def __init__(self, action: np.ndarray) -> None:
         self.action = action
 
-    def predict(self, observation: np.ndarray, state: Any = None, episode_start: Any = None, deterministic: bool = False) -> tuple:
+    def predict(
+        self, observation: np.ndarray, state: Any = None, episode_start: Any = None, deterministic: bool = False
+    ) -> tuple:
         return np.tile(self.action, (len(observation), 1)), None
 
 

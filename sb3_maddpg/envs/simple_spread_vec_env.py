@@ -247,7 +247,8 @@ class SimpleSpreadVecEnv(VecEnv):
         """
         if attr_name not in SETTABLE_ATTRIBUTES:
             raise AttributeError(
-                f"SimpleSpreadVecEnv can set only {SETTABLE_ATTRIBUTES}, got {attr_name!r}: build a new env for other settings."
+                f"SimpleSpreadVecEnv can set only {SETTABLE_ATTRIBUTES}, got {attr_name!r}: build a new env for "
+                "other settings."
             )
         if sorted(self._get_indices(indices)) != list(range(self.num_envs)):
             raise ValueError(f"{attr_name} is shared by all worlds of a SimpleSpreadVecEnv: set it with indices=None.")
@@ -257,7 +258,9 @@ class SimpleSpreadVecEnv(VecEnv):
         else:
             self.capture_radius = _check_radius(value)
 
-    def env_method(self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any) -> list[Any]:
+    def env_method(
+        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
+    ) -> list[Any]:
         """
         The worlds are arrays, not env objects: the only per-world method is ``render``.
 

@@ -144,7 +144,9 @@ class SimpleSpreadWorlds:
         n_worlds, n_agents = self.n_worlds, self.n_agents
         landmark_offsets = self.landmark_pos[:, None] - self.agent_pos[:, :, None]  # [E, agent, landmark, 2]
         if self.num_landmark_neighbors is not None:
-            landmark_offsets = _nearest(landmark_offsets, distances.to_landmarks.transpose(0, 2, 1), self.num_landmark_neighbors)
+            landmark_offsets = _nearest(
+                landmark_offsets, distances.to_landmarks.transpose(0, 2, 1), self.num_landmark_neighbors
+            )
         other_offsets = self.agent_pos[:, self._others] - self.agent_pos[:, :, None]
         if self.num_agent_neighbors is not None:
             other_offsets = _nearest(other_offsets, distances.others, self.num_agent_neighbors)

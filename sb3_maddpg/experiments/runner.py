@@ -241,7 +241,11 @@ def execute_run(
     curve_env = make_eval_env(config, config.curve_eval_episodes)
     # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.
     model = algorithm(
-        "MlpPolicy", VecMonitor(make_env(config)), critic_sharing=config.scheme, seed=config.seed, **copy.deepcopy(config.model_kwargs)
+        "MlpPolicy",
+        VecMonitor(make_env(config)),
+        critic_sharing=config.scheme,
+        seed=config.seed,
+        **copy.deepcopy(config.model_kwargs),
     )
     model.set_logger(configure(str(directory), ["csv"]))
 
