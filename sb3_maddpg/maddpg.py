@@ -71,11 +71,12 @@ class MADDPG(OffPolicyAlgorithm):
         with a ``(n, "episode")`` tuple, SB3's semantics. None (default): every
         ``max(1, transitions_per_update // n_envs)`` vectorised steps.
     :param gradient_steps: Gradient steps per update (-1: as many as transitions collected), SB3's semantics.
-        None (default): the gradient steps the collected transitions have earned, one per ``transitions_per_update``
-        transitions past ``learning_starts`` (a remainder carries over to the next update).
-    :param transitions_per_update: Transitions (all envs counted) per gradient step when ``gradient_steps`` is
-        None: the paper's one update per 100 transitions, whatever ``n_envs`` is (with ``n_envs=100``, one
-        gradient step per vectorised step). An explicit ``train_freq``/``gradient_steps`` keeps SB3's meaning.
+        None (default): 1 if ``train_freq`` is given; if neither is, the gradient steps the collected transitions
+        have earned, one per ``transitions_per_update`` transitions past ``learning_starts`` (a remainder carries
+        over to the next update).
+    :param transitions_per_update: Transitions (all envs counted) per gradient step when neither ``train_freq``
+        nor ``gradient_steps`` is given: the paper's one update per 100 transitions, whatever ``n_envs`` is (with
+        ``n_envs=100``, one gradient step per vectorised step). See :attr:`update_schedule`.
     :param action_noise: Exploration noise over the joint action in the policy's [-1, 1] space (any SB3
         ``ActionNoise``). None: Gaussian noise of ``noise_std``.
     :param noise_std: Standard deviation of the default Gaussian exploration noise, in each agent's own
@@ -166,7 +167,7 @@ class MADDPG(OffPolicyAlgorithm):
             tau,
             gamma,
             1 if train_freq is None else train_freq,  # None: derived from n_envs in _setup_model
-            1 if gradient_steps is None else gradient_steps,  # None: earned per rollout in collect_rollouts
+            1 if gradient_steps is None else gradient_steps,  # None with train_freq None: earned per rollout
             action_noise=action_noise,
             replay_buffer_class=replay_buffer_class or MultiAgentReplayBuffer,
             replay_buffer_kwargs=replay_buffer_kwargs,
@@ -186,7 +187,8 @@ class MADDPG(OffPolicyAlgorithm):
         self.actor_reg_coef = float(actor_reg_coef)
         self.transitions_per_update = transitions_per_update
         self._train_freq_from_ratio = train_freq is None
-        self._earn_gradient_steps = gradient_steps is None
+        # SB3's meaning as soon as either is given; the per-transition rule only when neither is.
+        self._earn_gradient_steps = gradient_steps is None and train_freq is None
         self._update_credit = 0  # transitions past learning_starts not yet spent on a gradient step
         self._credited_timesteps = 0  # num_timesteps when the credit was last counted
         self.noise_std = noise_std

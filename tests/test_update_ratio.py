@@ -48,9 +48,14 @@ def test_explicit_train_freq_and_gradient_steps_keep_sb3s_meaning() -> None:
     model.learn(400)  # 100 vectorised steps: an update every 10 of them, 3 gradient steps each
     assert model._n_updates == 30
     assert "3 gradient step(s) (batch 32) every 10 step(s) of 4 env(s)" in model.update_schedule
+    # train_freq alone: SB3's default of one gradient step per update.
     only_freq = make_model(1, learning_starts=0, train_freq=(1, "episode"))
-    only_freq.learn(400)  # an update after each of 16 episodes; their 400 transitions earn 4 gradient steps
-    assert only_freq._n_updates == 4
+    only_freq.learn(400)
+    assert only_freq._n_updates == 16
+    # gradient_steps alone: updates at the derived frequency, with that many steps each.
+    only_steps = make_model(20, learning_starts=0, gradient_steps=2)
+    only_steps.learn(400)  # an update every 5 vectorised steps of 20 envs: 4 updates
+    assert only_steps._n_updates == 8
 
 
 def test_the_rule_follows_the_env_on_load(tmp_path: object) -> None:
