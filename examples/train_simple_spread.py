@@ -49,7 +49,7 @@ def report(label: str, result: dict) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=1_000_000, help="training env steps (all worlds counted)")
+    parser.add_argument("--steps", type=int, default=2_000_000, help="training env steps (all worlds counted)")
     parser.add_argument("--agents", type=int, default=3, help="number of agents (and landmarks)")
     parser.add_argument("--sharing", default="full", help="critic_sharing scheme (independent, full, ..., selected)")
     parser.add_argument("--n-envs", type=int, default=100, help="worlds stepped together")
