@@ -1,8 +1,13 @@
 """Compare the five critic information-sharing schemes on one environment, with the same budget and seeds.
 
-    python examples/compare_schemes.py                       # 5 agents, 300k steps per run, 2 seeds
-    python examples/compare_schemes.py --seeds 0 1 2 --steps 1000000 --plot schemes.png
+    python examples/compare_schemes.py                       # 5 agents, 1M steps per run, 2 seeds
+    python examples/compare_schemes.py --seeds 0 1 2 --steps 2500000 --plot schemes.png
     python examples/compare_schemes.py --fast                # seconds: checks that everything runs (CI)
+    python examples/compare_schemes.py --mpe2                # step mpe2 itself: the same MDP, several times slower
+
+Every run trains at the paper's hyperparameters (one gradient step per 100 transitions, learning from
+step 25,600) on ``--n-envs`` worlds (100) stepped at once (:class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`),
+and is evaluated on the same episodes, one world each.
 
 ``SB3_MADDPG_FAST=1`` in the environment has the same effect as ``--fast``. For the paper's full
 protocol (31 seeds, checkpoints, statistics) use ``python -m sb3_maddpg.experiments`` instead.
@@ -13,9 +18,10 @@ import os
 import time
 
 import numpy as np
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
 from sb3_maddpg.evaluation import evaluate_team
 
 # critic_sharing value -> the paper's name
@@ -28,33 +34,44 @@ SCHEMES = {
 }
 
 
+def make_env(n_envs: int, n_agents: int, neighbors: int | None, mpe2: bool) -> VecEnv:
+    """``n_envs`` simple_spread worlds: batched arrays, or mpe2 itself behind the adapter."""
+    if mpe2:
+        return DummyVecEnv(
+            [lambda: make_simple_spread(n_agents=n_agents, num_agent_neighbors=neighbors) for _ in range(n_envs)]
+        )
+    return SimpleSpreadVecEnv(n_envs, n_agents=n_agents, num_agent_neighbors=neighbors)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fast", action="store_true", default=os.environ.get("SB3_MADDPG_FAST", "0") != "0")
     parser.add_argument("--n-agents", type=int, default=5)
     parser.add_argument("--neighbors", type=int, default=None, help="observe only the k nearest agents (partial obs.)")
-    parser.add_argument("--steps", type=int, default=300_000, help="training steps per run")
+    parser.add_argument("--steps", type=int, default=1_000_000, help="training steps per run (all worlds counted)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--eval-episodes", type=int, default=100)
+    parser.add_argument("--n-envs", type=int, default=100, help="worlds stepped together in training")
+    parser.add_argument("--mpe2", action="store_true", help="step mpe2 itself instead of the batched env")
     parser.add_argument("--plot", default=None, help="save a bar chart of the success rates to this file (needs matplotlib)")
     args = parser.parse_args()
 
     overrides: dict = {}
     if args.fast:
-        args.n_agents, args.steps, args.seeds, args.eval_episodes = 3, 400, [0], 3
-        overrides = {"learning_starts": 200, "batch_size": 32, "train_freq": 50, "buffer_size": 5_000}
-
-    def make_env():
-        return make_simple_spread(n_agents=args.n_agents, num_agent_neighbors=args.neighbors)
+        args.n_agents, args.steps, args.seeds, args.eval_episodes, args.n_envs = 3, 400, [0], 3, 4
+        overrides = {"learning_starts": 200, "batch_size": 32, "transitions_per_update": 50, "buffer_size": 5_000}
+    # One world per evaluation episode: they run side by side (mpe2: one env, episode after episode).
+    eval_env = make_env(1 if args.mpe2 else args.eval_episodes, args.n_agents, args.neighbors, args.mpe2)
 
     results: dict[str, list[dict]] = {scheme: [] for scheme in SCHEMES}
     for scheme in SCHEMES:
         for seed in args.seeds:
             start = time.time()
-            model = MADDPG("MlpPolicy", make_env(), critic_sharing=scheme, seed=seed, **overrides)
+            env = make_env(args.n_envs, args.n_agents, args.neighbors, args.mpe2)
+            model = MADDPG("MlpPolicy", env, critic_sharing=scheme, seed=seed, **overrides)
             model.learn(total_timesteps=args.steps)
             # The same evaluation episodes (seed) for every scheme and training seed.
-            result = evaluate_team(model, make_env(), n_episodes=args.eval_episodes, seed=10_000)
+            result = evaluate_team(model, eval_env, n_episodes=args.eval_episodes, seed=10_000)
             results[scheme].append(result)
             print(
                 f"{scheme:>12} seed {seed}: success {100 * result['success_rate']:5.1f}%  "
@@ -62,7 +79,7 @@ def main() -> None:
                 f"({time.time() - start:.0f}s)"
             )
 
-    print(f"\n{args.n_agents} agents, {args.steps} steps, seeds {args.seeds}; mean (std) over seeds")
+    print(f"\n{args.n_agents} agents, {args.steps:,} steps, seeds {args.seeds}; mean (std) over seeds")
     print(f"{'scheme':>12} {'paper':>11} {'success %':>12} {'coverage %':>12} {'collisions':>11} {'return':>9}")
     for scheme, paper_name in SCHEMES.items():
         success = 100 * np.array([r["success_rate"] for r in results[scheme]])
@@ -86,7 +103,7 @@ def main() -> None:
         stds = [100 * np.std([r["success_rate"] for r in results[s]]) for s in SCHEMES]
         ax.bar(names, means, yerr=stds, capsize=4, color="#3b75af")
         ax.set_ylabel("success rate (%)")
-        ax.set_title(f"simple_spread, {args.n_agents} agents, {args.steps} steps")
+        ax.set_title(f"simple_spread, {args.n_agents} agents, {args.steps:,} steps")
         fig.tight_layout()
         fig.savefig(args.plot)
         print(f"plot saved to {args.plot}")

@@ -5,8 +5,9 @@ the agents within ``radius`` of agent i (the others' action slots are zeros). It
 between sharing observations only (MADDPG-fo) and sharing everything (MADDPG), chosen from the
 current state instead of from a selection stored in the buffer.
 
-    python examples/custom_critic_features.py          # 3 agents, 300k steps
+    python examples/custom_critic_features.py          # 3 agents, 1M steps on 100 batched worlds
     python examples/custom_critic_features.py --fast   # seconds: checks that everything runs (CI)
+    python examples/custom_critic_features.py --mpe2   # step mpe2 itself: the same MDP, several times slower
 
 ``SB3_MADDPG_FAST=1`` in the environment has the same effect as ``--fast``.
 """
@@ -17,9 +18,10 @@ import tempfile
 from pathlib import Path
 
 import torch as th
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
 from sb3_maddpg import MADDPG, AgentLayout
-from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
 from sb3_maddpg.evaluation import evaluate_team
 from sb3_maddpg.sharing import CriticFeaturesExtractor
 
@@ -63,18 +65,27 @@ class DistanceMaskedCriticFeatures(CriticFeaturesExtractor):
         return th.cat(seen_obs + seen_actions, dim=1)
 
 
+def make_env(n_envs: int, n_agents: int, mpe2: bool) -> VecEnv:
+    """``n_envs`` simple_spread worlds: batched arrays, or mpe2 itself behind the adapter."""
+    if mpe2:
+        return DummyVecEnv([lambda: make_simple_spread(n_agents=n_agents) for _ in range(n_envs)])
+    return SimpleSpreadVecEnv(n_envs, n_agents=n_agents)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fast", action="store_true", default=os.environ.get("SB3_MADDPG_FAST", "0") != "0")
-    parser.add_argument("--steps", type=int, default=300_000)
+    parser.add_argument("--steps", type=int, default=1_000_000, help="training steps (all worlds counted)")
+    parser.add_argument("--n-envs", type=int, default=100, help="worlds stepped together in training")
+    parser.add_argument("--mpe2", action="store_true", help="step mpe2 itself instead of the batched env")
     args = parser.parse_args()
 
     eval_episodes, overrides = 100, {}
     if args.fast:
-        args.steps, eval_episodes = 400, 3
-        overrides = {"learning_starts": 200, "batch_size": 32, "train_freq": 50, "buffer_size": 5_000}
+        args.steps, eval_episodes, args.n_envs = 400, 3, 4
+        overrides = {"learning_starts": 200, "batch_size": 32, "transitions_per_update": 50, "buffer_size": 5_000}
 
-    env = make_simple_spread(n_agents=3)
+    env = make_env(args.n_envs, 3, args.mpe2)
     # Pass the class as critic_sharing and its own arguments as critic_sharing_kwargs.
     model = MADDPG(
         "MlpPolicy",
@@ -88,14 +99,18 @@ def main() -> None:
     print(f"critic 0: {type(extractor).__name__}, input of {extractor.features_dim} numbers")
 
     # Check that the actor of agent 0 can learn through its critic: d Q_0 / d a_0 must not be zero.
-    obs = th.as_tensor(env.reset(seed=0)[0]).unsqueeze(0)
-    actions = th.zeros(1, env.agent_layout.action_dim, requires_grad=True)
+    layout = model.agent_layout
+    env.seed(0)
+    obs = th.as_tensor(env.reset()[:1])  # world 0's joint observation, a batch of one
+    actions = th.zeros(1, layout.action_dim, requires_grad=True)
     model.policy.critics[0](obs, actions).sum().backward()
-    own = env.agent_layout.action_slices[0]
+    own = layout.action_slices[0]
     assert actions.grad is not None and actions.grad[0, own].abs().sum() > 0, "the critic must pass gradients to a_0"
 
     model.learn(total_timesteps=args.steps)
-    result = evaluate_team(model, make_simple_spread(n_agents=3), n_episodes=eval_episodes, seed=10_000)
+    # One world per evaluation episode: they run side by side (mpe2: one env, episode after episode).
+    eval_env = make_env(1 if args.mpe2 else eval_episodes, 3, args.mpe2)
+    result = evaluate_team(model, eval_env, n_episodes=eval_episodes, seed=10_000)
     print(f"success {100 * result['success_rate']:.1f}%, coverage {100 * result['coverage']:.1f}%")
 
     # The extractor class is saved with the model (pickled), so loading needs nothing else.

@@ -5,8 +5,9 @@ agents most likely to compete with it for that landmark. It is a plain function 
 observation, wrapped in ``CallableSelector``; the selection is made when each transition is stored
 and kept in the replay buffer with it.
 
-    python examples/custom_selection.py          # 4 agents, 300k steps
+    python examples/custom_selection.py          # 4 agents, 1M steps on 100 batched worlds
     python examples/custom_selection.py --fast   # seconds: checks that everything runs (CI)
+    python examples/custom_selection.py --mpe2   # step mpe2 itself: the same MDP, several times slower
 
 ``SB3_MADDPG_FAST=1`` in the environment has the same effect as ``--fast``.
 """
@@ -17,9 +18,10 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
 from sb3_maddpg import MADDPG, AgentLayout
-from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
 from sb3_maddpg.evaluation import evaluate_team
 from sb3_maddpg.selection import CallableSelector, FixedGraph
 
@@ -49,38 +51,51 @@ def rivals_for_my_landmark(observations: np.ndarray, layout: AgentLayout) -> np.
     return np.argsort(distance, axis=-1, kind="stable")[:, :, :K]
 
 
+def make_env(n_envs: int, n_agents: int, mpe2: bool) -> VecEnv:
+    """``n_envs`` simple_spread worlds: batched arrays, or mpe2 itself behind the adapter."""
+    if mpe2:
+        return DummyVecEnv([lambda: make_simple_spread(n_agents=n_agents) for _ in range(n_envs)])
+    return SimpleSpreadVecEnv(n_envs, n_agents=n_agents)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fast", action="store_true", default=os.environ.get("SB3_MADDPG_FAST", "0") != "0")
-    parser.add_argument("--steps", type=int, default=300_000)
+    parser.add_argument("--steps", type=int, default=1_000_000, help="training steps (all worlds counted)")
+    parser.add_argument("--n-envs", type=int, default=100, help="worlds stepped together in training")
+    parser.add_argument("--mpe2", action="store_true", help="step mpe2 itself instead of the batched env")
     args = parser.parse_args()
 
     n_agents, eval_episodes, overrides = 4, 100, {}
     if args.fast:
-        args.steps, eval_episodes = 400, 3
-        overrides = {"learning_starts": 200, "batch_size": 32, "train_freq": 50, "buffer_size": 5_000}
+        args.steps, eval_episodes, args.n_envs = 400, 3, 4
+        overrides = {"learning_starts": 200, "batch_size": 32, "transitions_per_update": 50, "buffer_size": 5_000}
 
-    env = make_simple_spread(n_agents=n_agents)
+    env = make_env(args.n_envs, n_agents, args.mpe2)
+    layout = env.get_attr("agent_layout")[0]
     selector = CallableSelector(rivals_for_my_landmark, k=K)
 
     # What the rule selects at the start of an episode (the library checks shape, range and self-selection).
-    obs, _ = env.reset(seed=0)
-    print("selection at reset (row i: the agents critic i sees):\n", selector.select(obs[None], env.agent_layout)[0])
+    env.seed(0)
+    obs = env.reset()  # [n_envs, joint observation]
+    print("selection at reset in world 0 (row i: the agents critic i sees):\n", selector.select(obs, layout)[0])
 
     model = MADDPG("MlpPolicy", env, critic_sharing="selected", selection=selector, seed=0, **overrides)
     model.learn(total_timesteps=args.steps)
 
-    # The stored selections: one [n_agents, k] row per transition in the replay buffer.
+    # The stored selections: one [n_agents, k] row per transition, [buffer rows, n_envs, n_agents, k] in all.
     buffer = model.replay_buffer
-    print("selections stored with the first two transitions:\n", buffer.selections[:2, 0])
+    print("selections stored with world 0's first two transitions:\n", buffer.selections[:2, 0])
 
-    result = evaluate_team(model, make_simple_spread(n_agents=n_agents), n_episodes=eval_episodes, seed=10_000)
+    # One world per evaluation episode: they run side by side (mpe2: one env, episode after episode).
+    eval_env = make_env(1 if args.mpe2 else eval_episodes, n_agents, args.mpe2)
+    result = evaluate_team(model, eval_env, n_episodes=eval_episodes, seed=10_000)
     print(f"success {100 * result['success_rate']:.1f}%, coverage {100 * result['coverage']:.1f}%")
 
     # A model with a custom selector saves and loads like any other (the function is pickled with it).
     path = Path(tempfile.mkdtemp()) / "maddpg_custom_selection"
     model.save(path)
-    loaded = MADDPG.load(path, env=make_simple_spread(n_agents=n_agents))
+    loaded = MADDPG.load(path, env=eval_env)
     print("loaded; its selector is", type(loaded.selection).__name__)
 
     # The other built-in selectors: a fixed graph, or roles (agents select the others with their role).
