@@ -191,6 +191,7 @@ class MADDPG(OffPolicyAlgorithm):
         self._earn_gradient_steps = gradient_steps is None and train_freq is None
         self._update_credit = 0  # transitions past learning_starts not yet spent on a gradient step
         self._credited_timesteps = 0  # num_timesteps when the credit was last counted
+        self._logs_dumped_at = -1
         self.noise_std = noise_std
         self.agent_layout: AgentLayout | None = None
         self.selection: Selector | None = None
@@ -309,6 +310,13 @@ class MADDPG(OffPolicyAlgorithm):
             self._update_credit = 0
             self._credited_timesteps = 0
         return result
+
+    def dump_logs(self) -> None:
+        """Write the logs at most once per env step: SB3 asks at finished episodes, which many envs end together."""
+        if self._logs_dumped_at == self.num_timesteps:
+            return
+        self._logs_dumped_at = self.num_timesteps
+        super().dump_logs()
 
     def _create_aliases(self) -> None:
         self.actor = self.policy.actor

@@ -9,6 +9,7 @@ from mpe2._mpe_utils.core import World
 from pettingzoo.utils.env_logger import EnvLogger
 from stable_baselines3.common.callbacks import EvalCallback
 from stable_baselines3.common.evaluation import evaluate_policy
+from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
 
 from sb3_maddpg import MADDPG
@@ -317,3 +318,12 @@ def test_training_on_it_equals_training_on_mpe2() -> None:
         )
     for param, ref_param in zip(ours.policy.parameters(), reference.policy.parameters()):
         np.testing.assert_allclose(param.detach().numpy(), ref_param.detach().numpy(), atol=1e-4)
+
+
+def test_many_worlds_write_the_logs_once_per_step(tmp_path: Any) -> None:
+    """100 worlds end 100 episodes in one step; SB3 would dump its logs at every 4th of them."""
+    model = MADDPG("MlpPolicy", VecMonitor(SimpleSpreadVecEnv(100, n_agents=3)), seed=0, **TINY)  # type: ignore[arg-type]
+    model.set_logger(configure(str(tmp_path), ["csv"]))
+    model.learn(5_000)  # 50 steps of 100 worlds: two rounds of episodes end
+    rows = (tmp_path / "progress.csv").read_text().strip().splitlines()[1:]
+    assert len(rows) == 2
