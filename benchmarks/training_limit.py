@@ -111,7 +111,8 @@ def markdown_table(results: list[dict[str, Any]]) -> str:
     """One row per configuration; the last column is the rate over mpe2's (same N and scheme)."""
     mpe2 = {(row["n_agents"], row["scheme"]): row["train_steps_per_s"] for row in results if row["vec_env"] == "mpe2"}
     lines = [
-        "| N | scheme | env | E | train steps/s | update ms | limit (steps/s) | of limit | peak RSS MiB | buffer GiB | vs mpe2 |",
+        "| N | scheme | env | E | train steps/s | update ms | limit (steps/s) | of limit | peak RSS MiB | buffer GiB "
+        "| vs mpe2 |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in results:

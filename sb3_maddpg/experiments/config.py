@@ -288,7 +288,7 @@ TINY_MODEL_KWARGS: dict[str, Any] = {
     "learning_starts": 250,
     "batch_size": 64,
     "buffer_size": 10_000,
-    "train_freq": 50,
+    "transitions_per_update": 50,
     "policy_kwargs": {"net_arch": {"pi": [16, 16], "qf": [16, 16]}},
 }
 """Tiny networks and an early start for pipeline tests."""
