@@ -18,10 +18,10 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
+from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_maddpg import MADDPG, AgentLayout
-from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
+from sb3_maddpg.envs import make_simple_spread_vec_env
 from sb3_maddpg.evaluation import evaluate_team
 from sb3_maddpg.selection import CallableSelector, FixedGraph
 
@@ -53,9 +53,7 @@ def rivals_for_my_landmark(observations: np.ndarray, layout: AgentLayout) -> np.
 
 def make_env(n_envs: int, n_agents: int, mpe2: bool) -> VecEnv:
     """``n_envs`` simple_spread worlds: batched arrays, or mpe2 itself behind the adapter."""
-    if mpe2:
-        return DummyVecEnv([lambda: make_simple_spread(n_agents=n_agents) for _ in range(n_envs)])
-    return SimpleSpreadVecEnv(n_envs, n_agents=n_agents)
+    return make_simple_spread_vec_env(n_envs, "mpe2" if mpe2 else "batched", n_agents=n_agents)
 
 
 def main() -> None:

@@ -23,10 +23,10 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # before pygame (imported by 
 import imageio.v3 as iio
 import numpy as np
 from PIL import Image
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
+from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
+from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread_vec_env
 from sb3_maddpg.evaluation import evaluate_team
 
 EPISODE_STEPS = 25
@@ -35,9 +35,7 @@ EPISODE_STEPS = 25
 
 def make_env(n_envs: int, mpe2: bool, **kwargs: Any) -> VecEnv:
     """``n_envs`` simple_spread worlds: batched arrays, or mpe2 itself behind the adapter."""
-    if mpe2:
-        return DummyVecEnv([lambda: make_simple_spread(**kwargs) for _ in range(n_envs)])
-    return SimpleSpreadVecEnv(n_envs, **kwargs)
+    return make_simple_spread_vec_env(n_envs, "mpe2" if mpe2 else "batched", **kwargs)
 
 
 def matching_env_kwargs(model: MADDPG) -> dict:

@@ -17,10 +17,10 @@ import os
 import time
 
 import torch as th
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
+from sb3_maddpg.envs import make_simple_spread_vec_env
 from sb3_maddpg.evaluation import evaluate_team
 from sb3_maddpg.experiments.runner import ProgressLogCallback
 
@@ -35,9 +35,7 @@ MEANING = (
 
 def make_env(n_envs: int, n_agents: int, mpe2: bool) -> VecEnv:
     """``n_envs`` simple_spread worlds: batched arrays, or mpe2 itself behind the adapter."""
-    if mpe2:
-        return DummyVecEnv([lambda: make_simple_spread(n_agents=n_agents) for _ in range(n_envs)])
-    return SimpleSpreadVecEnv(n_envs, n_agents=n_agents)
+    return make_simple_spread_vec_env(n_envs, "mpe2" if mpe2 else "batched", n_agents=n_agents)
 
 
 def report(label: str, result: dict) -> None:

@@ -13,7 +13,7 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
+from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread, make_simple_spread_vec_env
 from sb3_maddpg.envs import simple_spread_worlds as worlds_module
 from sb3_maddpg.evaluation import TeamEvalCallback, evaluate_team
 
@@ -327,3 +327,16 @@ def test_many_worlds_write_the_logs_once_per_step(tmp_path: Any) -> None:
     model.learn(5_000)  # 50 steps of 100 worlds: two rounds of episodes end
     rows = (tmp_path / "progress.csv").read_text().strip().splitlines()[1:]
     assert len(rows) == 2
+
+
+def test_one_factory_for_both_paths() -> None:
+    batched = make_simple_spread_vec_env(3, n_agents=4, num_agent_neighbors=2)
+    reference = make_simple_spread_vec_env(3, "mpe2", n_agents=4, num_agent_neighbors=2)
+    assert isinstance(batched, SimpleSpreadVecEnv) and isinstance(reference, DummyVecEnv)
+    assert batched.num_envs == reference.num_envs == 3
+    assert batched.get_attr("agent_layout") == reference.get_attr("agent_layout")
+    batched.seed(1)
+    reference.seed(1)
+    np.testing.assert_allclose(batched.reset(), reference.reset(), atol=TOLERANCE)
+    with pytest.raises(ValueError, match="vec_env must be 'batched' or 'mpe2'"):
+        make_simple_spread_vec_env(1, "jax")  # type: ignore[arg-type]

@@ -3,7 +3,7 @@
 from sb3_maddpg.envs.adapter import MetricsFn, PettingZooToGym
 from sb3_maddpg.envs.registration import SIMPLE_SPREAD_ID, register_envs
 from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS, SimpleSpreadMetrics, make_simple_spread
-from sb3_maddpg.envs.simple_spread_vec_env import SimpleSpreadVecEnv
+from sb3_maddpg.envs.simple_spread_vec_env import SimpleSpreadVecEnv, make_simple_spread_vec_env
 
 __all__ = [
     "CAPTURE_RADIUS",
@@ -13,5 +13,6 @@ __all__ = [
     "SimpleSpreadMetrics",
     "SimpleSpreadVecEnv",
     "make_simple_spread",
+    "make_simple_spread_vec_env",
     "register_envs",
 ]

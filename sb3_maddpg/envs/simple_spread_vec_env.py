@@ -6,9 +6,10 @@ from typing import Any, Literal
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
+from stable_baselines3.common.vec_env import DummyVecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
-from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS, check_simple_spread_arguments
+from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS, check_simple_spread_arguments, make_simple_spread
 from sb3_maddpg.envs.simple_spread_worlds import ACTION_SIZE, SimpleSpreadWorlds, WorldDistances
 from sb3_maddpg.layout import AgentLayout
 
@@ -280,6 +281,24 @@ class SimpleSpreadVecEnv(VecEnv):
     def env_is_wrapped(self, wrapper_class: type, indices: VecEnvIndices = None) -> list[bool]:
         """:return: False for each world: no gymnasium wrapper is inside (wrap the VecEnv, e.g. in ``VecMonitor``)."""
         return [False for _ in self._get_indices(indices)]
+
+
+def make_simple_spread_vec_env(n_envs: int = 1, vec_env: Literal["batched", "mpe2"] = "batched", **kwargs: Any) -> VecEnv:
+    """
+    ``n_envs`` simple_spread worlds as an SB3 ``VecEnv``, the same MDP either way.
+
+    :param n_envs: Worlds.
+    :param vec_env: ``"batched"``: :class:`SimpleSpreadVecEnv` (arrays, fast); ``"mpe2"``: ``DummyVecEnv`` over
+        :func:`~sb3_maddpg.envs.make_simple_spread` (mpe2 itself through the adapter).
+    :param kwargs: The worlds' settings, :func:`~sb3_maddpg.envs.make_simple_spread`'s keyword arguments
+        (``n_agents``, ``num_agent_neighbors``, ``max_cycles``, ``local_ratio``, ``render_mode``, ...).
+    :return: The VecEnv.
+    """
+    if vec_env == "batched":
+        return SimpleSpreadVecEnv(n_envs, **kwargs)
+    if vec_env == "mpe2":
+        return DummyVecEnv([lambda: make_simple_spread(**kwargs) for _ in range(n_envs)])
+    raise ValueError(f"vec_env must be 'batched' or 'mpe2', got {vec_env!r}.")
 
 
 def _check_radius(capture_radius: float) -> float:

@@ -13,7 +13,7 @@ from typing import Any
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.logger import configure
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 from sb3_maddpg.evaluation import EVAL_KEYS, TeamEvalCallback, evaluate_team, write_rows
 from sb3_maddpg.experiments.config import PAPER_NAMES, RunConfig
@@ -77,13 +77,15 @@ def make_env(config: RunConfig, n_envs: int | None = None) -> VecEnv:
     :param n_envs: Worlds (default: the run's ``n_envs``).
     :return: The run's simple_spread VecEnv, batched or over mpe2 as the config says (a new one on each call).
     """
-    from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
+    from sb3_maddpg.envs import make_simple_spread_vec_env
 
-    n_envs = config.n_envs if n_envs is None else n_envs
-    kwargs = dict(n_agents=config.n_agents, num_agent_neighbors=config.num_agent_neighbors, max_cycles=config.episode_length)
-    if config.vec_env == "batched":
-        return SimpleSpreadVecEnv(n_envs, **kwargs)  # type: ignore[arg-type]
-    return DummyVecEnv([lambda: make_simple_spread(**kwargs) for _ in range(n_envs)])  # type: ignore[arg-type]
+    return make_simple_spread_vec_env(
+        config.n_envs if n_envs is None else n_envs,
+        config.vec_env,  # type: ignore[arg-type]  # RunConfig checks it
+        n_agents=config.n_agents,
+        num_agent_neighbors=config.num_agent_neighbors,
+        max_cycles=config.episode_length,
+    )
 
 
 def make_eval_env(config: RunConfig, n_episodes: int) -> VecEnv:
