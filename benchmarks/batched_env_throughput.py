@@ -15,7 +15,6 @@ Usage::
 """
 
 import argparse
-import json
 import statistics
 import sys
 import time
@@ -27,7 +26,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from env_throughput import ACTION_SIZE, adapter_runner, machine_info
+from env_throughput import ACTION_SIZE, adapter_runner, command_line, machine_info, write_results
 
 
 def batched_runner(n_agents: int, n_envs: int, steps: int, seed: int) -> Callable[[], tuple[float, float]]:
@@ -108,16 +107,11 @@ def main(argv: list[str] | None = None) -> None:
 
     results = [measure(n, args.n_envs, args.steps, args.repeats) for n in args.agents]
     info = machine_info()
-    command = "python " + " ".join([Path(sys.argv[0]).as_posix(), *(argv if argv is not None else sys.argv[1:])])
     table = markdown_table(results)
-    machine = ", ".join(f"{key} {value}" for key, value in info.items())
     print(table)
-    print(f"\nmedian of {args.repeats}, env steps per CPU-second; {machine}")
+    print(f"\nmedian of {args.repeats}, env steps per CPU-second; " + ", ".join(f"{k} {v}" for k, v in info.items()))
     if args.out is not None:
-        if args.out.suffix == ".json":
-            args.out.write_text(json.dumps({"command": command, "machine": info, "results": results}, indent=2) + "\n")
-        else:
-            args.out.write_text(f"{table}\n\nCommand: `{command}`\n\nMachine: {machine}\n")
+        write_results(args.out, command_line(argv), info, table, results)
 
 
 if __name__ == "__main__":

@@ -165,6 +165,28 @@ def machine_info() -> dict[str, str]:
     }
 
 
+def command_line(argv: list[str] | None) -> str:
+    """The command that ran this script, for the written results."""
+    return "python " + " ".join([Path(sys.argv[0]).as_posix(), *(argv if argv is not None else sys.argv[1:])])
+
+
+def write_results(out: Path, command: str, info: dict[str, str], table: str, results: list[dict[str, Any]]) -> None:
+    """
+    Write the results: JSON (command, machine, every figure) if ``out`` ends in .json, else the markdown table.
+
+    :param out: The file.
+    :param command: The command that made them.
+    :param info: The machine (:func:`machine_info`).
+    :param table: The markdown table.
+    :param results: Every measurement.
+    """
+    if out.suffix == ".json":
+        out.write_text(json.dumps({"command": command, "machine": info, "results": results}, indent=2) + "\n")
+    else:
+        machine = ", ".join(f"{key} {value}" for key, value in info.items())
+        out.write_text(f"{table}\n\nCommand: `{command}`\n\nMachine: {machine}\n")
+
+
 def _load_average() -> float:
     return os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
 
@@ -202,16 +224,12 @@ def main(argv: list[str] | None = None) -> None:
     info = machine_info()
     # Other processes share the cores: the 1-minute load average says how busy the machine was.
     info["load_avg_1min"] = f"{load_before:.2f} before, {_load_average():.2f} after"
-    command = "python " + " ".join([Path(sys.argv[0]).as_posix(), *(argv if argv is not None else sys.argv[1:])])
     table = markdown_table(results)
     machine = ", ".join(f"{key} {value}" for key, value in info.items())
     print(table)
     print(f"\n{args.steps} steps x {args.repeats} repeats, median, steps per CPU-second; {machine}")
     if args.out is not None:
-        if args.out.suffix == ".json":
-            args.out.write_text(json.dumps({"command": command, "machine": info, "results": results}, indent=2) + "\n")
-        else:
-            args.out.write_text(f"{table}\n\nCommand: `{command}`\n\nMachine: {machine}\n")
+        write_results(args.out, command_line(argv), info, table, results)
 
 
 if __name__ == "__main__":

@@ -34,7 +34,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from env_throughput import machine_info
+from env_throughput import command_line, machine_info, write_results
 from throughput import _peak_rss_mib
 
 LEARNING_STARTS = 1024
@@ -154,15 +154,13 @@ def main(argv: list[str] | None = None) -> None:
 
     info = machine_info()
     info["load_avg_1min"] = f"{load_before:.2f} before, {os.getloadavg()[0]:.2f} after"
-    command = "python " + " ".join([Path(sys.argv[0]).as_posix(), *(argv if argv is not None else sys.argv[1:])])
     table = markdown_table(results)
-    machine = ", ".join(f"{key} {value}" for key, value in info.items())
     print(table)
+    machine = ", ".join(f"{key} {value}" for key, value in info.items())
     print(f"\n{args.steps} timed transitions, {args.updates} timed updates, one torch thread; {machine}")
     if args.out is not None:
-        payload = {"command": command, "machine": info, "results": results}
-        args.out.with_suffix(".json").write_text(json.dumps(payload, indent=2) + "\n")
-        args.out.with_suffix(".md").write_text(f"{table}\n\nCommand: `{command}`\n\nMachine: {machine}\n")
+        for suffix in (".json", ".md"):
+            write_results(args.out.with_suffix(suffix), command_line(argv), info, table, results)
 
 
 if __name__ == "__main__":
