@@ -306,9 +306,10 @@ class MADDPG(OffPolicyAlgorithm):
         progress_bar: bool = False,
     ) -> tuple[int, BaseCallback]:
         result = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
-        if reset_num_timesteps:  # timesteps count from 0 again, and so does the credit
+        if reset_num_timesteps:  # timesteps count from 0 again, and so do the credit and the last log step
             self._update_credit = 0
             self._credited_timesteps = 0
+            self._logs_dumped_at = -1
         return result
 
     def dump_logs(self) -> None:

@@ -327,6 +327,8 @@ def test_many_worlds_write_the_logs_once_per_step(tmp_path: Any) -> None:
     model.learn(5_000)  # 50 steps of 100 worlds: two rounds of episodes end
     rows = (tmp_path / "progress.csv").read_text().strip().splitlines()[1:]
     assert len(rows) == 2
+    model.learn(5_000)  # counting restarts: steps 2,500 and 5,000 log again
+    assert len((tmp_path / "progress.csv").read_text().strip().splitlines()[1:]) == 4
 
 
 def test_one_factory_for_both_paths() -> None:
