@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu
 
-from sb3_maddpg.experiments import EXP1, EXP2, SCHEMES, SMOKE, RunConfig, make_report, run_sweep
+from sb3_maddpg.experiments import EXP1, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.report import format_markdown, load_summaries
 from sb3_maddpg.experiments.runner import DONE_FILE, RESULT_FILES, execute_run, is_finished, write_result_files
@@ -60,6 +60,9 @@ def test_overrides_and_validation() -> None:
     # Configs written before vec_env existed describe runs on one mpe2 env.
     legacy = {key: value for key, value in run.to_dict().items() if key not in ("vec_env", "n_envs")}
     assert (RunConfig.from_dict(legacy).vec_env, RunConfig.from_dict(legacy).n_envs) == ("mpe2", 1)
+    legacy_experiment = {key: value for key, value in EXP1.to_dict().items() if key not in ("vec_env", "n_envs")}
+    assert ExperimentConfig.from_dict(legacy_experiment).runs()[0].vec_env == "mpe2"
+    assert ExperimentConfig.from_dict(EXP1.to_dict()).runs()[0].vec_env == "batched"
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -77,15 +77,30 @@ def test_spaces_and_layout_equal_the_adapters(num_agent_neighbors: int | None) -
 
 
 @pytest.mark.parametrize(
-    ("n_agents", "num_agent_neighbors", "local_ratio", "max_cycles"),
-    [(2, None, 0.5, 25), (3, None, 0.5, 25), (3, 1, 0.0, 25), (5, None, 0.5, 25), (5, 2, 1.0, 25), (8, 3, 0.3, 10)],
+    ("n_agents", "num_agent_neighbors", "local_ratio", "max_cycles", "num_landmark_neighbors"),
+    [
+        (2, None, 0.5, 25, None),
+        (3, None, 0.5, 25, None),
+        (3, 1, 0.0, 25, None),
+        (5, None, 0.5, 25, None),
+        (5, 2, 1.0, 25, None),
+        (8, 3, 0.3, 10, None),
+        (4, None, 0.5, 25, 2),
+        (5, 2, 0.5, 25, 5),
+    ],
 )
 def test_seeded_rollouts_replay_mpe2(
-    n_agents: int, num_agent_neighbors: int | None, local_ratio: float, max_cycles: int
+    n_agents: int, num_agent_neighbors: int | None, local_ratio: float, max_cycles: int, num_landmark_neighbors: int | None
 ) -> None:
     """Several whole episodes with auto-reset from one seed, never re-synced: every step equals mpe2's."""
     n_envs, episodes = 3, 3
-    kwargs = dict(n_agents=n_agents, num_agent_neighbors=num_agent_neighbors, local_ratio=local_ratio, max_cycles=max_cycles)
+    kwargs = dict(
+        n_agents=n_agents,
+        num_agent_neighbors=num_agent_neighbors,
+        local_ratio=local_ratio,
+        max_cycles=max_cycles,
+        num_landmark_neighbors=num_landmark_neighbors,
+    )
     ours, reference = SimpleSpreadVecEnv(n_envs, **kwargs), mpe2_vec_env(n_envs, **kwargs)  # type: ignore[arg-type]
     ours.seed(100 + n_agents)
     reference.seed(100 + n_agents)
@@ -147,6 +162,11 @@ def test_each_step_from_mpe2s_state_matches(n_agents: int, num_agent_neighbors: 
             ref_result = reference.step(actions)
             if step < max_cycles - 1:  # the last step resets both (unrelated generators): compare its terminal obs
                 assert_same_step(result, ref_result, f"episode {episode}, step {step}")
+                # The physics is mpe2's bit for bit, contacts included (so long rollouts cannot drift apart).
+                for index, parallel_env in enumerate(parallel_envs):
+                    world = parallel_env.unwrapped.world
+                    np.testing.assert_array_equal(ours.worlds.agent_pos[index], [a.state.p_pos for a in world.agents])
+                    np.testing.assert_array_equal(ours.worlds.agent_vel[index], [a.state.p_vel for a in world.agents])
             else:
                 last = [info["terminal_observation"] for info in result[3]]
                 np.testing.assert_allclose(last, [info["terminal_observation"] for info in ref_result[3]], atol=TOLERANCE)
@@ -250,6 +270,8 @@ def test_bad_settings_are_refused(kwargs: dict[str, Any], message: str) -> None:
 
 def test_bad_actions_are_refused() -> None:
     env = SimpleSpreadVecEnv(2, n_agents=3)
+    with pytest.raises(RuntimeError, match=r"call reset\(\) before step\(\)"):
+        env.step(np.zeros((2, 15), np.float32))
     env.reset()
     with pytest.raises(ValueError, match=r"Expected actions of shape \(2, 15\)"):
         env.step(np.zeros((2, 10), np.float32))

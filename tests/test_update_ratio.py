@@ -1,6 +1,5 @@
 """The paper's update ratio (one gradient step per 100 transitions) for any number of envs, and SB3's when asked."""
 
-import numpy as np
 import pytest
 from stable_baselines3.common.type_aliases import TrainFreq, TrainFrequencyUnit
 
@@ -33,6 +32,14 @@ def test_with_100_envs_one_gradient_step_per_vectorised_step() -> None:
     assert counts == [1, 2, 3]
     model.learn(100)  # timesteps count from 0 again, and so do the earned gradient steps
     assert model._n_updates == 4
+
+
+def test_a_remainder_carries_over_to_the_next_learn() -> None:
+    model = make_model(16, learning_starts=0)
+    model.learn(400)  # 5 updates of 96 transitions: 480 transitions, 4 gradient steps and 80 left over
+    assert (model.num_timesteps, model._n_updates) == (480, 4)
+    model.learn(400, reset_num_timesteps=False)  # 480 more: with the 80 left over, 5 more gradient steps
+    assert (model.num_timesteps, model._n_updates) == (960, 9)
 
 
 def test_the_credit_carries_over_and_restarts_with_the_timesteps() -> None:
@@ -79,4 +86,3 @@ def test_update_schedule_says_the_rule() -> None:
     assert schedule == (
         "one gradient step (batch 32) per 100 transitions after step 25,600, taken every 1 step(s) of 100 env(s)"
     )
-    assert np.isfinite(len(schedule))

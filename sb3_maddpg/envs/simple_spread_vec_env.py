@@ -26,8 +26,8 @@ class SimpleSpreadVecEnv(VecEnv):
     - Same physics, observations (``num_agent_neighbors``: nearest first, as mpe2), per-agent rewards
       (``local_ratio``), truncation after ``max_cycles`` steps and reset distribution as mpe2, in float64.
     - Same seeding: after ``seed(s)``, world ``i``'s episodes (the first reset and every auto-reset after it)
-      are those of an mpe2 env after ``reset(seed=s + i)`` given the same actions; unseeded worlds draw
-      from fresh entropy, as mpe2 does.
+      are those of an mpe2 env after ``reset(seed=s + i)`` given the same actions (``seed(None)`` draws ``s``
+      from NumPy's global generator, as SB3's VecEnvs do); worlds never seeded draw fresh entropy, as mpe2 does.
     - Same spaces, layout and ``info`` as the adapter: ``agent_layout`` (through ``get_attr``),
       ``info["agent_rewards"]`` (float32), ``agent_terminations``, ``agent_truncations``, ``TimeLimit.truncated``,
       ``terminal_observation`` with auto-reset, and the task metrics of
@@ -90,6 +90,7 @@ class SimpleSpreadVecEnv(VecEnv):
         super().__init__(int(n_envs), observation_space, action_space)
         self._generators = [seeding.np_random()[0] for _ in range(self.num_envs)]
         self._steps = 0
+        self._needs_reset = True
         self._actions: np.ndarray | None = None
         self._cam_ranges = np.ones(self.num_envs)  # mpe2's per-episode zoom, for rendering
         self._renderer: Any = None
@@ -122,6 +123,8 @@ class SimpleSpreadVecEnv(VecEnv):
         """
         :param actions: Joint actions ``[n_envs, n_agents * 5]`` in [0, 1] (agents in layout order).
         """
+        if self._needs_reset:
+            raise RuntimeError("The worlds have no state yet: call reset() before step(), as with any VecEnv.")
         actions = np.asarray(actions)
         expected = (self.num_envs, self.agent_layout.action_dim)
         if actions.shape != expected and actions.size == self.num_envs * self.agent_layout.action_dim:
@@ -179,6 +182,7 @@ class SimpleSpreadVecEnv(VecEnv):
         worlds = self.worlds
         self._cam_ranges = np.maximum(np.abs(worlds.agent_pos).max(axis=(1, 2)), np.abs(worlds.landmark_pos).max(axis=(1, 2)))
         self._steps = 0
+        self._needs_reset = False
         distances = worlds.distances()
         return self._joint_observations(distances), worlds.metrics(distances, self.capture_radius)
 
@@ -188,17 +192,6 @@ class SimpleSpreadVecEnv(VecEnv):
     def _metric_infos(self, metrics: dict[str, np.ndarray]) -> list[dict[str, Any]]:
         columns = {key: values.tolist() for key, values in metrics.items()}
         return [dict(zip(columns, row)) for row in zip(*columns.values())]
-
-    def seed(self, seed: int | None = None) -> Sequence[int | None]:
-        """
-        Seed the next reset: world ``i`` gets ``seed + i`` (SB3's convention).
-
-        :param seed: The first world's seed; ``None`` gives every world fresh entropy.
-        :return: The worlds' seeds.
-        """
-        if seed is None:
-            self._generators = [seeding.np_random()[0] for _ in range(self.num_envs)]
-        return super().seed(seed)
 
     def close(self) -> None:
         """Release the renderer (pygame), if one was made."""

@@ -106,7 +106,9 @@ class SimpleSpreadWorlds:
         # Softplus penetration on every pair (no cutoff, as mpe2): force on i from j along (p_i - p_j).
         penetration = np.logaddexp(0, -(distances - 2 * AGENT_SIZE) / CONTACT_MARGIN) * CONTACT_MARGIN
         contact = CONTACT_FORCE * -offsets / distances[..., None] * penetration[..., None]
-        force = force + contact.sum(axis=2)
+        # mpe2 adds each pair's force to the action force in turn, others in index order: a running sum
+        # (cumsum is sequential) gives its bits exactly, where sum() would add the contacts first.
+        force = np.concatenate([force[:, :, None], contact], axis=2).cumsum(axis=2)[:, :, -1]
         # Semi-implicit Euler in mpe2's order: position from the old velocity, then damping, then force.
         self.agent_pos += self.agent_vel * DT
         self.agent_vel = self.agent_vel * (1 - DAMPING) + force * DT

@@ -254,10 +254,11 @@ class ExperimentConfig:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "ExperimentConfig":
         """
-        :param data: A dict from :meth:`to_dict` or a JSON file.
+        :param data: A dict from :meth:`to_dict` or a JSON file. Files written before 0.2 have no ``vec_env`` and
+            ``n_envs``: those experiments stepped one mpe2 env per run.
         :return: The config.
         """
-        data = dict(data)
+        data = {"vec_env": "mpe2", "n_envs": 1, **data}
         for key in ("schemes", "seeds"):
             if key in data:
                 data[key] = tuple(data[key])
