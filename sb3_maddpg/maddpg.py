@@ -192,6 +192,11 @@ class MADDPG(OffPolicyAlgorithm):
         self._update_credit = 0  # transitions past learning_starts not yet spent on a gradient step
         self._credited_timesteps = 0  # num_timesteps when the credit was last counted
         self._logs_dumped_at = -1
+        if not _init_setup_model:
+            # SB3's load() builds the model this way and then sets the saved attributes over these: a model saved
+            # by 0.1, which has none of them, keeps training as it did (SB3's train_freq, no regulariser).
+            self._train_freq_from_ratio = self._earn_gradient_steps = False
+            self.actor_reg_coef = 0.0
         self.noise_std = noise_std
         self.agent_layout: AgentLayout | None = None
         self.selection: Selector | None = None

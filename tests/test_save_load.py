@@ -1,5 +1,7 @@
 """Save and load in SB3's style, for every sharing scheme: parameters, optimisers, replay buffer, selectors."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch as th
@@ -153,3 +155,19 @@ def test_load_with_same_spaces_other_layout(tmp_path):
     other.agent_layout = AgentLayout(("a", "b", "c"), layout.obs_sizes, layout.action_sizes)
     with pytest.raises(ValueError, match="agent layout"):
         MADDPG.load(tmp_path / "model.zip", env=other)
+
+
+def test_a_model_saved_by_0_1_keeps_its_training_rules() -> None:
+    """0.1 had SB3's train_freq and no actor regulariser: a model it saved must not pick up 0.2's defaults on load."""
+    # tests/data/maddpg_0.1.0.zip: sb3-maddpg 0.1.0, make_simple_spread(n_agents=3), train_freq=(1, "episode"),
+    # gradient_steps=3, learning_starts=50, batch_size=16, buffer_size=500, net_arch=[8], seed=0, learn(100).
+    path = Path(__file__).parent / "data" / "maddpg_0.1.0.zip"
+    model = MADDPG.load(path, env=make_team())
+    assert model.actor_reg_coef == 0.0
+    assert (model.train_freq.frequency, model.train_freq.unit.value, model.gradient_steps) == (1, "episode", 3)
+    assert "SB3's train_freq semantics" in model.update_schedule
+    updates = model._n_updates
+    model.learn(100, reset_num_timesteps=False)  # four more episodes, 3 gradient steps after each
+    assert model._n_updates == updates + 12
+    fresh = MADDPG("MlpPolicy", make_team(), **FAST)  # a model built by 0.2 has 0.2's defaults
+    assert fresh.actor_reg_coef == 1e-3
