@@ -180,7 +180,10 @@ class SimpleSpreadVecEnv(VecEnv):
         for world, generator in enumerate(self._generators):
             self.worlds.reset_world(world, generator)
         worlds = self.worlds
-        self._cam_ranges = np.maximum(np.abs(worlds.agent_pos).max(axis=(1, 2)), np.abs(worlds.landmark_pos).max(axis=(1, 2)))
+        if self.render_mode is not None:  # mpe2's zoom for the episode, from its first positions
+            self._cam_ranges = np.maximum(
+                np.abs(worlds.agent_pos).max(axis=(1, 2)), np.abs(worlds.landmark_pos).max(axis=(1, 2))
+            )
         self._steps = 0
         self._needs_reset = False
         distances = worlds.distances()

@@ -32,12 +32,20 @@ ACTION_SIZE = 2 * DIM_P + 1
 
 @dataclass
 class WorldDistances:
-    """Distances in every world after a step, computed once and shared by rewards, observations and metrics."""
+    """Offsets and distances in every world, computed once and shared by rewards, observations and metrics."""
 
+    other_offsets: np.ndarray
+    """``other_offsets[w, i, j]``: agent i's j-th other agent's position minus its own (index order), ``[E, N, N-1, 2]``."""
+    landmark_offsets: np.ndarray
+    """``landmark_offsets[w, i, l]``: position of landmark l minus agent i's, ``[E, N, N, 2]``."""
     others: np.ndarray
-    """``others[w, i, j]``: agent i to its j-th other agent (others in index order, i itself left out), ``[E, N, N-1]``."""
+    """``others[w, i, j]``: agent i to its j-th other agent, ``[E, N, N-1]``."""
     to_landmarks: np.ndarray
     """``to_landmarks[w, l, i]``: landmark l to agent i, ``[E, N, N]``."""
+    nearest_agent: np.ndarray
+    """``nearest_agent[w, l]``: landmark l to its nearest agent, ``[E, N]``."""
+    in_contact: np.ndarray
+    """``in_contact[w, i, j]``: agent i and its j-th other agent overlap (mpe2's ``is_collision``), ``[E, N, N-1]``."""
 
 
 class SimpleSpreadWorlds:
@@ -115,12 +123,18 @@ class SimpleSpreadWorlds:
         return self.distances()
 
     def distances(self) -> WorldDistances:
-        """:return: The current distances between agents and to landmarks."""
-        offsets = self.agent_pos[:, self._others] - self.agent_pos[:, :, None]
-        to_landmarks = self.landmark_pos[:, :, None] - self.agent_pos[:, None]  # [E, landmark, agent, 2]
+        """:return: The current offsets and distances between agents and to landmarks."""
+        other_offsets = self.agent_pos[:, self._others] - self.agent_pos[:, :, None]
+        landmark_offsets = self.landmark_pos[:, None] - self.agent_pos[:, :, None]  # [E, agent, landmark, 2]
+        others = _norm(other_offsets)
+        to_landmarks = _norm(landmark_offsets).transpose(0, 2, 1)  # the same bits as landmark minus agent, squared
         return WorldDistances(
-            others=_norm(offsets),
-            to_landmarks=_norm(to_landmarks),
+            other_offsets=other_offsets,
+            landmark_offsets=landmark_offsets,
+            others=others,
+            to_landmarks=to_landmarks,
+            nearest_agent=to_landmarks.min(axis=2),
+            in_contact=others < 2 * AGENT_SIZE,
         )
 
     def rewards(self, distances: WorldDistances) -> np.ndarray:
@@ -131,8 +145,8 @@ class SimpleSpreadWorlds:
         :param distances: The distances after the step.
         :return: ``[E, N]`` float64.
         """
-        global_reward = -distances.to_landmarks.min(axis=2).sum(axis=1)
-        local_reward = -(distances.others < 2 * AGENT_SIZE).sum(axis=2).astype(np.float64)
+        global_reward = -distances.nearest_agent.sum(axis=1)
+        local_reward = -distances.in_contact.sum(axis=2).astype(np.float64)
         return global_reward[:, None] * (1 - self.local_ratio) + local_reward * self.local_ratio
 
     def observations(self, distances: WorldDistances) -> np.ndarray:
@@ -144,12 +158,12 @@ class SimpleSpreadWorlds:
         :return: ``[E, N, obs_size]`` float32.
         """
         n_worlds, n_agents = self.n_worlds, self.n_agents
-        landmark_offsets = self.landmark_pos[:, None] - self.agent_pos[:, :, None]  # [E, agent, landmark, 2]
+        landmark_offsets = distances.landmark_offsets
         if self.num_landmark_neighbors is not None:
             landmark_offsets = _nearest(
                 landmark_offsets, distances.to_landmarks.transpose(0, 2, 1), self.num_landmark_neighbors
             )
-        other_offsets = self.agent_pos[:, self._others] - self.agent_pos[:, :, None]
+        other_offsets = distances.other_offsets
         if self.num_agent_neighbors is not None:
             other_offsets = _nearest(other_offsets, distances.others, self.num_agent_neighbors)
         n_others = other_offsets.shape[2]
@@ -170,12 +184,12 @@ class SimpleSpreadWorlds:
         :param capture_radius: Distance within which an agent covers a landmark.
         :return: ``coverage``, ``success``, ``collisions`` (agent pairs in contact) and ``min_dist_sum``, ``[E]`` each.
         """
-        nearest = distances.to_landmarks.min(axis=2)
+        nearest = distances.nearest_agent
         covered = (nearest < capture_radius).sum(axis=1)
         return {
             "coverage": covered / self.n_agents,
             "success": (covered == self.n_agents).astype(np.float64),
-            "collisions": (distances.others < 2 * AGENT_SIZE).sum(axis=(1, 2)) / 2.0,  # each pair seen from both ends
+            "collisions": distances.in_contact.sum(axis=(1, 2)) / 2.0,  # each pair seen from both ends
             "min_dist_sum": nearest.sum(axis=1),
         }
 
