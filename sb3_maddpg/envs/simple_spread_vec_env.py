@@ -21,7 +21,7 @@ class SimpleSpreadVecEnv(VecEnv):
     """
     ``n_envs`` worlds of MPE cooperative navigation (``mpe2.simple_spread_v3``, continuous actions), simulated
     together as arrays: the same MDP as ``DummyVecEnv`` over :func:`~sb3_maddpg.envs.make_simple_spread`,
-    80-124x faster to step with 64-256 worlds.
+    92-152x faster to step with 64-256 worlds.
 
     - Same physics, observations (``num_agent_neighbors``: nearest first, as mpe2), per-agent rewards
       (``local_ratio``), truncation after ``max_cycles`` steps and reset distribution as mpe2, in float64.

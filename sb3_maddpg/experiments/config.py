@@ -66,7 +66,7 @@ class RunConfig:
     :param algorithm: The algorithm class as ``"module:Class"``; it is built as
         ``Class("MlpPolicy", env, critic_sharing=scheme, seed=seed, **model_kwargs)``.
     :param vec_env: ``"batched"`` (:class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`) or ``"mpe2"`` (``DummyVecEnv``
-        over mpe2 through the adapter): the same MDP, the first 80-124x faster to step with 64-256 worlds.
+        over mpe2 through the adapter): the same MDP, the first 92-152x faster to step with 64-256 worlds.
     :param n_envs: Worlds (envs) stepped together during training.
     """
 
