@@ -2,6 +2,7 @@
 
 import csv
 import os
+import warnings
 from typing import Any, Protocol
 
 import gymnasium as gym
@@ -12,6 +13,24 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 TASK_METRICS = ("success", "coverage", "collisions", "min_dist_sum")
 """The task metrics read from ``info`` (see :class:`~sb3_maddpg.envs.SimpleSpreadMetrics`)."""
 
+SUCCESS_RADII = (0.1, 0.15, 0.2, 0.3)
+"""Radii at which :func:`evaluate_team` also scores success and coverage: mpe2's capture radius 0.1, the agent
+size 0.15, 0.2 and 0.3. Teams trained at small budgets rarely hold every agent within 0.1 of a landmark, so the
+larger radii show progress that the paper's success rate at mpe2's radius cannot."""
+
+
+def radius_key(metric: str, radius: float) -> str:
+    """
+    :param metric: ``"success_rate"`` or ``"coverage"``.
+    :param radius: A radius of :data:`SUCCESS_RADII`.
+    :return: The key of that metric at that radius, e.g. ``success_rate_r0.15``.
+    """
+    return f"{metric}_r{radius:g}"
+
+
+RADIUS_KEYS = tuple(radius_key(metric, radius) for radius in SUCCESS_RADII for metric in ("success_rate", "coverage"))
+"""The keys of success and coverage at each radius of :data:`SUCCESS_RADII`."""
+
 EVAL_KEYS = (
     "success_rate",
     "coverage",
@@ -20,6 +39,7 @@ EVAL_KEYS = (
     "return_mean",
     "return_std",
     "episode_length",
+    *RADIUS_KEYS,
 )
 """The scalar results of :func:`evaluate_team`, in the order they are logged and written."""
 
@@ -49,7 +69,10 @@ def evaluate_team(
     The task metrics come from the env's ``info`` at the **last step** of each episode
     (``success``, ``coverage``, ``min_dist_sum``), except ``collisions``, which is **summed over the
     episode** (agent pairs in contact, counted at every step). Per-agent returns are summed from
-    ``info["agent_rewards"]``. An env without these keys gives ``nan`` for the missing metrics.
+    ``info["agent_rewards"]``. Success and coverage at each radius of :data:`SUCCESS_RADII` come from
+    ``info["landmark_distances"]`` at the last step (each landmark's distance to its nearest agent; a landmark is
+    covered when that distance is below the radius, as in mpe2). An env without these keys (any env but
+    simple_spread's) gives ``nan`` for the missing metrics, with a warning.
 
     With a ``VecEnv`` of ``n`` envs the episodes are spread evenly over the envs, as in SB3's
     ``evaluate_policy``, so that the result does not favour short episodes.
@@ -64,7 +87,8 @@ def evaluate_team(
         the last step), ``coverage`` (mean fraction of landmarks covered at the last step),
         ``collisions`` (mean per episode), ``min_dist_sum`` (mean at the last step), ``return_mean`` and
         ``return_std`` (team return, the env's scalar reward), ``episode_length`` (mean),
-        ``agent_returns`` (mean return of each agent, a list) and ``n_episodes``.
+        ``agent_returns`` (mean return of each agent, a list), ``n_episodes``, and ``success_rate_r<radius>`` and
+        ``coverage_r<radius>`` for each radius of :data:`SUCCESS_RADII` (see :func:`radius_key`).
     """
     if n_episodes < 1:
         raise ValueError(f"n_episodes must be at least 1, got {n_episodes}.")
@@ -80,7 +104,7 @@ def evaluate_team(
     lengths = np.zeros(n_envs, dtype=int)
     collisions = np.zeros(n_envs)
     agent_returns: list[np.ndarray | None] = [None] * n_envs
-    episodes: dict[str, list[Any]] = {key: [] for key in ("return", "length", "agent_returns", *TASK_METRICS)}
+    episodes: dict[str, list[Any]] = {key: [] for key in ("return", "length", "agent_returns", *TASK_METRICS, *RADIUS_KEYS)}
     states = None
     episode_starts = np.ones(n_envs, dtype=bool)
 
@@ -105,12 +129,22 @@ def evaluate_team(
                 episodes["collisions"].append(float(collisions[i]))
                 for key in ("success", "coverage", "min_dist_sum"):
                     episodes[key].append(float(info.get(key, np.nan)))
+                for key, value in _radius_metrics(info.get("landmark_distances")).items():
+                    episodes[key].append(value)
                 counts[i] += 1
             team_returns[i], lengths[i], collisions[i], agent_returns[i] = 0.0, 0, 0.0, None
         episode_starts = dones
 
     returns = np.asarray(episodes["return"])
     per_agent = [r for r in episodes["agent_returns"] if r is not None]
+    missing = [key for key in TASK_METRICS if np.isnan(episodes[key]).all()]
+    missing += ["landmark_distances"] if np.isnan(episodes[RADIUS_KEYS[0]]).all() else []
+    if missing:
+        warnings.warn(
+            f"evaluate_team: the env's info has no task metrics for {missing} (simple_spread's envs give them; "
+            "other envs do not), so they are nan; read return_mean and agent_returns instead.",
+            stacklevel=2,
+        )
     return {
         "success_rate": float(np.mean(episodes["success"])),
         "coverage": float(np.mean(episodes["coverage"])),
@@ -121,7 +155,21 @@ def evaluate_team(
         "episode_length": float(np.mean(episodes["length"])),
         "agent_returns": np.mean(per_agent, axis=0).tolist() if len(per_agent) == len(returns) else [],
         "n_episodes": len(returns),
+        **{key: float(np.mean(episodes[key])) for key in RADIUS_KEYS},
     }
+
+
+def _radius_metrics(landmark_distances: Any) -> dict[str, float]:
+    """Success and coverage at each radius of :data:`SUCCESS_RADII` from the last step's landmark distances."""
+    if landmark_distances is None:
+        return dict.fromkeys(RADIUS_KEYS, np.nan)
+    distances = np.asarray(landmark_distances, dtype=np.float64)
+    metrics = {}
+    for radius in SUCCESS_RADII:
+        covered = distances < radius
+        metrics[radius_key("success_rate", radius)] = float(covered.all())
+        metrics[radius_key("coverage", radius)] = float(covered.mean())
+    return metrics
 
 
 class TeamEvalCallback(BaseCallback):

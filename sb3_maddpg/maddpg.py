@@ -1,6 +1,7 @@
 """MADDPG on SB3's off-policy base, with the critic's information sharing as a swappable part."""
 
 import math
+import warnings
 from collections.abc import Sequence
 from typing import Any, ClassVar, NamedTuple, TypeVar
 
@@ -58,8 +59,10 @@ class MADDPG(OffPolicyAlgorithm):
         ``"observations"`` (MADDPG-fo), ``"actions"`` (MADDPG-fa), ``"selected"`` (MADDPG-soa), the paper's
         short names ``"iddpg"``, ``"maddpg"``, ``"fo"``, ``"fa"``, ``"soa"``, or a
         :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor` subclass.
-    :param selection: For schemes that use a selection: a :class:`~sb3_maddpg.selection.Selector`
-        (default ``NearestAgents(k=2)``). It is applied to the observation when a transition is stored.
+    :param selection: For schemes that use a selection: a :class:`~sb3_maddpg.selection.Selector`, or an int
+        ``k`` for ``NearestAgents(k)`` (default ``NearestAgents(k=2)``). It is applied to the observation when a
+        transition is stored. A ``k`` of ``n_agents - 1`` selects every other agent (full sharing in another order)
+        and gets a warning.
     :param learning_rate: Learning rate of every actor and critic (Adam), constant or a schedule.
     :param buffer_size: Replay buffer size, in joint transitions.
     :param learning_starts: Env steps (all envs counted) of uniformly random actions before learning starts.
@@ -112,7 +115,7 @@ class MADDPG(OffPolicyAlgorithm):
         policy: str | type[MADDPGPolicy],
         env: GymEnv | str | None,
         critic_sharing: str | type[CriticFeaturesExtractor] = "full",
-        selection: Selector | None = None,
+        selection: Selector | int | None = None,
         learning_rate: float | Schedule = 1e-2,
         buffer_size: int = 1_000_000,
         learning_starts: int = 25_600,
@@ -204,13 +207,10 @@ class MADDPG(OffPolicyAlgorithm):
             self.agent_layout = _layout_of(self.env)
             _refuse_reward_normalization(self.env)
             if scheme.uses_selection:
-                self.selection = selection if selection is not None else NearestAgents(k=2)
-                if not isinstance(self.selection, Selector):
-                    raise TypeError(
-                        f"selection must be a sb3_maddpg.selection.Selector, got {type(selection).__name__}: wrap a "
-                        "function as CallableSelector(fn, k=...)."
-                    )
+                self.selection = _resolve_selection(selection)
                 self.selection.validate(self.agent_layout)
+                if _init_setup_model:  # load() sets the saved selection over this one
+                    _warn_if_selecting_everyone(self.selection, self.agent_layout)
             elif selection is not None:
                 raise ValueError(
                     f"selection is used only by schemes that read one (critic_sharing='selected'), got "
@@ -545,4 +545,30 @@ def _refuse_reward_normalization(env: VecEnv) -> None:
         raise ValueError(
             "VecNormalize(norm_reward=True) would normalise only the team's scalar reward, not the per-agent rewards "
             "the critics learn from: use VecNormalize(env, norm_reward=False) (observation normalisation is fine)."
+        )
+
+
+def _resolve_selection(selection: Selector | int | None) -> Selector:
+    """The selector of ``selected`` sharing: the default ``NearestAgents(k=2)``, or an int ``k`` for ``NearestAgents(k)``."""
+    if selection is None:
+        return NearestAgents(k=2)
+    if isinstance(selection, int) and not isinstance(selection, bool):
+        return NearestAgents(k=selection)
+    if not isinstance(selection, Selector):
+        raise TypeError(
+            f"selection must be a sb3_maddpg.selection.Selector or an int k (the k nearest agents), got "
+            f"{type(selection).__name__}: wrap a function as CallableSelector(fn, k=...)."
+        )
+    return selection
+
+
+def _warn_if_selecting_everyone(selection: Selector, layout: AgentLayout) -> None:
+    """Selecting all n - 1 other agents is full sharing in another order: say so, since it compares nothing."""
+    if selection.k == layout.n_agents - 1:
+        warnings.warn(
+            f"critic_sharing='selected' with k={selection.k} selects every other agent of this {layout.n_agents}-agent "
+            f"team: each critic sees what 'full' sees, in another order. Select fewer (e.g. selection=1, the nearest "
+            "agent) for a critic that selects.",
+            UserWarning,
+            stacklevel=3,
         )

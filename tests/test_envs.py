@@ -619,6 +619,7 @@ def test_metrics_all_landmarks_covered(spread3: PettingZooToGym) -> None:
         "success": 1.0,
         "collisions": 0.0,
         "min_dist_sum": pytest.approx(0.05 + 0.0 + 0.08),
+        "landmark_distances": pytest.approx([0.05, 0.0, 0.08]),
     }
 
 
@@ -661,6 +662,8 @@ def test_metrics_min_dist_sum_by_hand(spread3: PettingZooToGym) -> None:
     # 0.8 to (-0.6, 0.8)) = 0.8. Landmark (1, 1): min(sqrt(0.49 + 0.36), sqrt(2)) = sqrt(0.85).
     expected = 0.5 + min(math.sqrt(0.97), 0.8) + min(math.sqrt(0.85), math.sqrt(2.0))
     assert SimpleSpreadMetrics()(spread3.parallel_env)["min_dist_sum"] == pytest.approx(expected)
+    by_landmark = [0.5, min(math.sqrt(0.97), 0.8), min(math.sqrt(0.85), math.sqrt(2.0))]
+    assert SimpleSpreadMetrics()(spread3.parallel_env)["landmark_distances"] == pytest.approx(by_landmark)
     assert SimpleSpreadMetrics()(spread3.parallel_env)["coverage"] == 0.0
 
 

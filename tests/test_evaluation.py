@@ -2,6 +2,7 @@
 
 import csv
 import math
+import warnings
 from typing import Any
 
 import gymnasium as gym
@@ -14,11 +15,15 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread
-from sb3_maddpg.evaluation import EVAL_KEYS, TeamEvalCallback, evaluate_team
+from sb3_maddpg.evaluation import EVAL_KEYS, RADIUS_KEYS, SUCCESS_RADII, TeamEvalCallback, evaluate_team, radius_key
 
 TINY = dict(
     learning_starts=50, batch_size=32, buffer_size=2_000, train_freq=25, policy_kwargs=dict(net_arch=dict(pi=[8], qf=[8]))
 )
+
+
+EVEN_DISTANCES = [0.05, 0.12, 0.2]
+ODD_DISTANCES = [0.18, 0.29, 0.31]
 
 
 class ScriptedEnv(gym.Env):
@@ -55,6 +60,8 @@ class ScriptedEnv(gym.Env):
                 coverage=0.5 if last else 1.0,  # the last step's coverage differs from every other step's
                 collisions=float(self.t),  # summed over the episode: 1 + 2 + ... + length
                 min_dist_sum=float(10 * self.episode + self.t),
+                # Every landmark covered at every step but the last, whose distances depend on the episode.
+                landmark_distances=[0.0, 0.0, 0.0] if not last else EVEN_DISTANCES if self.episode % 2 == 0 else ODD_DISTANCES,
             )
         return np.zeros(2, np.float32), reward, False, self.t == length, info
 
@@ -86,9 +93,28 @@ def test_evaluate_team_reads_last_step_and_sums_collisions() -> None:
     assert result["agent_returns"] == pytest.approx([0.25 * returns.mean(), 0.75 * returns.mean()])
 
 
-def test_evaluate_team_without_metrics_gives_nan() -> None:
-    result = evaluate_team(ConstantModel(np.zeros(2, np.float32)), ScriptedEnv(with_metrics=False), n_episodes=2)
-    for key in ("success_rate", "coverage", "collisions", "min_dist_sum"):
+def test_evaluate_team_scores_success_and_coverage_at_each_radius() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an env with every metric gets no warning
+        result = evaluate_team(ConstantModel(np.zeros(2, np.float32)), ScriptedEnv(lengths=(3, 5)), n_episodes=4)
+    # Last steps: even episodes [0.05, 0.12, 0.2], odd [0.18, 0.29, 0.31]; a landmark at exactly the radius is
+    # not covered (mpe2 counts distance < radius).
+    expected_coverage = {0.1: (1 / 3 + 0) / 2, 0.15: (2 / 3 + 0) / 2, 0.2: (2 / 3 + 1 / 3) / 2, 0.3: (1 + 2 / 3) / 2}
+    expected_success = {0.1: 0.0, 0.15: 0.0, 0.2: 0.0, 0.3: 0.5}
+    assert SUCCESS_RADII == (0.1, 0.15, 0.2, 0.3)
+    for radius in SUCCESS_RADII:
+        assert result[radius_key("coverage", radius)] == pytest.approx(expected_coverage[radius]), radius
+        assert result[radius_key("success_rate", radius)] == pytest.approx(expected_success[radius]), radius
+    assert radius_key("success_rate", 0.15) == "success_rate_r0.15"
+    assert set(RADIUS_KEYS) <= set(EVAL_KEYS)
+
+
+def test_evaluate_team_without_metrics_gives_nan_and_says_so() -> None:
+    with pytest.warns(
+        UserWarning, match=r"no task metrics for \['success', 'coverage', 'collisions', 'min_dist_sum', 'landmark_distances'\]"
+    ):
+        result = evaluate_team(ConstantModel(np.zeros(2, np.float32)), ScriptedEnv(with_metrics=False), n_episodes=2)
+    for key in ("success_rate", "coverage", "collisions", "min_dist_sum", *RADIUS_KEYS):
         assert math.isnan(result[key])
     assert result["return_mean"] == pytest.approx((3 * 1 + 5 * 2) / 2)
 

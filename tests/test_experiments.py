@@ -14,6 +14,7 @@ from scipy.stats import mannwhitneyu
 
 from sb3_maddpg.experiments import EXP1, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL
 from sb3_maddpg.experiments.report import format_markdown, load_summaries
 from sb3_maddpg.experiments.runner import DONE_FILE, RESULT_FILES, execute_run, is_finished, write_result_files
 from sb3_maddpg.experiments.stats import aggregate, mann_whitney, mean_std, significance_stars
@@ -63,6 +64,27 @@ def test_overrides_and_validation() -> None:
     legacy_experiment = {key: value for key, value in EXP1.to_dict().items() if key not in ("vec_env", "n_envs")}
     assert ExperimentConfig.from_dict(legacy_experiment).runs()[0].vec_env == "mpe2"
     assert ExperimentConfig.from_dict(EXP1.to_dict()).runs()[0].vec_env == "batched"
+
+
+def test_scheme_model_kwargs_and_the_n3_presets() -> None:
+    experiment = SMOKE.replace(scheme_model_kwargs={"selected": {"selection": 1, "batch_size": 32}})
+    by_scheme = {run.scheme: run.model_kwargs for run in experiment.runs() if run.seed == 0}
+    assert by_scheme["selected"] == {**SMOKE.model_kwargs, "selection": 1, "batch_size": 32}  # over model_kwargs
+    assert all(by_scheme[scheme] == SMOKE.model_kwargs for scheme in SCHEMES if scheme != "selected")
+    # Every RunConfig field that is not per run comes from the experiment.
+    run = experiment.runs()[0]
+    for field in dataclasses.fields(RunConfig):
+        if field.name not in ("experiment", "scheme", "seed", "model_kwargs"):
+            assert getattr(run, field.name) == getattr(experiment, field.name), field.name
+    # Written to JSON and read back, as sweeps store it.
+    assert ExperimentConfig.from_dict(json.loads(json.dumps(experiment.to_dict()))).runs()[4].same_as(experiment.runs()[4])
+    with pytest.raises(ValueError, match=r"unknown scheme\(s\) \['selectd'\]"):
+        SMOKE.replace(scheme_model_kwargs={"selectd": {"selection": 1}})
+    for experiment in (N3_FULL, N3_PARTIAL):
+        runs = experiment.runs()
+        assert len(runs) == 5 * 10 and runs[0].n_agents == 3 and runs[0].total_timesteps == 500_000
+        assert {run.scheme: run.model_kwargs.get("selection") for run in runs}["selected"] == 1
+    assert (N3_FULL.num_agent_neighbors, N3_PARTIAL.num_agent_neighbors) == (None, 1)
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 import csv
 import glob
 import os
+import warnings
 from pathlib import Path
 
 import gymnasium as gym
@@ -269,6 +270,23 @@ def test_selection_k_out_of_range():
 def test_selection_for_scheme_without_selection(scheme):
     with pytest.raises(ValueError, match="selection is used only by"):
         MADDPG("MlpPolicy", make_team(), critic_sharing=scheme, selection=NearestAgents(k=1), **FAST)
+
+
+def test_selection_as_k_nearest_agents():
+    model = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selection=1, **FAST)
+    assert isinstance(model.selection, NearestAgents) and model.selection.k == 1
+    with pytest.raises(ValueError, match="k=4"):
+        MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selection=4, **FAST)
+
+
+def test_selecting_every_other_agent_warns():
+    # k = n - 1 (here the default k=2 at N=3) is full sharing in another order.
+    with pytest.warns(UserWarning, match="selects every other agent of this 3-agent team"):
+        MADDPG("MlpPolicy", make_team(n_agents=3), critic_sharing="selected", **FAST)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        MADDPG("MlpPolicy", make_team(n_agents=3), critic_sharing="selected", selection=1, **FAST)
+        MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", **FAST)
 
 
 def test_selection_not_a_selector():

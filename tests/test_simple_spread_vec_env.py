@@ -20,7 +20,7 @@ from sb3_maddpg.evaluation import TeamEvalCallback, evaluate_team
 TOLERANCE = 1e-5
 """The largest difference allowed from mpe2 (float32 observations of float64 worlds)."""
 
-METRICS = ("coverage", "success", "collisions", "min_dist_sum")
+METRICS = ("coverage", "success", "collisions", "min_dist_sum", "landmark_distances")
 
 TINY = dict(
     learning_starts=100, batch_size=32, buffer_size=2_000, train_freq=25, policy_kwargs=dict(net_arch=dict(pi=[8], qf=[8]))

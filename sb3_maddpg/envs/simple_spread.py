@@ -19,7 +19,9 @@ class SimpleSpreadMetrics:
     - ``coverage``: fraction of landmarks with some agent closer than ``capture_radius``;
     - ``success``: 1.0 when every landmark is covered, else 0.0;
     - ``collisions``: number of agent pairs in contact (distance below the sum of their sizes);
-    - ``min_dist_sum``: sum over landmarks of the distance to the nearest agent.
+    - ``min_dist_sum``: sum over landmarks of the distance to the nearest agent;
+    - ``landmark_distances``: each landmark's distance to its nearest agent (a list, landmark order), from which
+      :func:`~sb3_maddpg.evaluation.evaluate_team` scores coverage and success at other radii.
 
     :param capture_radius: Distance within which an agent covers a landmark (mpe2 uses 0.1; small
         training budgets rarely reach it, so a larger radius can be useful for diagnostics).
@@ -30,7 +32,7 @@ class SimpleSpreadMetrics:
             raise ValueError(f"capture_radius must be positive, got {capture_radius}.")
         self.capture_radius = float(capture_radius)
 
-    def __call__(self, parallel_env: Any) -> dict[str, float]:
+    def __call__(self, parallel_env: Any) -> dict[str, Any]:
         """
         :param parallel_env: An mpe2 simple_spread env (or a wrapper whose ``unwrapped`` is one).
         :return: The metrics of the current world state.
@@ -40,13 +42,11 @@ class SimpleSpreadMetrics:
         # step than a dozen small numpy calls, and it follows benchmark_data's definitions exactly.
         agents = [(agent.state.p_pos.tolist(), agent.size) for agent in world.agents]
         radius = self.capture_radius
-        covered = 0
-        min_dist_sum = 0.0
-        for landmark in world.landmarks:
-            landmark_pos = landmark.state.p_pos.tolist()
-            nearest = min(math.dist(landmark_pos, pos) for pos, _ in agents)
-            min_dist_sum += nearest
-            covered += nearest < radius
+        landmark_distances = [
+            min(math.dist(landmark.state.p_pos.tolist(), pos) for pos, _ in agents) for landmark in world.landmarks
+        ]
+        covered = sum(distance < radius for distance in landmark_distances)
+        min_dist_sum = sum(landmark_distances)
         collisions = 0
         for i, (pos_i, size_i) in enumerate(agents):
             for pos_j, size_j in agents[i + 1 :]:
@@ -57,6 +57,7 @@ class SimpleSpreadMetrics:
             "success": float(covered == n_landmarks),
             "collisions": float(collisions),
             "min_dist_sum": min_dist_sum,
+            "landmark_distances": landmark_distances,
         }
 
 

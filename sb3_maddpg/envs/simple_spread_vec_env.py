@@ -31,8 +31,9 @@ class SimpleSpreadVecEnv(VecEnv):
     - Same spaces, layout and ``info`` as the adapter: ``agent_layout`` (through ``get_attr``),
       ``info["agent_rewards"]`` (float32), ``agent_terminations``, ``agent_truncations``, ``TimeLimit.truncated``,
       ``terminal_observation`` with auto-reset, and the task metrics of
-      :class:`~sb3_maddpg.envs.SimpleSpreadMetrics` (``coverage``, ``success``, ``collisions``, ``min_dist_sum``).
-      The adapter's ``agent_infos`` (mpe2's per-agent infos, always empty for simple_spread) are left out.
+      :class:`~sb3_maddpg.envs.SimpleSpreadMetrics` (``coverage``, ``success``, ``collisions``, ``min_dist_sum``,
+      ``landmark_distances``). The adapter's ``agent_infos`` (mpe2's per-agent infos, always empty for
+      simple_spread) are left out.
     - Actions outside [0, 1] are clipped, as mpe2's ``ClipOutOfBoundsWrapper`` does (without its warning).
 
     Every world has the same episode length, so all worlds reset together, every ``max_cycles`` steps; a step

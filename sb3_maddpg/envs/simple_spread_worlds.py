@@ -182,7 +182,8 @@ class SimpleSpreadWorlds:
 
         :param distances: The current distances.
         :param capture_radius: Distance within which an agent covers a landmark.
-        :return: ``coverage``, ``success``, ``collisions`` (agent pairs in contact) and ``min_dist_sum``, ``[E]`` each.
+        :return: ``coverage``, ``success``, ``collisions`` (agent pairs in contact) and ``min_dist_sum``, ``[E]`` each,
+            and ``landmark_distances`` (each landmark's distance to its nearest agent), ``[E, N]``.
         """
         nearest = distances.nearest_agent
         covered = (nearest < capture_radius).sum(axis=1)
@@ -191,6 +192,7 @@ class SimpleSpreadWorlds:
             "success": (covered == self.n_agents).astype(np.float64),
             "collisions": distances.in_contact.sum(axis=(1, 2)) / 2.0,  # each pair seen from both ends
             "min_dist_sum": nearest.sum(axis=1),
+            "landmark_distances": nearest,
         }
 
 

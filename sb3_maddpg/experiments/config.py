@@ -187,6 +187,8 @@ class ExperimentConfig:
     :param description: One line for reports.
     :param vec_env: ``"batched"`` or ``"mpe2"`` (see :class:`RunConfig`).
     :param n_envs: Worlds (envs) stepped together during training.
+    :param scheme_model_kwargs: Keyword arguments for ``MADDPG`` of one scheme only, over ``model_kwargs``, e.g.
+        ``{"selected": {"selection": 1}}`` (the nearest agent) for the ``selected`` runs.
     """
 
     name: str
@@ -207,31 +209,29 @@ class ExperimentConfig:
     description: str = ""
     vec_env: str = "batched"
     n_envs: int = DEFAULT_N_ENVS
+    scheme_model_kwargs: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         _check_vec_env(self.vec_env, self.n_envs)
+        unknown = sorted(set(self.scheme_model_kwargs) - set(SCHEMES) - set(self.schemes))
+        if unknown:
+            raise ValueError(
+                f"scheme_model_kwargs names unknown scheme(s) {unknown}: its keys must be schemes, e.g. "
+                f"{{'selected': {{'selection': 1}}}} (schemes: {', '.join(SCHEMES)})."
+            )
 
     def runs(self) -> list[RunConfig]:
         """:return: One run config per (scheme, seed), seeds outermost so partial sweeps stay balanced."""
+        per_run = {"experiment", "scheme", "seed", "model_kwargs"}
+        shared = {f.name: getattr(self, f.name) for f in dataclasses.fields(RunConfig) if f.name not in per_run}
         return [
             RunConfig(
                 experiment=self.name,
                 scheme=scheme,
                 seed=seed,
-                n_agents=self.n_agents,
-                num_agent_neighbors=self.num_agent_neighbors,
-                episodes=self.episodes,
-                episode_length=self.episode_length,
-                n_checkpoints=self.n_checkpoints,
-                checkpoint_fraction=self.checkpoint_fraction,
-                eval_episodes=self.eval_episodes,
-                curve_points=self.curve_points,
-                curve_eval_episodes=self.curve_eval_episodes,
-                keep_checkpoints=self.keep_checkpoints,
-                model_kwargs=copy.deepcopy(self.model_kwargs),
-                algorithm=self.algorithm,
-                vec_env=self.vec_env,
-                n_envs=self.n_envs,
+                # Deep copies: algorithms may write into their kwargs, and the configs must stay as they were.
+                model_kwargs=copy.deepcopy({**self.model_kwargs, **self.scheme_model_kwargs.get(scheme, {})}),
+                **shared,
             )
             for seed in self.seeds
             for scheme in self.schemes
@@ -285,6 +285,31 @@ EXP2 = ExperimentConfig(
 )
 """The paper's experiment 2 (each agent observes its two nearest other agents)."""
 
+SELECT_NEAREST_AT_N3: dict[str, dict[str, Any]] = {"selected": {"selection": 1}}
+"""``selected`` runs of a 3-agent team select the nearest other agent: selecting both (the default ``k=2``) would be
+``full`` sharing in another order."""
+
+N3_FULL = ExperimentConfig(
+    name="n3_full",
+    n_agents=3,
+    num_agent_neighbors=None,
+    episodes=20_000,
+    seeds=tuple(range(10)),
+    n_checkpoints=20,
+    keep_checkpoints=False,
+    scheme_model_kwargs=SELECT_NEAREST_AT_N3,
+    description="N=3, full observability, 20,000 episodes (500k steps), 10 seeds, selected with k=1",
+)
+"""Experiment 1's setting with 3 agents, at a budget where the package learns on a small machine."""
+
+N3_PARTIAL = dataclasses.replace(
+    N3_FULL,
+    name="n3_partial",
+    num_agent_neighbors=1,
+    description="N=3, the nearest other agent observed, 20,000 episodes (500k steps), 10 seeds, selected with k=1",
+)
+"""Experiment 2's setting with 3 agents: each agent observes its nearest other agent (of two)."""
+
 TINY_MODEL_KWARGS: dict[str, Any] = {
     "learning_starts": 250,
     "batch_size": 64,
@@ -311,13 +336,13 @@ SMOKE = ExperimentConfig(
 )
 """A pipeline check that runs every scheme in seconds (for CI)."""
 
-EXPERIMENTS: dict[str, ExperimentConfig] = {config.name: config for config in (EXP1, EXP2, SMOKE)}
+EXPERIMENTS: dict[str, ExperimentConfig] = {config.name: config for config in (EXP1, EXP2, N3_FULL, N3_PARTIAL, SMOKE)}
 """The named presets."""
 
 
 def load_experiment(name_or_path: str) -> ExperimentConfig:
     """
-    :param name_or_path: A preset name (``exp1``, ``exp2``, ``smoke``) or the path of a JSON file
+    :param name_or_path: A preset name (``exp1``, ``exp2``, ``n3_full``, ``n3_partial``, ``smoke``) or the path of a JSON file
         written from :meth:`ExperimentConfig.to_dict`.
     :return: The experiment config.
     """
