@@ -1,5 +1,6 @@
 """Tests of the paper's protocol: configs, statistics, runs, resume, both backends, the report and the CLI."""
 
+import ast
 import csv
 import dataclasses
 import json
@@ -15,8 +16,9 @@ from scipy.stats import mannwhitneyu
 from sb3_maddpg.experiments import EXP1, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL
-from sb3_maddpg.experiments.report import format_markdown, load_summaries
-from sb3_maddpg.experiments.runner import DONE_FILE, RESULT_FILES, execute_run, is_finished, write_result_files
+from sb3_maddpg.experiments.report import format_markdown
+from sb3_maddpg.experiments.results import DONE_FILE, RESULT_FILES, is_finished, load_summaries, write_result_files
+from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.stats import aggregate, mann_whitney, mean_std, significance_stars
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -366,3 +368,18 @@ def test_report_regenerates_the_committed_small_scale_result(tmp_path: Path) -> 
     # Every scheme has the same seeds: a sweep cut short still compares like with like.
     seeds = {scheme: sorted(s["seed"] for s in summaries if s["scheme"] == scheme) for scheme in config["schemes"]}
     assert len({tuple(value) for value in seeds.values()}) == 1 and len(seeds["full"]) >= 3
+
+
+def test_scheme_order_is_defined_once_and_plots_do_not_import_the_report() -> None:
+    from sb3_maddpg.experiments.config import ordered_schemes
+
+    assert ordered_schemes(["selected", "zeta", "full", "alpha", "full"]) == ["full", "selected", "alpha", "zeta"]
+    assert ordered_schemes(reversed(SCHEMES)) == list(SCHEMES)
+    # report imports plots (lazily) for its figures; plots must not import report back, at any level.
+    import sb3_maddpg.experiments.plots as plots
+
+    tree = ast.parse(Path(plots.__file__).read_text())
+    imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
+    imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
+    assert "sb3_maddpg.experiments.report" not in imported
+    assert "sb3_maddpg.experiments.results" in imported  # sanity: the walk sees plots' imports

@@ -8,7 +8,8 @@ from multiprocessing import get_context
 from typing import Any
 
 from sb3_maddpg.experiments.config import RunConfig
-from sb3_maddpg.experiments.runner import execute_run, write_result_files
+from sb3_maddpg.experiments.results import write_result_files
+from sb3_maddpg.experiments.runner import execute_run
 
 BACKENDS = ("local", "ray")
 

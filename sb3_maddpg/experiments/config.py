@@ -3,6 +3,7 @@
 import copy
 import dataclasses
 import json
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,6 +22,29 @@ mpe2, arrays) or ``"mpe2"`` (``DummyVecEnv`` over the adapter and mpe2 itself)."
 
 DEFAULT_N_ENVS = 100
 """Worlds stepped together: with the paper's one update per 100 transitions, one update per vectorised step."""
+
+
+def ordered_schemes(schemes: Iterable[str]) -> list[str]:
+    """
+    :param schemes: Scheme names, in any order, repeats allowed.
+    :return: Each once: the paper's schemes in :data:`SCHEMES` order, then any others alphabetically.
+    """
+    present = set(schemes)
+    return [scheme for scheme in SCHEMES if scheme in present] + sorted(present - set(SCHEMES))
+
+
+def setting_label(name: str, experiment: dict[str, Any] | None) -> str:
+    """
+    :param name: The experiment name.
+    :param experiment: Its stored config (``ExperimentConfig.to_dict()``), if any.
+    :return: A short label, e.g. ``"exp1 (N=5, full obs., 100,000 ep.)"``.
+    """
+    if not experiment:
+        return name
+    neighbors = experiment.get("num_agent_neighbors")
+    observability = "full obs." if neighbors is None else f"{neighbors} nearest obs."
+    return f"{name} (N={experiment['n_agents']}, {observability}, {experiment['episodes']:,} ep.)"
+
 
 BASELINE_SCHEME = "full"
 """The scheme every other one is tested against (MADDPG)."""

@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from sb3_maddpg.experiments.config import PAPER_NAMES, SCHEMES
-from sb3_maddpg.experiments.runner import read_curve
+from sb3_maddpg.experiments.config import PAPER_NAMES, ordered_schemes, setting_label
+from sb3_maddpg.experiments.results import read_curve
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric
 
 COLORS = {
@@ -38,12 +38,7 @@ def _save(figure: Any, path: str | os.PathLike[str]) -> None:
     figure.savefig(path, dpi=110, bbox_inches="tight", metadata={"Software": None})
 
 
-def _scheme_order(schemes: set[str]) -> list[str]:
-    return [s for s in SCHEMES if s in schemes] + sorted(s for s in schemes if s not in SCHEMES)
-
-
 def _title(setting: str, experiments: dict[str, dict[str, Any]] | None) -> str:
-    from sb3_maddpg.experiments.report import setting_label
 
     return setting_label(setting, (experiments or {}).get(setting))
 
@@ -96,7 +91,7 @@ def plot_learning_curves(
     settings = list(curves) or ["(no learning curves)"]
     figure, axes = plt.subplots(1, len(settings), figsize=(5.5 * len(settings), 4), squeeze=False)
     for axis, setting in zip(axes[0], settings):
-        for scheme in _scheme_order(set(curves.get(setting, {}))):
+        for scheme in ordered_schemes(set(curves.get(setting, {}))):
             steps, mean, std = curves[setting][scheme]
             color = COLORS.get(scheme)
             axis.plot(steps, mean, label=PAPER_NAMES.get(scheme, scheme), color=color)

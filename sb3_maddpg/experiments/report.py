@@ -1,58 +1,15 @@
 """The report of a results directory: Table 2 as Markdown and CSV, learning curves and boxplots."""
 
 import csv
-import json
 import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, SCHEMES
-from sb3_maddpg.experiments.runner import DONE_FILE, SUMMARY_FILE
+from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, ordered_schemes, setting_label
+from sb3_maddpg.experiments.results import load_experiments, load_summaries
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, aggregate
-from sb3_maddpg.experiments.sweep import EXPERIMENT_FILE
-
-
-def load_summaries(results_dir: str | os.PathLike[str]) -> list[dict[str, Any]]:
-    """
-    :param results_dir: A results directory (``<experiment>/<scheme>/seed_<seed>/summary.json``).
-    :return: The summaries of its finished runs, each with ``"directory"`` (the run's directory), in path order.
-    """
-    summaries = []
-    for path in sorted(Path(results_dir).glob(f"*/*/seed_*/{SUMMARY_FILE}")):
-        if not (path.parent / DONE_FILE).exists():
-            continue
-        with open(path) as file:
-            summary = json.load(file)
-        summary["directory"] = str(path.parent)
-        summaries.append(summary)
-    return summaries
-
-
-def load_experiments(results_dir: str | os.PathLike[str]) -> dict[str, dict[str, Any]]:
-    """
-    :param results_dir: A results directory.
-    :return: The experiment configs stored in it (``<experiment>/experiment.json``), by name.
-    """
-    experiments = {}
-    for path in sorted(Path(results_dir).glob(f"*/{EXPERIMENT_FILE}")):
-        with open(path) as file:
-            experiments[path.parent.name] = json.load(file)
-    return experiments
-
-
-def setting_label(name: str, experiment: dict[str, Any] | None) -> str:
-    """
-    :param name: The experiment name.
-    :param experiment: Its stored config, if any.
-    :return: A short label, e.g. ``"exp1 (N=5, full obs., 100,000 ep.)"``.
-    """
-    if not experiment:
-        return name
-    neighbors = experiment.get("num_agent_neighbors")
-    observability = "full obs." if neighbors is None else f"{neighbors} nearest obs."
-    return f"{name} (N={experiment['n_agents']}, {observability}, {experiment['episodes']:,} ep.)"
 
 
 def _number(value: float, digits: int = 2) -> str:
@@ -75,8 +32,7 @@ def format_markdown(
     info = METRICS.get(metric, Metric(metric, metric))
     experiments = experiments or {}
     settings = list(dict.fromkeys(cell.setting for cell in cells))
-    present = {cell.scheme for cell in cells}
-    schemes = [scheme for scheme in SCHEMES if scheme in present] + sorted(present - set(SCHEMES))
+    schemes = ordered_schemes(cell.scheme for cell in cells)
     by_key = {(cell.setting, cell.scheme): cell for cell in cells}
     header = ["setting", *(PAPER_NAMES.get(scheme, scheme) for scheme in schemes)]
     lines = [

@@ -1,7 +1,6 @@
 """One run of the protocol: train, save checkpoints over the last 20%, evaluate each, write the run directory."""
 
 import copy
-import csv
 import importlib
 import json
 import os
@@ -17,47 +16,18 @@ from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 from sb3_maddpg.evaluation import EVAL_KEYS, TeamEvalCallback, evaluate_team, write_rows
 from sb3_maddpg.experiments.config import PAPER_NAMES, RunConfig
-
-CONFIG_FILE = "config.json"
-SUMMARY_FILE = "summary.json"
-CURVE_FILE = "learning_curve.csv"
-CHECKPOINT_EVALS_FILE = "checkpoint_evals.csv"
-PROGRESS_FILE = "progress.csv"
-LOG_FILE = "train.log"
-DONE_FILE = "done"
-CHECKPOINT_DIR = "checkpoints"
-RESULT_FILES = (CONFIG_FILE, SUMMARY_FILE, CURVE_FILE, CHECKPOINT_EVALS_FILE, PROGRESS_FILE, LOG_FILE)
-"""The small text files of a finished run (they travel back from remote workers; model files do not)."""
-
-
-def run_directory(results_dir: str | os.PathLike[str], config: RunConfig) -> Path:
-    """
-    :param results_dir: The sweep's results directory.
-    :param config: The run.
-    :return: The run's directory, ``<results_dir>/<experiment>/<scheme>/seed_<seed>``.
-    """
-    return Path(results_dir) / config.run_id
-
-
-def is_finished(results_dir: str | os.PathLike[str], config: RunConfig) -> bool:
-    """
-    Whether the run has finished in ``results_dir``: its ``done`` marker exists (it is written last).
-
-    :param results_dir: The sweep's results directory.
-    :param config: The run.
-    :return: True if the run is finished; a finished run with another config is an error.
-    """
-    directory = run_directory(results_dir, config)
-    if not (directory / DONE_FILE).exists():
-        return False
-    with open(directory / CONFIG_FILE) as file:
-        stored = RunConfig.from_dict(json.load(file))
-    if not stored.same_as(config):
-        raise ValueError(
-            f"{directory} holds a finished run with another config; use a new results directory for a "
-            f"changed experiment (or delete that run).\n  stored:    {stored.to_dict()}\n  requested: {config.to_dict()}"
-        )
-    return True
+from sb3_maddpg.experiments.results import (
+    CHECKPOINT_DIR,
+    CHECKPOINT_EVALS_FILE,
+    CONFIG_FILE,
+    CURVE_FILE,
+    LOG_FILE,
+    SUMMARY_FILE,
+    collect_result,
+    is_finished,
+    mark_done,
+    run_directory,
+)
 
 
 def load_algorithm(path: str) -> type[BaseAlgorithm]:
@@ -311,48 +281,8 @@ def execute_run(
         f"({summary['train_steps_per_s']:,.0f} steps/s), score: success {100 * score['success_rate']:.1f}%, "
         f"coverage {100 * score['coverage']:.1f}%, min-dist sum {score['min_dist_sum']:.3f}"
     )
-    (directory / DONE_FILE).write_text(time.strftime("%Y-%m-%dT%H:%M:%S%z\n"))
+    mark_done(directory)
     return collect_result(directory)
-
-
-def collect_result(directory: Path) -> dict[str, Any]:
-    """
-    :param directory: A finished run's directory.
-    :return: Its summary, with ``"files"``: the text of its result files.
-    """
-    with open(directory / SUMMARY_FILE) as file:
-        result = json.load(file)
-    result["files"] = {name: (directory / name).read_text() for name in RESULT_FILES if (directory / name).exists()}
-    return result
-
-
-def write_result_files(results_dir: str | os.PathLike[str], result: dict[str, Any]) -> None:
-    """
-    Write a run's result files (from :func:`execute_run` on another machine) unless the run is
-    already finished there, then its ``done`` marker.
-
-    :param results_dir: The sweep's results directory on this machine.
-    :param result: The value :func:`execute_run` returned.
-    """
-    directory = Path(results_dir) / result["run_id"]
-    if (directory / DONE_FILE).exists():
-        return
-    directory.mkdir(parents=True, exist_ok=True)
-    for name, text in result["files"].items():
-        (directory / name).write_text(text)
-    (directory / DONE_FILE).write_text(time.strftime("%Y-%m-%dT%H:%M:%S%z\n"))
-
-
-def read_curve(directory: str | os.PathLike[str]) -> list[dict[str, float]]:
-    """
-    :param directory: A run's directory.
-    :return: Its learning curve rows (empty if it has none).
-    """
-    path = Path(directory) / CURVE_FILE
-    if not path.exists():
-        return []
-    with open(path, newline="") as file:
-        return [{key: float(value) for key, value in row.items()} for row in csv.DictReader(file)]
 
 
 def _format_seconds(seconds: float) -> str:

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, SCHEMES
+from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, ordered_schemes
 
 
 @dataclass(frozen=True)
@@ -140,7 +140,7 @@ def aggregate(
         groups.setdefault(summary["experiment"], {}).setdefault(summary["scheme"], []).append((int(summary["seed"]), value))
     cells = []
     for setting, by_scheme in groups.items():
-        order = [s for s in SCHEMES if s in by_scheme] + sorted(s for s in by_scheme if s not in SCHEMES)
+        order = ordered_schemes(by_scheme)
         reference = [value for _, value in sorted(by_scheme.get(baseline, []))]
         for scheme in order:
             scores = tuple(value for _, value in sorted(by_scheme[scheme]))

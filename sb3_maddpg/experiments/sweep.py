@@ -1,6 +1,5 @@
 """A sweep: every run of one or more experiments, resumable, with progress and timing."""
 
-import json
 import os
 import time
 from collections.abc import Sequence
@@ -10,10 +9,8 @@ from typing import Any
 
 from sb3_maddpg.experiments.backends import BACKENDS, run_local, run_ray
 from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
-from sb3_maddpg.experiments.runner import _format_seconds, is_finished, log_line
-
-EXPERIMENT_FILE = "experiment.json"
-SWEEP_LOG = "sweep.log"
+from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, write_experiment
+from sb3_maddpg.experiments.runner import _format_seconds, log_line
 
 
 @dataclass
@@ -131,9 +128,7 @@ def run_sweep(
     if len(set(names)) != len(names):
         raise ValueError(f"Experiment names must be unique, got {names}.")
     for experiment in experiments:
-        (results_path / experiment.name).mkdir(parents=True, exist_ok=True)
-        with open(results_path / experiment.name / EXPERIMENT_FILE, "w") as file:
-            json.dump(experiment.to_dict(), file, indent=2)
+        write_experiment(results_path, experiment.name, experiment.to_dict())
 
     todo, skipped = plan_sweep(experiments, results_path)
     result = SweepResult(total=len(todo) + skipped, skipped=skipped)
