@@ -340,6 +340,7 @@ class MADDPGPolicy(BasePolicy):
     def _get_constructor_parameters(self) -> dict[str, Any]:
         data = super()._get_constructor_parameters()
         data.update(
+            lr_schedule=self._dummy_schedule,  # as TD3Policy: the optimisers' state is not part of policy.save()
             agent_layout=self.agent_layout,
             critic_sharing=self.critic_sharing,
             critic_sharing_kwargs=self.critic_sharing_kwargs,

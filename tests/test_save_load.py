@@ -9,6 +9,7 @@ from stable_baselines3.common.env_util import make_vec_env
 
 from sb3_maddpg import MADDPG, AgentLayout
 from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.policies import MADDPGPolicy
 from sb3_maddpg.selection import CallableSelector
 
 SCHEMES = ("independent", "full", "observations", "actions", "selected")
@@ -171,3 +172,21 @@ def test_a_model_saved_by_0_1_keeps_its_training_rules() -> None:
     assert model._n_updates == updates + 12
     fresh = MADDPG("MlpPolicy", make_team(), **FAST)  # a model built by 0.2 has 0.2's defaults
     assert fresh.actor_reg_coef == 1e-3
+
+
+@pytest.mark.parametrize("scheme", ["full", "selected"])
+def test_policy_save_load_round_trip(tmp_path, scheme):
+    """policy.save() / MADDPGPolicy.load(): SB3's policy-only round trip (no lr_schedule in the file, as TD3's)."""
+    kwargs = dict(FAST, selection=1) if scheme == "selected" else FAST
+    model = MADDPG("MlpPolicy", make_team(), critic_sharing=scheme, **kwargs)
+    model.learn(total_timesteps=100)
+    obs, obs_t, actions_t, selection = joint_batch(model)
+    path = tmp_path / "policy.pt"
+    model.policy.save(str(path))
+
+    policy = MADDPGPolicy.load(str(path))
+    assert type(policy) is type(model.policy) and policy.agent_layout == model.agent_layout
+    np.testing.assert_array_equal(policy.predict(obs, deterministic=True)[0], model.predict(obs, deterministic=True)[0])
+    with th.no_grad():
+        assert th.equal(policy.q_values(obs_t, actions_t, selection), model.policy.q_values(obs_t, actions_t, selection))
+    assert_state_dicts_equal(model.policy.state_dict(), policy.state_dict())  # targets included
