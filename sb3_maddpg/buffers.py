@@ -22,7 +22,8 @@ class MultiAgentReplayBufferSamples(NamedTuple):
     next_observations: th.Tensor
     """Joint next observations ``[batch, obs_dim]``."""
     dones: th.Tensor
-    """1.0 where agent i's episode truly terminated (time-limit truncation is 0: it bootstraps), ``[batch, n_agents]``."""
+    """1.0 where agent i's episode truly terminated (time-limit truncation is 0: it bootstraps, unless the buffer has
+    ``handle_timeout_termination=False``), ``[batch, n_agents]``."""
     rewards: th.Tensor
     """Per-agent rewards r_i ``[batch, n_agents]``."""
     selections: th.Tensor | None
@@ -48,7 +49,8 @@ class MultiAgentReplayBuffer(ReplayBuffer):
     :param device: PyTorch device for the samples.
     :param n_envs: Number of parallel environments.
     :param optimize_memory_usage: Not supported (must be False).
-    :param handle_timeout_termination: Bootstrap on time-limit truncation (SB3's ``TimeLimit.truncated``).
+    :param handle_timeout_termination: Bootstrap on time-limit truncation (SB3's ``TimeLimit.truncated``). False:
+        every end of an episode, truncation included, is stored as every agent's termination (no bootstrap), as in SB3.
     :param layout: The team's agent layout (MADDPG passes it).
     :param selector: The selection rule, for schemes that use one; None otherwise.
     """
@@ -119,18 +121,31 @@ class MultiAgentReplayBuffer(ReplayBuffer):
                     "The env's info has no 'agent_rewards': MADDPG trains critic i on agent i's reward. Wrap the "
                     "PettingZoo env in sb3_maddpg.envs.PettingZooToGym, or put one reward per agent in info['agent_rewards']."
                 ) from None
-            timeout = bool(info.get("TimeLimit.truncated", False)) and self.handle_timeout_termination
-            terminations = info.get("agent_terminations")
-            if terminations is None:
-                terminations = float(done[env_index]) * (1.0 - timeout)
-            self.dones[pos, env_index] = terminations
-            self.timeouts[pos, env_index] = timeout
+            self.dones[pos, env_index] = self._agent_dones(info, bool(done[env_index]))
+            self.timeouts[pos, env_index] = self.handle_timeout_termination and bool(info.get("TimeLimit.truncated", False))
         if self.selector is not None:
             self.selections[pos] = self.selector.select(obs, self.layout)
         self.pos += 1
         if self.pos == self.buffer_size:
             self.full = True
             self.pos = 0
+
+    def _agent_dones(self, info: dict[str, Any], done: bool) -> Any:
+        """
+        Each agent's done flag d_i for the critic targets.
+
+        :param info: One env's info.
+        :param done: Whether that env's episode ended (termination or truncation).
+        :return: ``info["agent_terminations"]`` (or the episode's termination when absent); with
+            ``handle_timeout_termination=False``, any end of the episode counts too (SB3's meaning: no bootstrap
+            at a time limit).
+        """
+        if not self.handle_timeout_termination:
+            return np.maximum(np.asarray(info.get("agent_terminations", False), dtype=np.float32), float(done))
+        terminations = info.get("agent_terminations")
+        if terminations is None:
+            return float(done and not info.get("TimeLimit.truncated", False))
+        return terminations
 
     def sample(self, batch_size: int, env: VecNormalize | None = None) -> MultiAgentReplayBufferSamples:  # type: ignore[override]
         """

@@ -19,8 +19,10 @@ OBS_SPACE = spaces.Box(-np.inf, np.inf, (12,), np.float32)
 ACTION_SPACE = spaces.Box(-1, 1, (6,), np.float32)
 
 
-def make_buffer(n_envs: int = 2, selector: NearestAgents | None = None) -> MultiAgentReplayBuffer:
-    return MultiAgentReplayBuffer(50, OBS_SPACE, ACTION_SPACE, "cpu", n_envs=n_envs, layout=LAYOUT, selector=selector)
+def make_buffer(n_envs: int = 2, selector: NearestAgents | None = None, **kwargs: Any) -> MultiAgentReplayBuffer:
+    return MultiAgentReplayBuffer(
+        50, OBS_SPACE, ACTION_SPACE, "cpu", n_envs=n_envs, layout=LAYOUT, selector=selector, **kwargs
+    )
 
 
 def info(rewards: list[float], terminated: bool = False, truncated: bool = False) -> dict[str, Any]:
@@ -48,6 +50,21 @@ def test_rows_hold_per_agent_rewards_terminations_and_selection() -> None:
     assert buffer.dones[0].tolist() == [[1, 1, 1], [0, 0, 0]]  # truncation is not termination
     assert buffer.timeouts[0].tolist() == [0, 1]
     assert (buffer.selections[0] == selector.select(obs, LAYOUT)).all()  # made from the observation at time t
+
+
+def test_without_timeout_handling_truncation_is_stored_as_termination() -> None:
+    """handle_timeout_termination=False: SB3's meaning, every end of an episode stops the bootstrap."""
+    buffer = make_buffer(n_envs=4, handle_timeout_termination=False)
+    infos = [info([1, 2, 3], truncated=True), info([1, 2, 3], terminated=True), info([1, 2, 3]), info([1, 2, 3])]
+    infos[3]["agent_terminations"] = np.array([False, True, False])  # one agent done, the episode goes on
+    obs = np.zeros((4, 12), dtype=np.float32)
+    buffer.add(obs, obs, np.zeros((4, 6)), np.zeros(4), np.array([True, True, False, False]), infos)
+    assert buffer.dones[0].tolist() == [[1, 1, 1], [1, 1, 1], [0, 0, 0], [0, 1, 0]]
+    assert buffer.timeouts[0].tolist() == [0, 0, 0, 0]
+    # Without agent_terminations in the info, the episode's end is every agent's.
+    del infos[0]["agent_terminations"]
+    buffer.add(obs, obs, np.zeros((4, 6)), np.zeros(4), np.array([True, True, False, False]), infos)
+    assert buffer.dones[1, 0].tolist() == [1, 1, 1]
 
 
 def test_samples_align_every_agent_on_the_same_rows() -> None:

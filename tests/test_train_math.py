@@ -2,6 +2,7 @@
 
 import copy
 
+import numpy as np
 import pytest
 import torch as th
 
@@ -163,6 +164,19 @@ def test_truncation_bootstraps_in_stored_transitions() -> None:
     assert buffer.timeouts[24, 0] == 1 and buffer.timeouts[49, 0] == 1
     assert buffer.timeouts[:60].sum() == 2
     assert buffer.dones[:60].sum() == 0  # no true termination: every row bootstraps
+
+
+def test_without_timeout_handling_truncation_stops_bootstrapping() -> None:
+    """replay_buffer_kwargs=dict(handle_timeout_termination=False): SB3's meaning, a time limit is a terminal."""
+    model = make_model(replay_buffer_kwargs=dict(handle_timeout_termination=False))
+    buffer = model.replay_buffer
+    assert buffer.dones[:60, 0].sum(axis=0).tolist() == [2, 2, 2]  # rows 24 and 49, every agent
+    assert buffer.dones[24, 0].tolist() == buffer.dones[49, 0].tolist() == [1, 1, 1]
+    assert buffer.timeouts[:60].sum() == 0
+    data = buffer._get_samples(np.array([24, 49, 10]))
+    targets = model._critic_targets(data)
+    assert th.equal(targets[:2], data.rewards[:2])  # y = r at the time limit
+    assert not th.equal(targets[2], data.rewards[2])  # a mid-episode row bootstraps
 
 
 def test_caller_kwargs_are_not_modified() -> None:
