@@ -297,7 +297,14 @@ def test_report_writes_table_and_plots(local_results: Path, tmp_path: Path) -> N
     assert names == sorted(
         f"{kind}_{metric}.{ext}"
         for metric in ("success_rate", "min_dist_sum")
-        for kind, ext in (("table", "md"), ("table", "csv"), ("learning_curves", "png"), ("boxplot", "png"))
+        for kind, ext in (
+            ("table", "md"),
+            ("table", "csv"),
+            ("aggregates", "md"),
+            ("aggregates", "csv"),
+            ("learning_curves", "png"),
+            ("boxplot", "png"),
+        )
     )
     for path in written:
         assert path.stat().st_size > 0
@@ -311,6 +318,11 @@ def test_report_writes_table_and_plots(local_results: Path, tmp_path: Path) -> N
         assert float(row["mean"]) == pytest.approx(np.mean(values))
         assert int(row["n"]) == 2
     assert "smoke (N=3, full obs., 40 ep.)" in (tmp_path / "table_success_rate.md").read_text()
+    aggregates = {row["scheme"]: row for row in read_rows(tmp_path / "aggregates_min_dist_sum.csv")}
+    for scheme, row in aggregates.items():
+        values = [s["score"]["min_dist_sum"] for s in summaries if s["scheme"] == scheme]
+        assert float(row["iqm"]) == pytest.approx(np.mean(values))  # the IQM of two runs is their mean
+        assert (row["improvement"] == "") == (scheme == "full")
     # Regenerating gives the same table.
     before = (tmp_path / "table_min_dist_sum.md").read_text()
     make_report(local_results, tmp_path, metrics=("min_dist_sum",), plots=False)

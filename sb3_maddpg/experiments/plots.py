@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from sb3_maddpg.experiments.aggregates import iqm_interval
 from sb3_maddpg.experiments.config import PAPER_NAMES, ordered_schemes, setting_label
 from sb3_maddpg.experiments.results import read_curve
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric
@@ -43,16 +44,17 @@ def _title(setting: str, experiments: dict[str, dict[str, Any]] | None) -> str:
     return setting_label(setting, (experiments or {}).get(setting))
 
 
-Curve = tuple[np.ndarray, np.ndarray, np.ndarray]
+Curve = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
-def mean_curves(summaries: Sequence[dict[str, Any]], metric: str) -> dict[str, dict[str, Curve]]:
+def iqm_curves(summaries: Sequence[dict[str, Any]], metric: str) -> dict[str, dict[str, Curve]]:
     """
-    Average the runs' learning curves per setting and scheme, over the evaluation steps every run has.
+    The runs' learning curves per setting and scheme, as the interquartile mean over runs at each evaluation step
+    (the steps every run has) with a 95% bootstrap interval (:func:`~sb3_maddpg.experiments.aggregates.iqm_interval`).
 
-    :param summaries: Run summaries with ``"directory"`` (from :func:`~sb3_maddpg.experiments.report.load_summaries`).
+    :param summaries: Run summaries with ``"directory"`` (from :func:`~sb3_maddpg.experiments.results.load_summaries`).
     :param metric: The curve's column (e.g. ``success_rate``).
-    :return: ``{setting: {scheme: (steps, mean, std)}}`` (displayed units, std with ``ddof=0``).
+    :return: ``{setting: {scheme: (steps, iqm, low, high)}}`` in displayed units (the interval is ``nan`` for one run).
     """
     scale = METRICS.get(metric, Metric(metric, metric)).scale
     grouped: dict[str, dict[str, list[dict[float, float]]]] = {}
@@ -65,8 +67,13 @@ def mean_curves(summaries: Sequence[dict[str, Any]], metric: str) -> dict[str, d
     for setting, by_scheme in grouped.items():
         for scheme, curves in by_scheme.items():
             steps = sorted(set.intersection(*(set(curve) for curve in curves)))
-            values = np.array([[curve[step] for step in steps] for curve in curves])
-            result.setdefault(setting, {})[scheme] = (np.array(steps), values.mean(axis=0), values.std(axis=0))
+            estimates = [iqm_interval([[curve[step] for curve in curves]], seed=index) for index, step in enumerate(steps)]
+            result.setdefault(setting, {})[scheme] = (
+                np.array(steps),
+                np.array([estimate.value for estimate in estimates]),
+                np.array([estimate.low for estimate in estimates]),
+                np.array([estimate.high for estimate in estimates]),
+            )
     return result
 
 
@@ -77,8 +84,8 @@ def plot_learning_curves(
     experiments: dict[str, dict[str, Any]] | None = None,
 ) -> Path:
     """
-    One panel per setting: the metric of the team evaluations during training against env steps,
-    mean over runs with a one-std band, one line per method (the paper's Figure 7).
+    One panel per setting: the metric of the team evaluations during training against env steps, the interquartile
+    mean over runs with its 95% bootstrap band, one line per method (the paper's Figure 7 draws mean and std).
 
     :param summaries: Run summaries with ``"directory"``.
     :param metric: The curve's column.
@@ -87,15 +94,15 @@ def plot_learning_curves(
     :return: The path.
     """
     plt = _pyplot()
-    curves = mean_curves(summaries, metric)
+    curves = iqm_curves(summaries, metric)
     settings = list(curves) or ["(no learning curves)"]
     figure, axes = plt.subplots(1, len(settings), figsize=(5.5 * len(settings), 4), squeeze=False)
     for axis, setting in zip(axes[0], settings):
         for scheme in ordered_schemes(set(curves.get(setting, {}))):
-            steps, mean, std = curves[setting][scheme]
+            steps, middle, low, high = curves[setting][scheme]
             color = COLORS.get(scheme)
-            axis.plot(steps, mean, label=PAPER_NAMES.get(scheme, scheme), color=color)
-            axis.fill_between(steps, mean - std, mean + std, color=color, alpha=0.2, linewidth=0)
+            axis.plot(steps, middle, label=PAPER_NAMES.get(scheme, scheme), color=color)
+            axis.fill_between(steps, low, high, color=color, alpha=0.2, linewidth=0)
         experiment = (experiments or {}).get(setting)
         if experiment and curves.get(setting):
             # The window the runs' scores are taken over (the checkpoints of the last 20% of training).
@@ -103,7 +110,7 @@ def plot_learning_curves(
             axis.axvspan(total * (1 - experiment["checkpoint_fraction"]), total, color="0.85", alpha=0.5, linewidth=0)
         axis.set_title(_title(setting, experiments), fontsize=10)
         axis.set_xlabel("env steps (shaded: checkpoints scored)" if experiment else "env steps")
-        axis.set_ylabel(METRICS.get(metric, Metric(metric, metric)).label)
+        axis.set_ylabel(f"{METRICS.get(metric, Metric(metric, metric)).label}, IQM over runs (band: 95% CI)")
         axis.grid(alpha=0.3)
         if curves.get(setting):
             axis.legend(fontsize=8)

@@ -1,4 +1,4 @@
-"""The report of a results directory: Table 2 as Markdown and CSV, learning curves and boxplots."""
+"""The report of a results directory: Table 2 and aggregate estimates as Markdown and CSV, learning curves and boxplots."""
 
 import csv
 import math
@@ -7,6 +7,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from sb3_maddpg.experiments.aggregates import improvement_interval, iqm_interval
 from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, ordered_schemes, setting_label
 from sb3_maddpg.experiments.results import load_experiments, load_summaries
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, aggregate
@@ -105,6 +108,119 @@ def write_csv(cells: Sequence[Cell], metric: str, path: str | os.PathLike[str]) 
             )
 
 
+def aggregate_estimates(cells: Sequence[Cell], metric: str, baseline: str = BASELINE_SCHEME) -> list[dict[str, Any]]:
+    """
+    Per setting and method, and over all settings together (stratified by setting) when there are several: the IQM
+    of the per-run scores and the probability that a run of the method beats a run of the baseline, each with a 95%
+    stratified bootstrap interval (see :mod:`~sb3_maddpg.experiments.aggregates`). "Beats" follows the metric's
+    direction (a lower ``min_dist_sum`` is better).
+
+    :param cells: From :func:`~sb3_maddpg.experiments.stats.aggregate`.
+    :param metric: The score's key (for its direction).
+    :param baseline: The scheme compared against.
+    :return: Rows with ``setting`` (``"all"`` for the stratified aggregate), ``scheme``, ``method``, ``n``, ``mean``,
+        ``iqm`` and ``improvement`` (:class:`~sb3_maddpg.experiments.aggregates.IntervalEstimate`; ``None`` for the
+        baseline).
+    """
+    sign = 1.0 if METRICS.get(metric, Metric(metric, metric)).higher_is_better else -1.0
+    by_key = {(cell.setting, cell.scheme): cell for cell in cells}
+    settings = list(dict.fromkeys(cell.setting for cell in cells))
+    groups = [[setting] for setting in settings] + ([settings] if len(settings) > 1 else [])
+    rows = []
+    for group in groups:
+        for scheme in ordered_schemes(cell.scheme for cell in cells if cell.setting in group):
+            if not all((setting, scheme) in by_key for setting in group):
+                continue  # a method missing in one setting has no stratified aggregate
+            strata = [by_key[setting, scheme].scores for setting in group]
+            reference = [by_key[setting, baseline].scores for setting in group if (setting, baseline) in by_key]
+            improvement = None
+            if scheme != baseline and len(reference) == len(group):
+                improvement = improvement_interval(
+                    [np.multiply(sign, stratum) for stratum in strata], [np.multiply(sign, ref) for ref in reference]
+                )
+            rows.append(
+                {
+                    "setting": group[0] if len(group) == 1 else "all",
+                    "scheme": scheme,
+                    "method": PAPER_NAMES.get(scheme, scheme),
+                    "n": sum(len(stratum) for stratum in strata),
+                    "mean": float(np.mean(np.concatenate([np.asarray(s, dtype=float) for s in strata]))),
+                    "iqm": iqm_interval(strata),
+                    "improvement": improvement,
+                }
+            )
+    return rows
+
+
+def format_aggregates_markdown(
+    rows: Sequence[dict[str, Any]],
+    metric: str,
+    experiments: dict[str, dict[str, Any]] | None = None,
+    baseline: str = BASELINE_SCHEME,
+) -> str:
+    """
+    :param rows: From :func:`aggregate_estimates`.
+    :param metric: The score's key.
+    :param experiments: The stored experiment configs (for setting labels).
+    :param baseline: The scheme compared against.
+    :return: Markdown: a row per setting and method, IQM [95% CI], mean, and P(better than the baseline) [95% CI].
+    """
+    info = METRICS.get(metric, Metric(metric, metric))
+    baseline_name = PAPER_NAMES.get(baseline, baseline)
+    lines = [
+        f"### Aggregates: {info.label}, interquartile mean and probability of improvement over {baseline_name}",
+        "",
+        f"| setting | method | runs | IQM [95% CI] | mean | P(better than {baseline_name}) [95% CI] |",
+        "|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        label = (
+            "all settings (stratified)"
+            if row["setting"] == "all"
+            else setting_label(row["setting"], (experiments or {}).get(row["setting"]))
+        )
+        improvement = "baseline" if row["improvement"] is None else row["improvement"].format(2)
+        lines.append(
+            f"| {label} | {row['method']} | {row['n']} | {row['iqm'].format(2)} | {_number(row['mean'])} | {improvement} |"
+        )
+    direction = "higher" if info.higher_is_better else "lower"
+    lines += [
+        "",
+        f"Each run's score is its mean {info.label} over the checkpoints of the last part of training ({direction} is "
+        "better). IQM: mean of the middle 50% of the runs' scores. P(better): the chance that a random run of the "
+        f"method scores better than a random run of {baseline_name} (ties count half; 0.5: no difference), averaged "
+        "over settings. Intervals: 95% stratified bootstrap (percentile, runs resampled within each setting and "
+        "method; `scipy.stats.bootstrap`), as in Agarwal et al. (2021). An interval of P(better) that excludes 0.5 "
+        f"says the method and {baseline_name} differ at this number of runs.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_aggregates_csv(rows: Sequence[dict[str, Any]], metric: str, path: str | os.PathLike[str]) -> None:
+    """
+    One row per setting (``all``: every setting, stratified) and method: ``setting, scheme, method, metric, n, mean,
+    iqm, iqm_low, iqm_high, improvement, improvement_low, improvement_high`` (empty improvement for the baseline).
+
+    :param rows: From :func:`aggregate_estimates`.
+    :param metric: The score's key.
+    :param path: The CSV file.
+    """
+    fields = ["setting", "scheme", "method", "metric", "n", "mean", "iqm", "iqm_low", "iqm_high"]
+    fields += ["improvement", "improvement_low", "improvement_high"]
+    with open(path, "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(fields)
+        for row in rows:
+            iqm, improvement = row["iqm"], row["improvement"]
+            estimates = [iqm.value, iqm.low, iqm.high]
+            estimates += ["", "", ""] if improvement is None else [improvement.value, improvement.low, improvement.high]
+            writer.writerow(
+                [row["setting"], row["scheme"], row["method"], metric, row["n"], repr(row["mean"])]
+                + [value if value == "" else repr(value) for value in estimates]
+            )
+
+
 def make_report(
     results_dir: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
@@ -113,9 +229,10 @@ def make_report(
     baseline: str = BASELINE_SCHEME,
 ) -> list[Path]:
     """
-    Write, for each metric, ``table_<metric>.md`` and ``table_<metric>.csv`` (Table 2) and, with ``plots``,
-    ``learning_curves_<metric>.png`` (mean with a std band over runs, vs env steps) and
-    ``boxplot_<metric>.png`` (per-run scores, like the paper's Figures 7 and 8).
+    Write, for each metric, ``table_<metric>.md`` and ``table_<metric>.csv`` (Table 2: mean (std), Mann-Whitney U),
+    ``aggregates_<metric>.md`` and ``aggregates_<metric>.csv`` (IQM and probability of improvement with 95%
+    bootstrap intervals) and, with ``plots``, ``learning_curves_<metric>.png`` (IQM over runs with a 95% bootstrap
+    band, vs env steps) and ``boxplot_<metric>.png`` (per-run scores, like the paper's Figures 7 and 8).
 
     :param results_dir: The results directory of a sweep.
     :param out_dir: Where to write the report.
@@ -139,7 +256,11 @@ def make_report(
         markdown_path, csv_path = out / f"table_{metric}.md", out / f"table_{metric}.csv"
         markdown_path.write_text(format_markdown(cells, metric, experiments, baseline=baseline))
         write_csv(cells, metric, csv_path)
-        written += [markdown_path, csv_path]
+        estimates = aggregate_estimates(cells, metric, baseline=baseline)
+        aggregates_md, aggregates_csv = out / f"aggregates_{metric}.md", out / f"aggregates_{metric}.csv"
+        aggregates_md.write_text(format_aggregates_markdown(estimates, metric, experiments, baseline=baseline))
+        write_aggregates_csv(estimates, metric, aggregates_csv)
+        written += [markdown_path, csv_path, aggregates_md, aggregates_csv]
         if plots:
             from sb3_maddpg.experiments.plots import plot_boxplots, plot_learning_curves
 

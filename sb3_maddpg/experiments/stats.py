@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from sb3_maddpg.evaluation import SUCCESS_RADII, radius_key
 from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, ordered_schemes
 
 
@@ -35,9 +36,16 @@ METRICS: dict[str, Metric] = {
         Metric("min_dist_sum", "sum of min. distances", 1.0, higher_is_better=False),
         Metric("return_mean", "team return", 1.0),
         Metric("collisions", "collisions per episode", 1.0, higher_is_better=False),
+        *(
+            Metric(radius_key(key, radius), f"{label} within {radius:g} (%)", 100.0)
+            for radius in SUCCESS_RADII
+            for key, label in (("success_rate", "success rate"), ("coverage", "landmark coverage"))
+        ),
     )
 }
-"""The metrics a report can score runs by (``success_rate`` is the paper's)."""
+"""The metrics a report can score runs by: ``success_rate`` (the paper's, at mpe2's 0.1 radius), ``coverage``,
+``min_dist_sum``, ``return_mean``, ``collisions``, and success and coverage at each radius of
+:data:`~sb3_maddpg.evaluation.SUCCESS_RADII` (``success_rate_r0.2``: every landmark within 0.2 of an agent)."""
 
 
 @dataclass(frozen=True)
