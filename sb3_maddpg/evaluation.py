@@ -1,5 +1,6 @@
 """Team evaluation: task success, landmark coverage, collisions and returns of a trained team."""
 
+import copy
 import csv
 import os
 import warnings
@@ -7,8 +8,10 @@ from typing import Any, Protocol
 
 import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
+from stable_baselines3.common.noise import VectorizedActionNoise
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, unwrap_vec_normalize
 
 TASK_METRICS = ("success", "coverage", "collisions", "min_dist_sum")
 """The task metrics read from ``info`` (see :class:`~sb3_maddpg.envs.SimpleSpreadMetrics`)."""
@@ -80,7 +83,10 @@ def evaluate_team(
     :param model: The trained model (anything with SB3's ``predict``).
     :param env: The evaluation env: a gymnasium env or an SB3 ``VecEnv``. It is reset here and not closed.
     :param n_episodes: Number of episodes.
-    :param deterministic: Whether the team acts without exploration noise.
+    :param deterministic: ``True``: the team acts without exploration. ``False``: it acts as in training: ``predict``
+        samples (for stochastic policies), and a model with ``action_noise`` (MADDPG, SB3's TD3 and DDPG) gets a copy
+        of that noise added in the [-1, 1] action space and clipped there, as in the model's data collection (the
+        model's own noise process is not advanced).
     :param seed: Seed for the env's first reset, so that two evaluations with the same seed see the
         same episodes (the same initial states); ``None`` to continue the env's own random stream.
     :return: A dict with ``success_rate`` (fraction of episodes in which every landmark is covered at
@@ -107,9 +113,12 @@ def evaluate_team(
     episodes: dict[str, list[Any]] = {key: [] for key in ("return", "length", "agent_returns", *TASK_METRICS, *RADIUS_KEYS)}
     states = None
     episode_starts = np.ones(n_envs, dtype=bool)
+    exploration = None if deterministic else _exploration_noise(model, n_envs)
 
     while (counts < targets).any():
         actions, states = model.predict(observations, state=states, episode_start=episode_starts, deterministic=deterministic)
+        if exploration is not None:
+            actions = _add_noise(actions, exploration, vec_env.action_space)
         observations, rewards, dones, infos = vec_env.step(actions)
         team_returns += rewards
         lengths += 1
@@ -134,6 +143,8 @@ def evaluate_team(
                 counts[i] += 1
             team_returns[i], lengths[i], collisions[i], agent_returns[i] = 0.0, 0, 0.0, None
         episode_starts = dones
+        if exploration is not None and dones.any():
+            exploration.reset(np.flatnonzero(dones))
 
     returns = np.asarray(episodes["return"])
     per_agent = [r for r in episodes["agent_returns"] if r is not None]
@@ -157,6 +168,24 @@ def evaluate_team(
         "n_episodes": len(returns),
         **{key: float(np.mean(episodes[key])) for key in RADIUS_KEYS},
     }
+
+
+def _exploration_noise(model: PredictsActions, n_envs: int) -> VectorizedActionNoise | None:
+    """A copy of the model's exploration noise for ``n_envs`` eval envs, or ``None`` when it has none."""
+    noise = getattr(model, "action_noise", None)
+    if noise is None:
+        return None
+    base = noise.base_noise if isinstance(noise, VectorizedActionNoise) else noise
+    return VectorizedActionNoise(copy.deepcopy(base), n_envs)
+
+
+def _add_noise(actions: np.ndarray, noise: VectorizedActionNoise, action_space: gym.Space) -> np.ndarray:
+    """Add noise in the [-1, 1] space and clip there, as SB3's off-policy collection does (``_sample_action``)."""
+    assert isinstance(action_space, spaces.Box), "exploration noise needs continuous (Box) actions"
+    low, high = action_space.low, action_space.high
+    scaled = 2.0 * (actions - low) / (high - low) - 1.0
+    scaled = np.clip(scaled + noise(), -1.0, 1.0)
+    return (low + 0.5 * (scaled + 1.0) * (high - low)).astype(actions.dtype)
 
 
 def _radius_metrics(landmark_distances: Any) -> dict[str, float]:
@@ -187,7 +216,7 @@ class TeamEvalCallback(BaseCallback):
     :param eval_freq: Evaluate every ``eval_freq`` calls of the callback (one call per ``env.step``
         of the training ``VecEnv``, i.e. ``n_envs`` env steps, as in ``EvalCallback``).
     :param n_eval_episodes: Episodes per evaluation.
-    :param deterministic: Whether the team acts without exploration noise.
+    :param deterministic: Whether the team acts without exploration (see :func:`evaluate_team`).
     :param seed: Seed for each evaluation's first reset (each evaluation then sees the same
         episodes); ``None`` to continue the eval env's random stream.
     :param log_path: Path of a CSV file for the evaluation history, or ``None``.
@@ -232,6 +261,8 @@ class TeamEvalCallback(BaseCallback):
 
     def _evaluate(self) -> None:
         assert self.model is not None
+        if self.model.get_vec_normalize_env() is not None:
+            self._sync_normalization()
         result = evaluate_team(
             self.model, self.eval_env, n_episodes=self.n_eval_episodes, deterministic=self.deterministic, seed=self.seed
         )
@@ -249,6 +280,20 @@ class TeamEvalCallback(BaseCallback):
             )
         if self.log_path is not None:
             write_rows(self.log_path, self.history)
+
+    def _sync_normalization(self) -> None:
+        """Copy the training env's VecNormalize statistics to the eval env's, as SB3's EvalCallback does."""
+        training = unwrap_vec_normalize(self.training_env)
+        evaluation = unwrap_vec_normalize(self.eval_env) if isinstance(self.eval_env, VecEnv) else None
+        if evaluation is None:
+            raise ValueError(
+                "TeamEvalCallback: the training env is normalised by VecNormalize but the eval env is not, so the team "
+                "would be evaluated on unnormalised observations: wrap the eval env too, e.g. "
+                "VecNormalize(eval_env, training=False, norm_reward=False) (its statistics are copied at each evaluation)."
+            )
+        assert training is not None
+        evaluation.obs_rms = copy.deepcopy(training.obs_rms)
+        evaluation.ret_rms = copy.deepcopy(training.ret_rms)
 
 
 def write_rows(path: str, rows: list[dict[str, Any]]) -> None:

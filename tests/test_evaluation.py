@@ -11,7 +11,8 @@ import pytest
 from gymnasium import spaces
 from stable_baselines3.common.callbacks import CallbackList, EvalCallback
 from stable_baselines3.common.logger import configure
-from stable_baselines3.common.vec_env import DummyVecEnv
+from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread
@@ -199,3 +200,67 @@ def test_team_eval_callback_logs_beside_eval_callback(tmp_path: Any) -> None:
     assert logged == pytest.approx([row["min_dist_sum"] for row in team_eval.history])
     with pytest.raises(ValueError, match="eval_freq"):
         TeamEvalCallback(make_simple_spread(n_agents=3), eval_freq=0)
+
+
+class RecordingEnv(ScriptedEnv):
+    """A ScriptedEnv that keeps every action it is given."""
+
+    def __init__(self) -> None:
+        super().__init__(lengths=(4,))
+        self.actions: list[np.ndarray] = []
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        self.actions.append(np.array(action))
+        return super().step(action)
+
+
+def test_evaluate_team_explores_only_when_not_deterministic() -> None:
+    model = ConstantModel(np.full(2, 0.5, np.float32))
+    model.action_noise = OrnsteinUhlenbeckActionNoise(np.zeros(2), np.full(2, 0.2), dt=1.0)  # type: ignore[attr-defined]
+    state_before = model.action_noise.noise_prev.copy()  # type: ignore[attr-defined]
+    env = RecordingEnv()
+    evaluate_team(model, env, n_episodes=3, deterministic=True)
+    assert np.all(np.asarray(env.actions) == 0.5)
+
+    env = RecordingEnv()
+    model.action_noise = NormalActionNoise(np.zeros(2), np.full(2, 0.2))  # type: ignore[attr-defined]
+    evaluate_team(model, env, n_episodes=400, deterministic=False)
+    actions = np.asarray(env.actions)
+    # Noise of std 0.2 in the [-1, 1] space is 0.1 in the env's [0, 1] units, clipped to the space.
+    assert actions.std(axis=0) == pytest.approx([0.1, 0.1], rel=0.1)
+    assert actions.mean(axis=0) == pytest.approx([0.5, 0.5], abs=0.01)
+    assert actions.min() >= 0.0 and actions.max() <= 1.0
+
+    # The model's own noise process is not advanced by an evaluation.
+    model.action_noise = OrnsteinUhlenbeckActionNoise(np.zeros(2), np.full(2, 0.2), dt=1.0)  # type: ignore[attr-defined]
+    model.action_noise.noise_prev = state_before  # type: ignore[attr-defined]
+    evaluate_team(model, RecordingEnv(), n_episodes=2, deterministic=False)
+    assert np.array_equal(model.action_noise.noise_prev, state_before)  # type: ignore[attr-defined]
+
+
+def test_evaluate_team_deterministic_flag_changes_a_maddpg_teams_actions() -> None:
+    model = MADDPG("MlpPolicy", make_simple_spread(n_agents=3), seed=0, noise_std=0.3, **TINY)
+    env = make_simple_spread(n_agents=3)
+    greedy = evaluate_team(model, env, n_episodes=4, seed=7, deterministic=True)
+    assert evaluate_team(model, env, n_episodes=4, seed=7, deterministic=True) == greedy
+    exploring = evaluate_team(model, env, n_episodes=4, seed=7, deterministic=False)
+    assert exploring["return_mean"] != greedy["return_mean"]
+
+
+def test_team_eval_callback_copies_vec_normalize_statistics() -> None:
+    def make_env() -> gym.Env:
+        return make_simple_spread(n_agents=2)
+
+    train_env = VecNormalize(DummyVecEnv([make_env]), norm_reward=False)
+    eval_env = VecNormalize(DummyVecEnv([make_env]), training=False, norm_reward=False)
+    model = MADDPG("MlpPolicy", train_env, seed=0, **TINY)
+    model.learn(100, callback=TeamEvalCallback(eval_env, eval_freq=50, n_eval_episodes=1))
+    # The last evaluation ran at the last step, after which the training statistics did not change.
+    assert eval_env.obs_rms.count == train_env.obs_rms.count > 100
+    np.testing.assert_array_equal(eval_env.obs_rms.mean, train_env.obs_rms.mean)
+    np.testing.assert_array_equal(eval_env.obs_rms.var, train_env.obs_rms.var)
+    assert eval_env.obs_rms is not train_env.obs_rms  # a copy: evaluation cannot change training's statistics
+
+    model = MADDPG("MlpPolicy", VecNormalize(DummyVecEnv([make_env]), norm_reward=False), seed=0, **TINY)
+    with pytest.raises(ValueError, match="the training env is normalised by VecNormalize but the eval env is not"):
+        model.learn(100, callback=TeamEvalCallback(make_env(), eval_freq=50, n_eval_episodes=1))
