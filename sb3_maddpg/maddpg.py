@@ -10,7 +10,7 @@ import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.noise import ActionNoise, NormalActionNoise
+from stable_baselines3.common.noise import ActionNoise, NormalActionNoise, VectorizedActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
@@ -310,12 +310,22 @@ class MADDPG(OffPolicyAlgorithm):
         tb_log_name: str = "run",
         progress_bar: bool = False,
     ) -> tuple[int, BaseCallback]:
+        self._fit_noise_to_env()
         result = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
         if reset_num_timesteps:  # timesteps count from 0 again, and so do the credit and the last log step
             self._update_credit = 0
             self._credited_timesteps = 0
             self._logs_dumped_at = -1
         return result
+
+    def _fit_noise_to_env(self) -> None:
+        """
+        A noise vectorised for another number of envs (a model saved with 2 envs, loaded with 4) goes back to its
+        per-env base noise, which SB3's ``_setup_learn`` vectorises again for this env.
+        """
+        noise = self.action_noise
+        if isinstance(noise, VectorizedActionNoise) and self.env is not None and noise.n_envs != self.env.num_envs:
+            self.action_noise = noise.base_noise
 
     def dump_logs(self) -> None:
         """Write the logs at most once per env step: SB3 asks at finished episodes, which many envs end together."""
@@ -334,9 +344,11 @@ class MADDPG(OffPolicyAlgorithm):
         self, learning_starts: int, action_noise: ActionNoise | None = None, n_envs: int = 1
     ) -> tuple[np.ndarray, np.ndarray]:
         """
-        The exploration action: every actor on its own observation, plus noise in the [-1, 1] space, clipped.
+        The exploration action: uniformly random before ``learning_starts``, then every actor on its own
+        observation; plus noise in the [-1, 1] space, clipped to [-1, 1].
 
-        Same result as SB3's version, without ``predict``'s unscale-then-rescale round trip on every step.
+        Same result as SB3's version, without ``predict``'s unscale-then-rescale round trip on every step, and with
+        a clear error when the noise does not fit the joint action.
 
         :param learning_starts: Env steps of uniformly random actions before the actors act.
         :param action_noise: Noise added to the actors' actions.
@@ -344,12 +356,15 @@ class MADDPG(OffPolicyAlgorithm):
         :return: The action for the env and the [-1, 1] action for the replay buffer.
         """
         if self.num_timesteps < learning_starts:
-            return super()._sample_action(learning_starts, action_noise, n_envs)
-        with th.no_grad():
-            observations = th.as_tensor(self._last_obs, dtype=th.float32, device=self.device)
-            buffer_action = self.actor(observations.reshape(n_envs, -1)).cpu().numpy()
+            # SB3's warm-up: uniform actions over the Box.
+            unscaled = np.array([self.action_space.sample() for _ in range(n_envs)])
+            buffer_action = self.policy.scale_action(unscaled)
+        else:
+            with th.no_grad():
+                observations = th.as_tensor(self._last_obs, dtype=th.float32, device=self.device)
+                buffer_action = self.actor(observations.reshape(n_envs, -1)).cpu().numpy()
         if action_noise is not None:
-            buffer_action = np.clip(buffer_action + action_noise(), -1.0, 1.0)
+            buffer_action = np.clip(buffer_action + _draw_noise(action_noise, buffer_action.shape), -1.0, 1.0)
         return self.policy.unscale_action(buffer_action), buffer_action
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
@@ -546,6 +561,26 @@ def _refuse_reward_normalization(env: VecEnv) -> None:
             "VecNormalize(norm_reward=True) would normalise only the team's scalar reward, not the per-agent rewards "
             "the critics learn from: use VecNormalize(env, norm_reward=False) (observation normalisation is fine)."
         )
+
+
+def _draw_noise(action_noise: ActionNoise, action_shape: tuple[int, ...]) -> np.ndarray:
+    """
+    One draw of the exploration noise, refused with the cause when it does not fit the joint actions.
+
+    :param action_noise: The noise.
+    :param action_shape: The joint actions' shape, ``[n_envs, action_dim]``.
+    :return: Noise of shape ``[n_envs, action_dim]`` or ``[action_dim]``.
+    """
+    noise = action_noise()
+    if np.shape(noise) != action_shape and np.shape(noise) != action_shape[1:]:
+        n_envs, action_dim = action_shape
+        raise ValueError(
+            f"action_noise gives noise of shape {np.shape(noise)}, but the joint actions have shape {action_shape} "
+            f"({n_envs} env(s), {action_dim} action components over all agents): give a noise over the joint action, "
+            f"e.g. NormalActionNoise(mean=np.zeros({action_dim}), sigma=...) (SB3 vectorises it over the envs), or "
+            "leave action_noise=None for the default noise of noise_std."
+        )
+    return noise
 
 
 def _resolve_selection(selection: Selector | int | None) -> Selector:

@@ -3,6 +3,7 @@
 import csv
 import glob
 import os
+import re
 import warnings
 from pathlib import Path
 
@@ -428,6 +429,35 @@ def test_user_action_noise():
     model.learn(total_timesteps=100)
     # As in SB3, the noise is drawn on every step, also on the random steps before learning_starts.
     assert noise.calls == 100
+
+
+@pytest.mark.parametrize("learning_starts", [0, 30])
+def test_noisy_actions_are_clipped_to_the_box(learning_starts):
+    """Noise is added in [-1, 1] space and the sum clipped there: the buffer and the env never see more."""
+    env = make_vec_env(make_team, n_envs=2)
+    model = MADDPG("MlpPolicy", env, noise_std=5.0, **{**FAST, "learning_starts": learning_starts})
+    sent: list[np.ndarray] = []
+    step_async = env.step_async
+    env.step_async = lambda actions: (sent.append(actions.copy()), step_async(actions))[1]  # type: ignore[method-assign]
+    model.learn(total_timesteps=60)
+    stored = model.replay_buffer.actions[: model.replay_buffer.pos]
+    assert stored.min() == -1.0 and stored.max() == 1.0
+    assert np.mean(np.abs(stored) == 1.0) > 0.8  # sigma 10: most components land outside and are clipped
+    sent_actions = np.concatenate(sent)
+    assert sent_actions.min() >= 0.0 and sent_actions.max() <= 1.0  # mpe2's Box(0, 1)
+    np.testing.assert_allclose(sent_actions, (np.concatenate(stored) + 1) / 2, atol=1e-6)
+
+
+@pytest.mark.parametrize("n_envs", [1, 2])
+@pytest.mark.parametrize("learning_starts", [0, 50])
+def test_action_noise_of_the_wrong_size(n_envs, learning_starts):
+    noise = NormalActionNoise(mean=np.zeros(10), sigma=np.full(10, 0.1))  # 2 agents' worth, the team has 3
+    env = make_vec_env(make_team, n_envs=n_envs)
+    model = MADDPG("MlpPolicy", env, action_noise=noise, **{**FAST, "learning_starts": learning_starts})
+    noise_shape = f"({n_envs}, 10)" if n_envs > 1 else "(10,)"  # SB3 vectorises the noise over 2 envs
+    message = f"action_noise gives noise of shape {noise_shape}, but the joint actions have shape ({n_envs}, 15)"
+    with pytest.raises(ValueError, match=re.escape(message)):
+        model.learn(total_timesteps=10)
 
 
 # ---------------------------------------------------------------------------------------------- learning

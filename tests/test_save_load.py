@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import torch as th
 from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.noise import VectorizedActionNoise
 
 from sb3_maddpg import MADDPG, AgentLayout
 from sb3_maddpg.envs import make_simple_spread
@@ -136,6 +137,24 @@ def test_callable_selector_survives_save_load(tmp_path):
     loaded.learn(total_timesteps=100, reset_num_timesteps=False)
     stored = loaded.replay_buffer.selections[: loaded.replay_buffer.pos, 0]
     np.testing.assert_array_equal(stored, np.broadcast_to([[2], [0], [1]], stored.shape))
+
+
+@pytest.mark.parametrize("n_envs", [4, 1])
+def test_load_with_another_number_of_envs_rebuilds_the_noise(tmp_path, n_envs):
+    """The default noise was vectorised for the 2 envs it was saved with: learn() fits it to the new env."""
+    model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), **FAST)
+    model.learn(total_timesteps=100)
+    assert isinstance(model.action_noise, VectorizedActionNoise) and model.action_noise.n_envs == 2
+    model.save(tmp_path / "model.zip")
+
+    loaded = MADDPG.load(tmp_path / "model.zip", env=make_vec_env(make_team, n_envs=n_envs))
+    loaded.learn(total_timesteps=100, reset_num_timesteps=False)
+    assert loaded.num_timesteps >= 200 and loaded._n_updates > model._n_updates
+    noise = loaded.action_noise
+    base = noise.base_noise if n_envs > 1 else noise
+    if n_envs > 1:
+        assert isinstance(noise, VectorizedActionNoise) and noise.n_envs == n_envs
+    np.testing.assert_allclose(base._sigma, np.full(N_AGENTS * 5, 0.2))  # noise_std=0.1 of mpe2's [0, 1] actions
 
 
 def test_load_with_other_layout(tmp_path):
