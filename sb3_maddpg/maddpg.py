@@ -1,6 +1,8 @@
 """MADDPG on SB3's off-policy base, with the critic's information sharing as a swappable part."""
 
+import io
 import math
+import pathlib
 import warnings
 from collections.abc import Sequence
 from typing import Any, ClassVar, NamedTuple, TypeVar
@@ -514,6 +516,38 @@ class MADDPG(OffPolicyAlgorithm):
         _check_same_layout(_layout_of(wrapped), self.agent_layout)
         _refuse_reward_normalization(wrapped)
         super().set_env(wrapped, force_reset)
+
+    def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
+        """
+        Load a replay buffer saved by :meth:`save_replay_buffer`; it must be of this model's team.
+
+        :param path: Path to the pickled replay buffer.
+        :param truncate_last_traj: SB3's argument (used by ``HerReplayBuffer`` only).
+        """
+        current = self.replay_buffer
+        super().load_replay_buffer(path, truncate_last_traj)
+        try:
+            self._check_replay_buffer(self.replay_buffer)
+        except (TypeError, ValueError):
+            self.replay_buffer = current  # a refused buffer must not stay in the model
+            raise
+        self.replay_buffer.selector = self.selection  # new rows: the model's rule, of the same size k
+
+    def _check_replay_buffer(self, buffer: ReplayBuffer) -> None:
+        """Refuse a buffer of another agent layout, selection size or number of envs: its rows would be misread."""
+        if not isinstance(buffer, MultiAgentReplayBuffer):
+            raise TypeError(
+                f"The replay buffer is a {type(buffer).__name__}, not a MultiAgentReplayBuffer: it has no per-agent "
+                "rewards. Load a buffer saved by a MADDPG model's save_replay_buffer()."
+            )
+        k = self.selection.k if self.selection is not None else 0
+        if (buffer.layout, buffer.selection_size, buffer.n_envs) != (self.agent_layout, k, self.n_envs):
+            raise ValueError(
+                f"The replay buffer holds transitions of agent layout {buffer.layout} with selections of "
+                f"k={buffer.selection_size} from {buffer.n_envs} env(s), but this model has agent layout "
+                f"{self.agent_layout} with k={k} and {self.n_envs} env(s): load a buffer saved by a model of the same "
+                "team (same agents, sizes and order), the same selection size and the same number of envs."
+            )
 
     def _excluded_save_params(self) -> list[str]:
         return [

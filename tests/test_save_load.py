@@ -1,5 +1,6 @@
 """Save and load in SB3's style, for every sharing scheme: parameters, optimisers, replay buffer, selectors."""
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,7 @@ from stable_baselines3.common.noise import VectorizedActionNoise
 from sb3_maddpg import MADDPG, AgentLayout
 from sb3_maddpg.envs import make_simple_spread
 from sb3_maddpg.policies import MADDPGPolicy
-from sb3_maddpg.selection import CallableSelector
+from sb3_maddpg.selection import CallableSelector, NearestAgents
 
 SCHEMES = ("independent", "full", "observations", "actions", "selected")
 N_AGENTS = 3
@@ -123,6 +124,37 @@ def test_replay_buffer_round_trip(tmp_path, scheme):
     # Learning goes on with the loaded buffer.
     other.learn(total_timesteps=60)
     assert other._n_updates > 0
+
+
+def test_replay_buffer_of_another_team_is_refused(tmp_path):
+    model = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selection=2, **FAST)
+    model.learn(total_timesteps=60)
+    model.save_replay_buffer(tmp_path / "buffer.pkl")
+    layout = model.agent_layout
+
+    other_team = MADDPG("MlpPolicy", make_team(n_agents=5), critic_sharing="selected", selection=2, **FAST)
+    own_buffer = other_team.replay_buffer
+    with pytest.raises(ValueError, match="agent layout") as error:
+        other_team.load_replay_buffer(tmp_path / "buffer.pkl")
+    assert str(layout) in str(error.value) and str(other_team.agent_layout) in str(error.value)
+    assert other_team.replay_buffer is own_buffer  # the refused buffer is not kept
+
+    other_k = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selection=1, **FAST)
+    expected = re.escape(f"{layout} with selections of k=2") + ".*" + re.escape(f"{layout} with k=1")
+    with pytest.raises(ValueError, match=expected):
+        other_k.load_replay_buffer(tmp_path / "buffer.pkl")
+    without_selection = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="full", **FAST)
+    with pytest.raises(ValueError, match="k=2.*k=0"):
+        without_selection.load_replay_buffer(tmp_path / "buffer.pkl")
+    env = make_vec_env(make_team, n_envs=2, env_kwargs=dict(n_agents=4))
+    two_envs = MADDPG("MlpPolicy", env, critic_sharing="selected", selection=2, **FAST)
+    with pytest.raises(ValueError, match=r"from 1 env\(s\).*and 2 env\(s\)"):
+        two_envs.load_replay_buffer(tmp_path / "buffer.pkl")
+
+    # The same team loads it, and stores new rows with its own selector.
+    same = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selection=NearestAgents(k=2), **FAST)
+    same.load_replay_buffer(tmp_path / "buffer.pkl")
+    assert same.replay_buffer.pos == 60 and same.replay_buffer.selector is same.selection
 
 
 def test_callable_selector_survives_save_load(tmp_path):
