@@ -153,7 +153,8 @@ class ResultsDirectory(SphinxDirective):
     """
     Show a results directory written by ``sb3-maddpg report`` (or a copy of it), if it exists: its
     ``index.rst`` or ``results.rst`` if it has one; else ``README.md`` or ``description.md`` first, then
-    every ``table_*.md``, then every figure (``*.svg``, ``*.png``). Otherwise render the directive's content.
+    every ``table_*.md`` each followed by its ``aggregates_*.md``, then every figure (``*.svg``, ``*.png``).
+    Otherwise render the directive's content.
     """
 
     required_arguments = 1
@@ -170,7 +171,9 @@ class ResultsDirectory(SphinxDirective):
                 text = (directory / name).read_text(encoding="utf-8")
                 return self._parse(StringList(text.splitlines(), source=str(directory / name)))
         texts = [directory / name for name in ("README.md", "description.md") if (directory / name).is_file()]
-        texts += sorted(directory.glob("table_*.md")) if directory.is_dir() else []
+        for table in sorted(directory.glob("table_*.md")) if directory.is_dir() else []:
+            aggregates = table.with_name(table.name.replace("table_", "aggregates_", 1))
+            texts += [table, aggregates] if aggregates.is_file() else [table]
         figures = [*directory.glob("*.svg"), *directory.glob("*.png")] if directory.is_dir() else []
         # Learning curves before boxplots, as in the paper's figures; then by name.
         figures.sort(key=lambda path: (not path.name.startswith("learning_curves"), path.name))
