@@ -37,7 +37,8 @@ class PettingZooToGym(gym.Env):
     ``Box`` spaces; agents must not leave mid-episode (wrap such an env with
     ``supersuit.black_death_v3``).
 
-    :param parallel_env: The PettingZoo ``ParallelEnv`` to wrap.
+    :param parallel_env: The PettingZoo ``ParallelEnv`` to wrap (an AEC env is refused: use the task's
+        ``parallel_env(...)`` or ``pettingzoo.utils.conversions.aec_to_parallel``).
     :param metrics_fn: Optional hook that returns task metrics from the wrapped env.
     :param team_reward: How the agents' rewards are combined into the scalar reward, ``"sum"`` or ``"mean"``.
     """
@@ -51,6 +52,7 @@ class PettingZooToGym(gym.Env):
         super().__init__()
         if team_reward not in ("sum", "mean"):
             raise ValueError(f"team_reward must be 'sum' or 'mean', got {team_reward!r}.")
+        _refuse_aec_env(parallel_env)
         self.parallel_env = parallel_env
         self.metrics_fn = metrics_fn
         self.team_reward = team_reward
@@ -166,6 +168,17 @@ class PettingZooToGym(gym.Env):
         if self._flat_float32_obs:
             return np.concatenate([observations[agent] for agent in agent_ids], dtype=np.float32)
         return np.concatenate([np.asarray(observations[agent], dtype=np.float32).reshape(-1) for agent in agent_ids])
+
+
+def _refuse_aec_env(env: Any) -> None:
+    """An AEC env (one agent acts at a time) looks like a parallel one until ``reset`` returns None: refuse it first."""
+    # Duck-typed, so that this module needs no PettingZoo import: only AEC envs step one agent at a time.
+    if callable(getattr(env, "agent_iter", None)) and callable(getattr(env, "last", None)):
+        raise TypeError(
+            f"PettingZooToGym needs a PettingZoo ParallelEnv, got an AEC env ({type(env).__name__}), where agents act "
+            "one at a time: build the parallel version (e.g. simple_adversary_v3.parallel_env(...) instead of .env(...)) "
+            "or convert it with pettingzoo.utils.conversions.aec_to_parallel(env)."
+        )
 
 
 def _check_box(space: spaces.Space, agent: str, kind: str) -> spaces.Box:

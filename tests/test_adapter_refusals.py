@@ -1,0 +1,21 @@
+"""What PettingZooToGym refuses at construction, before a confusing failure later."""
+
+import pytest
+from mpe2 import simple_adversary_v3, simple_spread_v3
+from pettingzoo.utils.conversions import aec_to_parallel
+
+from sb3_maddpg.envs import PettingZooToGym
+
+
+@pytest.mark.parametrize("module", [simple_adversary_v3, simple_spread_v3])
+def test_aec_env_is_refused_at_construction(module) -> None:
+    # An AEC env used to be accepted, then failed in reset() with "cannot unpack non-iterable NoneType object".
+    with pytest.raises(TypeError, match=r"needs a PettingZoo ParallelEnv, got an AEC env.*parallel_env.*aec_to_parallel"):
+        PettingZooToGym(module.env(continuous_actions=True))
+
+
+def test_aec_env_converted_to_parallel_works() -> None:
+    env = PettingZooToGym(aec_to_parallel(simple_adversary_v3.env(continuous_actions=True)))
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == env.observation_space.shape
+    env.step(env.action_space.sample())
