@@ -208,6 +208,7 @@ class MADDPG(OffPolicyAlgorithm):
         if self.env is not None:
             self.agent_layout = _layout_of(self.env)
             _refuse_reward_normalization(self.env)
+            scheme.check_layout(self.agent_layout)  # a team the scheme cannot serve: say so before the selection's errors
             if scheme.uses_selection:
                 self.selection = _resolve_selection(selection)
                 self.selection.validate(self.agent_layout)

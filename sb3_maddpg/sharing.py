@@ -54,6 +54,15 @@ class CriticFeaturesExtractor(nn.Module):
         self.selection_size = int(selection_size)
         self._features_dim = int(features_dim)
 
+    @classmethod
+    def check_layout(cls, layout: AgentLayout) -> None:
+        """
+        Raise a clear error if this scheme cannot serve the team; MADDPG calls it before anything else about the
+        scheme (the selection included), so that the real cause comes first. Every team fits by default.
+
+        :param layout: The team's agent layout.
+        """
+
     @property
     def features_dim(self) -> int:
         """Length of the critic input this extractor builds."""
@@ -151,13 +160,17 @@ class SelectedCriticFeatures(CriticFeaturesExtractor):
 
     uses_selection = True
 
-    def __init__(self, layout: AgentLayout, agent_index: int, selection_size: int = 2) -> None:
+    @classmethod
+    def check_layout(cls, layout: AgentLayout) -> None:
         if not layout.is_homogeneous:
             raise ValueError(
                 "critic_sharing='selected' needs agents with equal observation and action sizes (a selected agent's "
                 f"data fills a fixed slot), got obs sizes {layout.obs_sizes} and action sizes {layout.action_sizes}: "
                 "use 'full', 'observations', 'actions' or 'independent' for this team, or pad the agents' spaces."
             )
+
+    def __init__(self, layout: AgentLayout, agent_index: int, selection_size: int = 2) -> None:
+        self.check_layout(layout)
         if not 1 <= selection_size <= layout.n_agents - 1:
             raise ValueError(f"selection_size must be between 1 and {layout.n_agents - 1}, got {selection_size}.")
         obs_size, action_size = layout.obs_sizes[0], layout.action_sizes[0]

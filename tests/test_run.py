@@ -377,12 +377,15 @@ def test_heterogeneous_team():
     assert model._n_updates > 0
     actions, _ = model.predict(env.reset(), deterministic=True)
     assert actions.shape == (2, 8)
-    # "selected" needs equal agents: the default selector (k=2) does not fit a team of two,
-    with pytest.raises(ValueError, match="NearestAgents selects k=2"):
-        MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", **FAST)
-    # and with a valid selection the scheme itself refuses the team.
-    with pytest.raises(ValueError, match="equal observation and action sizes"):
-        MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selection=FixedGraph([[1], [0]]), **FAST)
+
+
+@pytest.mark.parametrize("selection", [None, 1, FixedGraph([[1], [0]])])
+def test_selected_sharing_on_a_heterogeneous_team_names_the_cause_first(selection):
+    # The first error is the real cause, whatever the selection: not the default k=2 (too many for a team of two),
+    # nor NearestAgents' position slice (outside the speaker's 3-component observation).
+    message = "critic_sharing='selected' needs agents with equal observation and action sizes"
+    with pytest.raises(ValueError, match=re.escape(message) + r".*obs sizes \(3, 11\) and action sizes \(3, 5\)"):
+        MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selection=selection, **FAST)
 
 
 # ---------------------------------------------------------------------------------------------- exploration noise
