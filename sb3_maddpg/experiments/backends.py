@@ -1,9 +1,21 @@
-"""Where runs execute: in this process, in a local process pool, or on a Ray cluster."""
+"""Where runs execute: in this process, in a local process pool, or on a Ray cluster.
 
+Faults: a worker that dies (SIGKILL, the out-of-memory killer) loses only the runs it and the workers beside
+it were running; they are reported as failed (local pool) or retried (Ray) and the sweep goes on. A sweep that
+is killed takes its pool workers with it; Ctrl-C stops the workers and leaves the runs in progress unfinished,
+so that the same command runs them again.
+"""
+
+import multiprocessing
 import os
+import signal
+import threading
+import time
 import traceback
+from collections import deque
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import ALL_COMPLETED, FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from multiprocessing import get_context
 from typing import Any
 
@@ -15,6 +27,15 @@ BACKENDS = ("local", "ray")
 
 OnResult = Callable[[RunConfig, dict[str, Any] | None, str | None], None]
 """Called as each run ends: ``(config, result, None)`` on success, ``(config, None, traceback)`` on failure."""
+
+LOST_RUN = "lost: the worker process running it died"
+"""How the error of a run lost with its worker process begins."""
+LOST_RUN_ERROR = (
+    f"{LOST_RUN} (killed by a signal: the out-of-memory killer or a kill -9?); a local process pool also stops "
+    "the runs beside it. Nothing of it counts as finished: run the same command again to run it."
+)
+RAY_MAX_RETRIES = 3
+"""Ray runs a task again this many times when its worker process or node dies (Ray's default, stated)."""
 
 
 def set_worker_threads(threads: int) -> None:
@@ -30,6 +51,26 @@ def set_worker_threads(threads: int) -> None:
     th.set_num_threads(threads)
 
 
+def _init_pool_worker(threads: int, parent_pid: int) -> None:
+    """
+    Set up a local pool's worker process: its threads, Ctrl-C left to the sweep's process, and an exit with it.
+
+    :param threads: Torch threads.
+    :param parent_pid: The sweep's process.
+    """
+    # Ctrl-C in a terminal reaches the whole process group: the sweep's process handles it (and stops the workers).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # A worker outliving a killed sweep would finish its run into a directory that the next sweep is redoing.
+    threading.Thread(target=_exit_with_parent, args=(parent_pid,), daemon=True, name="exit-with-sweep").start()
+    set_worker_threads(threads)
+
+
+def _exit_with_parent(parent_pid: int, interval_s: float = 0.5) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(interval_s)
+    os._exit(1)
+
+
 def _execute(config: RunConfig, results_dir: str, threads: int, verbose: int) -> dict[str, Any]:
     return execute_run(config, results_dir, threads=threads, verbose=verbose)
 
@@ -41,10 +82,14 @@ def run_local(
     workers: int = 1,
     threads: int = 1,
     verbose: int = 1,
+    log: Callable[[str], None] = print,
 ) -> None:
     """
     Run on this machine: in this process with one worker, else in a pool of ``workers`` processes
     (``spawn`` start method, so that no torch or env state is shared with the parent).
+
+    A worker process that dies breaks the pool: the runs in progress are reported lost (an error starting with
+    :data:`LOST_RUN`) and the runs not started go on in a new pool. Ctrl-C stops the workers at once.
 
     :param configs: The runs.
     :param results_dir: The sweep's results directory.
@@ -52,6 +97,7 @@ def run_local(
     :param workers: Number of parallel processes.
     :param threads: Torch threads per process.
     :param verbose: 1 to print each run's progress.
+    :param log: Where a line saying that a worker died goes.
     """
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}.")
@@ -64,21 +110,64 @@ def run_local(
             else:
                 on_result(config, result, None)
         return
-    with ProcessPoolExecutor(
-        max_workers=workers, mp_context=get_context("spawn"), initializer=set_worker_threads, initargs=(threads,)
-    ) as pool:
-        futures: dict[Future[dict[str, Any]], RunConfig] = {
-            pool.submit(_execute, config, results_dir, threads, verbose): config for config in configs
-        }
-        pending = set(futures)
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+    queue = deque(configs)
+    while queue:
+        lost = _run_pool(queue, results_dir, on_result, workers, threads, verbose)
+        if lost:
+            log(
+                f"a worker process died: {len(lost)} run(s) in progress lost ({', '.join(c.run_id for c in lost)}); "
+                f"{len(queue)} run(s) not started go on in new worker processes"
+            )
+        for config in lost:
+            on_result(config, None, LOST_RUN_ERROR)
+
+
+def _run_pool(
+    queue: deque[RunConfig], results_dir: str, on_result: OnResult, workers: int, threads: int, verbose: int
+) -> list[RunConfig]:
+    """
+    Run the queue's runs in a new process pool, at most ``workers`` submitted at once (so that every submitted
+    run is one in progress), until the queue is empty or a worker process dies.
+
+    :return: The runs in progress when a worker died (the queue keeps the runs not started), or none.
+    """
+    children_before = set(multiprocessing.active_children())
+    pool = ProcessPoolExecutor(
+        max_workers=workers, mp_context=get_context("spawn"), initializer=_init_pool_worker, initargs=(threads, os.getpid())
+    )
+    running: dict[Future[dict[str, Any]], RunConfig] = {}
+    try:
+        while queue or running:
+            pool_broke = False
+            try:
+                while queue and len(running) < workers:
+                    running[pool.submit(_execute, queue[0], results_dir, threads, verbose)] = queue[0]
+                    queue.popleft()
+            except BrokenProcessPool:  # it broke between two runs
+                pool_broke = True
+            finished, _ = wait(running, return_when=ALL_COMPLETED if pool_broke else FIRST_COMPLETED)
+            if not pool_broke and any(isinstance(future.exception(), BrokenProcessPool) for future in finished):
+                pool_broke = True
+                finished, _ = wait(running)  # a broken pool fails every run in progress, all at once
+            lost = []
             for future in finished:
+                config = running.pop(future)
                 error = future.exception()
-                if error is None:
-                    on_result(futures[future], future.result(), None)
+                if isinstance(error, BrokenProcessPool):
+                    lost.append(config)
+                elif error is None:
+                    on_result(config, future.result(), None)
                 else:
-                    on_result(futures[future], None, "".join(traceback.format_exception(error)))
+                    on_result(config, None, "".join(traceback.format_exception(error)))
+            if pool_broke:
+                return lost
+        return []
+    except BaseException:  # Ctrl-C (KeyboardInterrupt): the workers ignore it, stop them now
+        for process in set(multiprocessing.active_children()) - children_before:
+            process.terminate()
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def run_ray(
@@ -89,6 +178,7 @@ def run_ray(
     threads: int = 1,
     num_cpus: int | None = None,
     verbose: int = 1,
+    on_parallel: Callable[[int], None] | None = None,
 ) -> None:
     """
     Run as Ray tasks, one CPU slot per ``threads``: on the cluster at ``address`` (e.g. ``"auto"`` or
@@ -96,7 +186,8 @@ def run_ray(
 
     Every node needs this package installed. Each task writes its run directory on its own node and
     returns the small result files, which are written here too, so a cluster needs no shared
-    filesystem (model checkpoints stay on the nodes).
+    filesystem (model checkpoints stay on the nodes). A task whose worker process or node dies is run again
+    (up to :data:`RAY_MAX_RETRIES` times) from scratch; Ctrl-C cancels the tasks.
 
     :param configs: The runs.
     :param results_dir: The sweep's results directory (absolute paths are safest on a cluster).
@@ -105,6 +196,8 @@ def run_ray(
     :param threads: Torch threads (and Ray CPUs) per run.
     :param num_cpus: CPUs of a local instance (``None``: all of this machine's).
     :param verbose: 1 to print each run's progress (Ray forwards the workers' output).
+    :param on_parallel: Called once Ray is up with the number of runs that execute at once (the cluster's CPUs
+        // ``threads``), e.g. for a time-left estimate.
     """
     try:
         import ray
@@ -125,8 +218,11 @@ def run_ray(
             configure_logging=False,
             _system_config=system_config,
         )
+    pending: list[Any] = []
     try:
-        remote = ray.remote(num_cpus=threads)(_ray_task)
+        if on_parallel is not None:
+            on_parallel(ray_parallel_runs(ray.cluster_resources(), threads))
+        remote = ray.remote(num_cpus=threads, max_retries=RAY_MAX_RETRIES)(_ray_task)
         refs = {remote.remote(config, results_dir, threads, verbose): config for config in configs}
         pending = list(refs)
         while pending:
@@ -134,14 +230,29 @@ def run_ray(
             for ref in finished:
                 try:
                     result = ray.get(ref)
+                except (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError):
+                    on_result(refs[ref], None, f"{LOST_RUN_ERROR}\n{traceback.format_exc()}")
                 except Exception:
                     on_result(refs[ref], None, traceback.format_exc())
                 else:
                     write_result_files(results_dir, result)
                     on_result(refs[ref], result, None)
+    except KeyboardInterrupt:
+        for ref in pending:  # on a cluster, tasks would go on without the sweep
+            ray.cancel(ref, force=True)
+        raise
     finally:
         if started_here:
             ray.shutdown()
+
+
+def ray_parallel_runs(resources: dict[str, float], threads: int) -> int:
+    """
+    :param resources: A Ray cluster's resources (``ray.cluster_resources()``).
+    :param threads: CPUs per run.
+    :return: The runs that execute at once: the cluster's CPUs // ``threads`` (at least 1).
+    """
+    return max(1, int(resources.get("CPU", 0)) // max(1, threads))
 
 
 def _ray_task(config: RunConfig, results_dir: str, threads: int, verbose: int) -> dict[str, Any]:

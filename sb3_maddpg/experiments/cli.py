@@ -37,7 +37,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--config",
         action="append",
         default=None,
-        help=f"a preset ({', '.join(EXPERIMENTS)}) or an experiment JSON file; repeat for several (default: exp1 and exp2)",
+        help=f"a preset ({', '.join(EXPERIMENTS)}) or an experiment JSON file; repeat for several "
+        "(required: the paper's sweep is --config exp1 --config exp2, 310 runs)",
     )
     run.add_argument("--results", default=DEFAULT_RESULTS, help=f"results directory (default: {DEFAULT_RESULTS})")
     group = run.add_argument_group("overrides (applied to every --config)")
@@ -97,7 +98,7 @@ def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
     :param args: Parsed ``run`` arguments.
     :return: The experiments with the overrides applied.
     """
-    names = args.config or ["exp1", "exp2"]
+    names = args.config
     if args.name and len(names) != 1:
         raise SystemExit("--name renames one experiment: give a single --config.")
     experiments = []
@@ -127,24 +128,56 @@ def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
     return experiments
 
 
+def no_config_message() -> str:
+    """:return: What ``run`` says without ``--config``: the presets, their sizes, and ``--dry-run``."""
+    presets = "\n".join(
+        f"  {name}: {len(config.schemes) * len(config.seeds)} runs, {config.description}"
+        for name, config in EXPERIMENTS.items()
+    )
+    return (
+        "sb3-maddpg run: no experiment given: name one with --config (a preset below or an experiment JSON file; "
+        "repeat it for several). The paper's full sweep is --config exp1 --config exp2 (310 runs, days of CPU); "
+        f"add --dry-run to list the runs first.\n{presets}"
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """
     :param argv: The arguments (default: ``sys.argv[1:]``).
-    :return: The exit status: 0 when every run finished (or the report was written), 1 otherwise.
+    :return: The exit status: 0 when every run finished (or the report was written), 1 otherwise, 2 for a usage
+        error, 130 after Ctrl-C (the sweep resumes with the same command).
     """
     args = build_parser().parse_args(argv)
     if args.command == "run":
-        from sb3_maddpg.experiments.sweep import plan_sweep, run_sweep
+        if not args.config:
+            print(no_config_message(), file=sys.stderr)
+            return 2
+        try:
+            return run_command(args)
+        except KeyboardInterrupt:  # Ctrl-C before the sweep began (run_command handles it during the sweep)
+            print("sb3-maddpg run: interrupted before the sweep started; nothing was run.", file=sys.stderr)
+            return 130
+    return report_command(args)
 
-        experiments = experiments_from_args(args)
-        if args.dry_run:
-            todo, finished = plan_sweep(experiments, args.results)
-            for experiment in experiments:
-                print(f"{experiment.name}: {json.dumps(experiment.to_dict())}")
-            for config in todo:
-                print(f"  {config.run_id}: {config.total_timesteps:,} steps, checkpoints at {config.checkpoint_steps()}")
-            print(f"{len(todo)} run(s) to do, {finished} finished")
-            return 0
+
+def run_command(args: argparse.Namespace) -> int:
+    """
+    :param args: Parsed ``run`` arguments.
+    :return: The exit status.
+    """
+    from sb3_maddpg.experiments.results import ResultsDirectoryLocked
+    from sb3_maddpg.experiments.sweep import SweepInterrupted, plan_sweep, run_sweep  # torch: imported for runs only
+
+    experiments = experiments_from_args(args)
+    if args.dry_run:
+        todo, finished = plan_sweep(experiments, args.results)
+        for experiment in experiments:
+            print(f"{experiment.name}: {json.dumps(experiment.to_dict())}")
+        for config in todo:
+            print(f"  {config.run_id}: {config.total_timesteps:,} steps, checkpoints at {config.checkpoint_steps()}")
+        print(f"{len(todo)} run(s) to do, {finished} finished")
+        return 0
+    try:
         result = run_sweep(
             experiments,
             args.results,
@@ -154,15 +187,36 @@ def main(argv: Sequence[str] | None = None) -> int:
             ray_address=args.ray_address,
             verbose=1 if args.quiet else 2,
         )
-        if not args.quiet:
-            print(f"results in {args.results}; report with: sb3-maddpg report {args.results}")
-        return 0 if result.ok else 1
+    except ResultsDirectoryLocked as error:
+        print(f"sb3-maddpg run: {error}", file=sys.stderr)
+        return 1
+    except SweepInterrupted:  # Ctrl-C: the sweep has said how far it got and that the same command resumes
+        return 130
+    if not args.quiet:
+        print(f"results in {args.results}; report with: sb3-maddpg report {args.results}")
+    return 0 if result.ok else 1
 
+
+def report_command(args: argparse.Namespace) -> int:
+    """
+    :param args: Parsed ``report`` arguments.
+    :return: The exit status.
+    """
     from sb3_maddpg.experiments.report import make_report
 
     out = args.out or f"{args.results.rstrip('/')}/report"
-    for path in make_report(args.results, out, metrics=args.metric or ["success_rate"], plots=not args.no_plots):
-        print(path)
+    try:
+        for path in make_report(args.results, out, metrics=args.metric or ["success_rate"], plots=not args.no_plots):
+            print(path)
+    except ModuleNotFoundError as error:
+        if error.name is None or error.name.split(".")[0] != "matplotlib":
+            raise
+        print(
+            "sb3-maddpg report: the figures need matplotlib, which is not installed. Install the experiments extra, "
+            'pip install "sb3-maddpg[experiments]", or add --no-plots for the tables only.',
+            file=sys.stderr,
+        )
+        return 1
     return 0
 
 

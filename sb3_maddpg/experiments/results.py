@@ -1,17 +1,31 @@
 """The results directory: its file names, and the functions that find, read and write them.
 
-Layout: ``<results>/sweep.log``, ``<results>/<experiment>/experiment.json`` and one directory per run,
-``<results>/<experiment>/<scheme>/seed_<seed>/``, holding the files below; ``done`` is written last.
+Layout: ``<results>/sweep.log``, ``<results>/sweep.lock``, ``<results>/<experiment>/experiment.json`` and one
+directory per run, ``<results>/<experiment>/<scheme>/seed_<seed>/``, holding the files below.
+
+A crash (a killed process, a full disk) must leave a state the next sweep can see: every file a resume reads
+(``config.json``, ``summary.json``, ``done``, ``experiment.json``) is written whole or not at all (a temporary
+file renamed), and ``done`` is written last. A run counts as finished only when its ``done`` marker, its config
+and its summary are all there and readable; anything less is run again from scratch.
 """
 
+import contextlib
 import csv
 import json
 import os
+import sys
 import time
+import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from sb3_maddpg.experiments.config import RunConfig
+
+try:
+    import fcntl
+except ImportError:  # Windows: no advisory locks, sweeps are not guarded against each other there
+    fcntl = None  # type: ignore[assignment]
 
 CONFIG_FILE = "config.json"
 SUMMARY_FILE = "summary.json"
@@ -27,6 +41,49 @@ EXPERIMENT_FILE = "experiment.json"
 """An experiment's config, in ``<results>/<experiment>/``."""
 SWEEP_LOG = "sweep.log"
 """The sweeps' progress lines, in ``<results>/``."""
+LOCK_FILE = "sweep.lock"
+"""Locked by the sweep that is running in ``<results>/`` (it names that sweep's PID and command)."""
+
+
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
+    """
+    Write a text file whole or not at all: a temporary file in the same directory, flushed to disk and renamed
+    over ``path`` (``os.replace`` is atomic), so a crash leaves the old file or none, never a truncated one.
+
+    :param path: The file.
+    :param text: Its new content.
+    """
+    path = Path(path)
+    tmp_path = path.with_name(f".{path.name}.{os.getpid()}.tmp")  # one writer per process; plain open() keeps the umask
+    try:
+        with open(tmp_path, "w") as file:
+            file.write(text)
+            file.flush()
+            os.fsync(file.fileno())
+        os.replace(tmp_path, path)
+    except BaseException:
+        tmp_path.unlink(missing_ok=True)
+        raise
+
+
+def write_json_atomic(path: str | os.PathLike[str], value: Any) -> None:
+    """
+    :param path: A JSON file, written with :func:`write_text_atomic`.
+    :param value: Its content.
+    """
+    write_text_atomic(path, json.dumps(value, indent=2))
+
+
+def read_json(path: str | os.PathLike[str]) -> Any | None:
+    """
+    :param path: A JSON file.
+    :return: Its content, or ``None`` when it is missing or unreadable (e.g. truncated by a crash).
+    """
+    try:
+        with open(path) as file:
+            return json.load(file)
+    except (OSError, ValueError):
+        return None
 
 
 def run_directory(results_dir: str | os.PathLike[str], config: RunConfig) -> Path:
@@ -38,19 +95,32 @@ def run_directory(results_dir: str | os.PathLike[str], config: RunConfig) -> Pat
     return Path(results_dir) / config.run_id
 
 
+def read_summary(directory: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """
+    :param directory: A run's directory.
+    :return: Its summary if the run is finished (``done`` marker and a readable ``summary.json``), else ``None``.
+    """
+    directory = Path(directory)
+    if not (directory / DONE_FILE).exists():
+        return None
+    summary = read_json(directory / SUMMARY_FILE)
+    return summary if isinstance(summary, dict) else None
+
+
 def is_finished(results_dir: str | os.PathLike[str], config: RunConfig) -> bool:
     """
-    Whether the run has finished in ``results_dir``: its ``done`` marker exists (it is written last).
+    Whether the run has finished in ``results_dir``: its ``done`` marker (written last), its config and its
+    summary are there and readable. A run directory left half-written by a crash is not finished.
 
     :param results_dir: The sweep's results directory.
     :param config: The run.
     :return: True if the run is finished; a finished run with another config is an error.
     """
     directory = run_directory(results_dir, config)
-    if not (directory / DONE_FILE).exists():
+    stored_config = read_json(directory / CONFIG_FILE)
+    if read_summary(directory) is None or not isinstance(stored_config, dict):
         return False
-    with open(directory / CONFIG_FILE) as file:
-        stored = RunConfig.from_dict(json.load(file))
+    stored = RunConfig.from_dict(stored_config)
     if not stored.same_as(config):
         raise ValueError(
             f"{directory} holds a finished run with another config; use a new results directory for a "
@@ -65,10 +135,7 @@ def mark_done(directory: str | os.PathLike[str]) -> None:
 
     :param directory: The run's directory.
     """
-    path = Path(directory) / DONE_FILE
-    tmp_path = path.with_name(f"{DONE_FILE}.tmp")
-    tmp_path.write_text(time.strftime("%Y-%m-%dT%H:%M:%S%z\n"))
-    os.replace(tmp_path, path)
+    write_text_atomic(Path(directory) / DONE_FILE, time.strftime("%Y-%m-%dT%H:%M:%S%z\n"))
 
 
 def collect_result(directory: str | os.PathLike[str]) -> dict[str, Any]:
@@ -86,17 +153,18 @@ def collect_result(directory: str | os.PathLike[str]) -> dict[str, Any]:
 def write_result_files(results_dir: str | os.PathLike[str], result: dict[str, Any]) -> None:
     """
     Write a run's result files (from :func:`~sb3_maddpg.experiments.runner.execute_run` on another machine)
-    unless the run is already finished there, then its ``done`` marker.
+    unless the run is already finished there, each atomically, then its ``done`` marker.
 
     :param results_dir: The sweep's results directory on this machine.
     :param result: The value ``execute_run`` returned.
     """
     directory = Path(results_dir) / result["run_id"]
-    if (directory / DONE_FILE).exists():
+    if read_summary(directory) is not None:
         return
     directory.mkdir(parents=True, exist_ok=True)
+    (directory / DONE_FILE).unlink(missing_ok=True)  # a done marker without a readable summary: written again, last
     for name, text in result["files"].items():
-        (directory / name).write_text(text)
+        write_text_atomic(directory / name, text)
     mark_done(directory)
 
 
@@ -121,8 +189,10 @@ def load_summaries(results_dir: str | os.PathLike[str]) -> list[dict[str, Any]]:
     for path in sorted(Path(results_dir).glob(f"*/*/seed_*/{SUMMARY_FILE}")):
         if not (path.parent / DONE_FILE).exists():
             continue
-        with open(path) as file:
-            summary = json.load(file)
+        summary = read_summary(path.parent)
+        if summary is None:
+            warnings.warn(f"{path} is unreadable (a crash while it was written?): left out; a sweep runs it again.")
+            continue
         summary["directory"] = str(path.parent)
         summaries.append(summary)
     return summaries
@@ -136,8 +206,7 @@ def write_experiment(results_dir: str | os.PathLike[str], name: str, experiment:
     """
     directory = Path(results_dir) / name
     directory.mkdir(parents=True, exist_ok=True)
-    with open(directory / EXPERIMENT_FILE, "w") as file:
-        json.dump(experiment, file, indent=2)
+    write_json_atomic(directory / EXPERIMENT_FILE, experiment)
 
 
 def load_experiments(results_dir: str | os.PathLike[str]) -> dict[str, dict[str, Any]]:
@@ -150,3 +219,51 @@ def load_experiments(results_dir: str | os.PathLike[str]) -> dict[str, dict[str,
         with open(path) as file:
             experiments[path.parent.name] = json.load(file)
     return experiments
+
+
+class ResultsDirectoryLocked(RuntimeError):
+    """Another sweep is running in the results directory."""
+
+
+@contextlib.contextmanager
+def lock_results(results_dir: str | os.PathLike[str]) -> Iterator[None]:
+    """
+    Hold the results directory for one sweep: an exclusive ``flock`` on ``<results>/sweep.lock``, which names this
+    process. The operating system releases it when the process ends, however it ends, so a killed sweep leaves no
+    stale lock behind. (Without ``fcntl``, i.e. on Windows, nothing is locked.)
+
+    :param results_dir: The results directory (created if needed).
+    :raise ResultsDirectoryLocked: When another sweep holds it (the message names its PID and command).
+    """
+    path = Path(results_dir) / LOCK_FILE
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a+") as file:
+        if fcntl is not None:
+            try:
+                fcntl.flock(file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                file.seek(0)
+                raise ResultsDirectoryLocked(_locked_message(Path(results_dir), file.read())) from None
+        file.seek(0)
+        file.truncate()
+        holder = {"pid": os.getpid(), "started": time.strftime("%Y-%m-%d %H:%M:%S"), "command": " ".join(sys.argv)}
+        file.write(json.dumps(holder) + "\n")
+        file.flush()
+        try:
+            yield
+        finally:
+            file.seek(0)
+            file.truncate()  # closing the file releases the lock
+
+
+def _locked_message(results_dir: Path, holder_text: str) -> str:
+    try:
+        holder = json.loads(holder_text)
+        who = f"PID {holder['pid']}, started {holder['started']}: {holder['command']}"
+        stop = f"stop it (kill -INT {holder['pid']}; it resumes later)"
+    except (ValueError, KeyError, TypeError):
+        who, stop = "PID unknown", "stop it"
+    return (
+        f"{results_dir} is in use by another sweep ({who}). Two sweeps in one results directory would run the "
+        f"same runs at once. Wait for that sweep to end, {stop}, or give this one another results directory (--results)."
+    )

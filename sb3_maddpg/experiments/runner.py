@@ -2,7 +2,6 @@
 
 import copy
 import importlib
-import json
 import os
 import shutil
 import time
@@ -27,6 +26,7 @@ from sb3_maddpg.experiments.results import (
     is_finished,
     mark_done,
     run_directory,
+    write_json_atomic,
 )
 
 
@@ -200,8 +200,7 @@ def execute_run(
     if directory.exists():
         shutil.rmtree(directory)
     directory.mkdir(parents=True)
-    with open(directory / CONFIG_FILE, "w") as file:
-        json.dump(config.to_dict(), file, indent=2)
+    write_json_atomic(directory / CONFIG_FILE, config.to_dict())
 
     if threads is not None:
         import torch as th
@@ -274,8 +273,7 @@ def execute_run(
         "wall_time_s": round(time.perf_counter() - started, 2),
         "train_steps_per_s": round(config.total_timesteps / train_time, 1),
     }
-    with open(directory / SUMMARY_FILE, "w") as file:
-        json.dump(summary, file, indent=2)
+    write_json_atomic(directory / SUMMARY_FILE, summary)
     progress.log(
         f"{config.run_id}: done in {_format_seconds(summary['wall_time_s'])} "
         f"({summary['train_steps_per_s']:,.0f} steps/s), score: success {100 * score['success_rate']:.1f}%, "

@@ -7,9 +7,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sb3_maddpg.experiments.backends import BACKENDS, run_local, run_ray
+from sb3_maddpg.experiments.backends import BACKENDS, LOST_RUN, run_local, run_ray
 from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
-from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, write_experiment
+from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, lock_results, write_experiment
 from sb3_maddpg.experiments.runner import _format_seconds, log_line
 
 
@@ -21,7 +21,7 @@ class SweepResult:
     :param total: Runs in the sweep.
     :param skipped: Runs already finished before it started (resumed sweeps skip them).
     :param completed: Runs finished by this sweep (their summaries).
-    :param failed: Runs that raised, with their tracebacks.
+    :param failed: Runs that raised, with their tracebacks, and runs lost with a worker process that died.
     :param wall_time_s: The sweep's wall time.
     """
 
@@ -35,6 +35,28 @@ class SweepResult:
     def ok(self) -> bool:
         """Whether every run is finished."""
         return not self.failed and self.skipped + len(self.completed) == self.total
+
+    @property
+    def lost(self) -> list[str]:
+        """The failed runs that were lost with a worker process that died (killed, out of memory)."""
+        return [run_id for run_id, error in self.failed.items() if error.startswith(LOST_RUN)]
+
+    @property
+    def finished(self) -> int:
+        """Runs finished, before this sweep or by it."""
+        return self.skipped + len(self.completed)
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """
+    Ctrl-C stopped a sweep (a ``KeyboardInterrupt``, logged already with how far the sweep got).
+
+    :param result: What the sweep did until then.
+    """
+
+    def __init__(self, result: SweepResult) -> None:
+        super().__init__(f"sweep interrupted after {result.finished} of {result.total} run(s)")
+        self.result = result
 
 
 class SweepProgress:
@@ -112,6 +134,11 @@ def run_sweep(
     Run every (scheme, seed) of the experiments, skipping runs finished before (resume an
     interrupted sweep by running the same command again).
 
+    One sweep at a time holds a results directory (:func:`~sb3_maddpg.experiments.results.lock_results`). A run
+    that fails, or is lost with a worker process that dies, is reported in the result and the sweep goes on;
+    Ctrl-C stops the sweep, logs how far it got and raises :class:`SweepInterrupted` (a ``KeyboardInterrupt``).
+    Either way the unfinished runs are left for the next sweep.
+
     :param experiments: The experiments.
     :param results_dir: The results directory (one sub-directory per experiment, scheme and seed).
     :param backend: ``"local"`` (a process pool) or ``"ray"``.
@@ -120,6 +147,7 @@ def run_sweep(
     :param ray_address: The Ray cluster's address; ``None`` starts a local instance.
     :param verbose: 0 quiet, 1 the sweep's progress (a line per finished run), 2 also each run's progress.
     :return: What the sweep did.
+    :raise ResultsDirectoryLocked: When another sweep is running in ``results_dir``.
     """
     if backend not in BACKENDS:
         raise ValueError(f"Unknown backend {backend!r}; use one of {BACKENDS}.")
@@ -127,15 +155,31 @@ def run_sweep(
     names = [experiment.name for experiment in experiments]
     if len(set(names)) != len(names):
         raise ValueError(f"Experiment names must be unique, got {names}.")
+    with lock_results(results_path):
+        return _run_locked_sweep(experiments, results_path, backend, workers, threads, ray_address, verbose)
+
+
+def _run_locked_sweep(
+    experiments: Sequence[ExperimentConfig],
+    results_path: Path,
+    backend: str,
+    workers: int,
+    threads: int,
+    ray_address: str | None,
+    verbose: int,
+) -> SweepResult:
+    """:func:`run_sweep` once it holds the results directory (same parameters)."""
     for experiment in experiments:
         write_experiment(results_path, experiment.name, experiment.to_dict())
 
     todo, skipped = plan_sweep(experiments, results_path)
     result = SweepResult(total=len(todo) + skipped, skipped=skipped)
+    # Ray's slots are known once it is up (workers=0 means all CPUs): run_ray reports them through on_parallel.
     parallel = workers if backend == "local" else max(1, workers) // max(1, threads)
     progress = SweepProgress(result.total, skipped, parallel, str(results_path / SWEEP_LOG), echo=verbose >= 1)
+    names = ", ".join(experiment.name for experiment in experiments)
     progress.log(
-        f"sweep of {result.total} runs ({', '.join(names)}) on {backend} with {workers} worker(s) x {threads} thread(s): "
+        f"sweep of {result.total} runs ({names}) on {backend} with {workers} worker(s) x {threads} thread(s): "
         f"{skipped} finished before, {len(todo)} to run"
     )
 
@@ -154,20 +198,34 @@ def run_sweep(
             result.failed[config.run_id] = error or ""
             progress.update(config.run_id, f"FAILED:\n{error}")
 
+    def on_parallel(slots: int) -> None:
+        progress.parallel = slots
+        progress.log(f"Ray: {slots} run(s) at once ({threads} CPU(s) each)")
+
     started = time.perf_counter()
     run_verbose = 1 if verbose >= 2 else 0
-    if backend == "local":
-        run_local(todo, str(results_path), on_result, workers=workers, threads=threads, verbose=run_verbose)
-    else:
-        run_ray(
-            todo,
-            str(results_path),
-            on_result,
-            address=ray_address,
-            threads=threads,
-            num_cpus=workers if workers > 0 else None,
-            verbose=run_verbose,
+    try:
+        if backend == "local":
+            run_local(
+                todo, str(results_path), on_result, workers=workers, threads=threads, verbose=run_verbose, log=progress.log
+            )
+        else:
+            run_ray(
+                todo,
+                str(results_path),
+                on_result,
+                address=ray_address,
+                threads=threads,
+                num_cpus=workers if workers > 0 else None,
+                verbose=run_verbose,
+                on_parallel=on_parallel,
+            )
+    except KeyboardInterrupt:
+        progress.log(
+            f"sweep interrupted: {result.finished} of {result.total} run(s) finished ({len(result.completed)} by this "
+            f"sweep); the runs in progress are left unfinished. Run the same command again to resume."
         )
+        raise SweepInterrupted(result) from None
     result.wall_time_s = time.perf_counter() - started
     if result.completed:
         steps_per_s = sum(s["train_steps_per_s"] for s in result.completed) / len(result.completed)
@@ -177,5 +235,7 @@ def run_sweep(
     progress.log(
         f"sweep finished: {len(result.completed)} run(s) in {_format_seconds(result.wall_time_s)} "
         f"({result.wall_time_s:.0f} s wall){throughput}, {skipped} skipped, {len(result.failed)} failed"
+        + (f" ({len(result.lost)} lost with a worker process that died)" if result.lost else "")
+        + ("; run the same command again to retry the failed runs" if result.failed else "")
     )
     return result
