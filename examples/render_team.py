@@ -20,10 +20,16 @@ from typing import Any
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # before pygame (imported by mpe2) is loaded
 
-import imageio.v3 as iio
 import numpy as np
-from PIL import Image
 from stable_baselines3.common.vec_env import VecEnv
+
+try:  # the experiments extra's; the package itself does not need them
+    import imageio.v3 as iio
+    from PIL import Image
+except ModuleNotFoundError as error:
+    raise SystemExit(
+        f'render_team.py needs {error.name}, which is not installed: pip install "sb3-maddpg[experiments]"'
+    ) from error
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread_vec_env
