@@ -87,8 +87,9 @@ class MADDPG(OffPolicyAlgorithm):
     :param noise_std: Standard deviation of the default Gaussian exploration noise, in each agent's own
         action units (for mpe2's [0, 1] actions, 0.1 is 0.2 in the policy's [-1, 1] space); one value, or one
         per agent. 0 disables it. Ignored when ``action_noise`` is given.
-    :param max_grad_norm: Clip each agent's actor and critic gradient norm to this (as Lowe et al.'s code);
-        None to disable.
+    :param max_grad_norm: Clip the norm of each agent's whole actor gradient and of its whole critic gradient (all
+        its layers together) to this; None to disable. This package's decision: Lowe et al.'s code clips each
+        weight and bias tensor's gradient separately to 0.5 (see the implementation details, item 7).
     :param actor_reg_coef: Weight of the penalty on each actor's pre-``tanh`` output, added to its loss as
         ``actor_reg_coef * mean(pre-activation ** 2)`` over the batch and the agent's action components (Lowe et al.'s
         code, 1e-3). It keeps the actors out of ``tanh`` saturation; 0 turns it off.

@@ -139,6 +139,39 @@ def test_one_update_moves_targets_by_polyak_average() -> None:
             assert any(not th.equal(new_online[name], old_online[name]) for name in new_online)
 
 
+def _per_agent_step_norms(before: list[th.Tensor], after: list[th.Tensor]) -> th.Tensor:
+    """The norm of each agent's parameter change, over all its stacked tensors ``[n_agents, ...]``, ``[n_agents]``."""
+    return th.stack([(a.detach() - b).pow(2).flatten(1).sum(1) for b, a in zip(before, after)]).sum(0).sqrt()
+
+
+@pytest.mark.parametrize("max_grad_norm", [1e-3, None])
+def test_each_agents_whole_gradient_is_clipped(max_grad_norm: float | None) -> None:
+    """With SGD at learning rate 1 a step is minus the gradient: each agent's step norm is its clipped gradient norm."""
+    model = MADDPG(
+        "MlpPolicy",
+        make_simple_spread(n_agents=3),
+        learning_rate=1.0,
+        max_grad_norm=max_grad_norm,
+        policy_kwargs=dict(net_arch=[16, 16], optimizer_class=th.optim.SGD),
+        learning_starts=10_000,
+        buffer_size=1_000,
+        batch_size=BATCH,
+        seed=0,
+    )
+    model.learn(60)
+    actor_before = [p.detach().clone() for p in model.actor.parameters()]
+    critic_before = [p.detach().clone() for p in model.critic.parameters()]
+    model.train(gradient_steps=1, batch_size=BATCH)
+    actor_steps = _per_agent_step_norms(actor_before, list(model.actor.parameters()))
+    critic_steps = _per_agent_step_norms(critic_before, list(model.critic.parameters()))
+    if max_grad_norm is not None:
+        # Every agent's whole gradient was longer and is brought down to max_grad_norm, each agent on its own.
+        assert th.allclose(actor_steps, th.full((3,), max_grad_norm), rtol=1e-3), actor_steps
+        assert th.allclose(critic_steps, th.full((3,), max_grad_norm), rtol=1e-3), critic_steps
+    else:  # the same step unclipped is far longer: the clipped case above is not vacuous
+        assert actor_steps.min() > 10 * 1e-3 and critic_steps.min() > 10 * 1e-3, (actor_steps, critic_steps)
+
+
 def test_learning_rate_schedule_reaches_both_optimizers() -> None:
     model = make_model(learning_rate=lambda progress: 0.02 * progress)
     model._current_progress_remaining = 0.25
