@@ -38,9 +38,11 @@ def test_rows_hold_per_agent_rewards_terminations_and_selection() -> None:
     buffer = make_buffer(selector=selector)
     rng = np.random.default_rng(0)
     obs = rng.normal(size=(2, 12)).astype(np.float32)
+    next_obs = rng.normal(size=(2, 12)).astype(np.float32)  # other positions: another selection
+    assert (selector.select(next_obs, LAYOUT) != selector.select(obs, LAYOUT)).any()
     buffer.add(
         obs,
-        obs + 1,
+        next_obs,
         np.zeros((2, 6)),
         np.array([6.0, 0.0]),
         np.array([True, True]),
