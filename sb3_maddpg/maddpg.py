@@ -28,6 +28,9 @@ from sb3_maddpg.sharing import CriticFeaturesExtractor, resolve_scheme
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
 
+LOG_INTERVAL = 1000
+"""Default ``log_interval`` of :meth:`MADDPG.learn`, in finished episodes: 40 log tables per 1M steps of 25-step episodes."""
+
 SATURATION_THRESHOLD = 0.99
 """An action component with ``|a| >`` this, in the policy's [-1, 1] space, counts as saturated in the logs."""
 
@@ -198,6 +201,7 @@ class MADDPG(OffPolicyAlgorithm):
         self._update_credit = 0  # transitions past learning_starts not yet spent on a gradient step
         self._credited_timesteps = 0  # num_timesteps when the credit was last counted
         self._logs_dumped_at = -1
+        self._warned_never_updated = False  # not saved: a loaded model may warn once more
         if not _init_setup_model:
             # SB3's load() builds the model this way and then sets the saved attributes over these: a model saved
             # by 0.1, which has none of them, keeps training as it did (SB3's train_freq, no regulariser).
@@ -492,18 +496,50 @@ class MADDPG(OffPolicyAlgorithm):
         self: SelfMADDPG,
         total_timesteps: int,
         callback: MaybeCallback = None,
-        log_interval: int = 4,
+        log_interval: int = LOG_INTERVAL,
         tb_log_name: str = "MADDPG",
         reset_num_timesteps: bool = True,
         progress_bar: bool = False,
     ) -> SelfMADDPG:
-        return super().learn(
+        """
+        Train the model. The first ``learning_starts`` steps (25,600 by default) are uniformly random actions that
+        fill the replay buffer, with no gradient update: a ``learn()`` that ends before the first update says so in
+        a warning.
+
+        :param total_timesteps: Env steps to train for (all envs counted); a lower bound, as in SB3.
+        :param callback: Callback(s) called at every step.
+        :param log_interval: Finished episodes (all envs counted) between two writes of the logs (the table that
+            ``verbose=1`` prints). The default, 1000, is every 25,000 steps of simple_spread's 25-step episodes:
+            40 tables for 1M steps, whatever the number of envs (SB3's default of 4 would print 10,000).
+        :param tb_log_name: The name of the run for TensorBoard logging.
+        :param reset_num_timesteps: Whether to count timesteps from 0 again (False to continue a run).
+        :param progress_bar: Display a progress bar (needs tqdm and rich).
+        :return: The trained model.
+        """
+        result = super().learn(
             total_timesteps=total_timesteps,
             callback=callback,
             log_interval=log_interval,
             tb_log_name=tb_log_name,
             reset_num_timesteps=reset_num_timesteps,
             progress_bar=progress_bar,
+        )
+        self._warn_if_never_updated()
+        return result
+
+    def _warn_if_never_updated(self) -> None:
+        """Say once, naming learning_starts, that the model has not been trained at all: a short run is otherwise silent."""
+        explicitly_no_updates = not self._earn_gradient_steps and self.gradient_steps == 0
+        if self._n_updates > 0 or self._warned_never_updated or explicitly_no_updates:
+            return
+        self._warned_never_updated = True
+        warnings.warn(
+            f"learn() ended at step {self.num_timesteps:,} without a single gradient update: the first "
+            f"learning_starts={self.learning_starts:,} steps (all envs counted) are uniformly random actions that fill "
+            f"the replay buffer, and then the model takes {self.update_schedule}. Train for longer, or lower "
+            "learning_starts for a short test (e.g. MADDPG(..., learning_starts=2_000)).",
+            UserWarning,
+            stacklevel=3,
         )
 
     def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
@@ -560,6 +596,7 @@ class MADDPG(OffPolicyAlgorithm):
             "critic_target",
             "_own_action_mask",
             "_own_action_mean",
+            "_warned_never_updated",
         ]
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:

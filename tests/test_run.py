@@ -178,6 +178,35 @@ def test_logger_keys_and_learning_starts(tmp_path):
         assert f"train/agent_{agent}/actor_loss" in keys
 
 
+def test_learn_that_ends_before_any_update_warns_once():
+    model = MADDPG("MlpPolicy", make_team(), policy_kwargs=dict(net_arch=[8]), buffer_size=1_000, seed=0)  # 25,600
+    with pytest.warns(
+        UserWarning, match=r"without a single gradient update: the first learning_starts=25,600 steps"
+    ) as record:
+        model.learn(total_timesteps=100)
+        model.learn(total_timesteps=100, reset_num_timesteps=False)
+    assert len([warning for warning in record if "learning_starts" in str(warning.message)]) == 1
+    assert model._n_updates == 0
+
+
+@pytest.mark.parametrize("kwargs", [dict(), dict(gradient_steps=0)])
+def test_no_warning_when_the_model_updates_or_is_told_not_to(kwargs):
+    model = MADDPG("MlpPolicy", make_team(), **{**FAST, **kwargs})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model.learn(total_timesteps=100)
+    assert (model._n_updates > 0) == ("gradient_steps" not in kwargs)
+
+
+def test_default_log_interval_writes_a_readable_log(tmp_path):
+    """verbose=1 prints a table per log_interval finished episodes: 1000 by default (SB3's 4 floods the console)."""
+    model = MADDPG("MlpPolicy", make_vec_env(lambda: make_team(max_cycles=2), n_envs=2), **{**FAST, "gradient_steps": 0})
+    model.set_logger(configure(str(tmp_path), ["csv"]))
+    model.learn(total_timesteps=4_000)  # 2,000 episodes of 2 steps
+    with open(tmp_path / "progress.csv") as file:
+        assert len(list(csv.DictReader(file))) == 2
+
+
 def test_tensorboard(tmp_path):
     pytest.importorskip("tensorboard")
     model = MADDPG("MlpPolicy", make_team(), tensorboard_log=str(tmp_path), **FAST)
