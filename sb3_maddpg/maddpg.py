@@ -70,8 +70,9 @@ class MADDPG(OffPolicyAlgorithm):
         and gets a warning.
     :param learning_rate: Learning rate of every actor and critic (Adam), constant or a schedule.
     :param buffer_size: Replay buffer size, in joint transitions.
-    :param learning_starts: Env steps (all envs counted) of uniformly random actions before learning starts.
-        The default, 1024 episodes of 25 steps, matches Lowe et al.'s code.
+    :param learning_starts: Env steps (all envs counted) of uniformly random actions before learning starts; no
+        gradient update is made before (a ``learn()`` that ends there warns). The default, 1024 episodes of 25 steps,
+        matches Lowe et al.'s code; lower it for a short test.
     :param batch_size: Minibatch size of each gradient step (the same rows for every agent).
     :param tau: Polyak coefficient of the target networks.
     :param gamma: Discount factor.
@@ -86,7 +87,8 @@ class MADDPG(OffPolicyAlgorithm):
         nor ``gradient_steps`` is given: the paper's one update per 100 transitions, whatever ``n_envs`` is (with
         ``n_envs=100``, one gradient step per vectorised step). See :attr:`update_schedule`.
     :param action_noise: Exploration noise over the joint action in the policy's [-1, 1] space (any SB3
-        ``ActionNoise``). None: Gaussian noise of ``noise_std``.
+        ``ActionNoise`` of shape ``[action_dim]``; SB3 vectorises it over the envs, and ``learn()`` vectorises it
+        again for a model loaded with another number of envs). None: Gaussian noise of ``noise_std``.
     :param noise_std: Standard deviation of the default Gaussian exploration noise, in each agent's own
         action units (for mpe2's [0, 1] actions, 0.1 is 0.2 in the policy's [-1, 1] space); one value, or one
         per agent. 0 disables it. Ignored when ``action_noise`` is given.
