@@ -28,7 +28,8 @@ try:  # the experiments extra's; the package itself does not need them
     from PIL import Image
 except ModuleNotFoundError as error:
     raise SystemExit(
-        f'render_team.py needs {error.name}, which is not installed: pip install "sb3-maddpg[experiments]"'
+        f"render_team.py needs {(error.name or 'imageio').split('.')[0]}, which is not installed: "
+        'pip install "sb3-maddpg[experiments]"'
     ) from error
 
 from sb3_maddpg import MADDPG

@@ -1,0 +1,376 @@
+"""Sweeps survive faults: killed workers and sweeps, half-written run directories, two sweeps at once, Ctrl-C.
+
+Runs are tiny (N=3, 20 episodes, tiny networks). A run is stopped mid-run deterministically by
+:class:`tests.fault_helpers.StallingMADDPG`: the run of one scheme stalls at its first training step and
+writes its process id, and the test kills that process, or the sweep around it.
+"""
+
+import contextlib
+import json
+import os
+import runpy
+import signal
+import subprocess
+import sys
+import threading
+import time
+import types
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from sb3_maddpg.experiments import SMOKE, ExperimentConfig, run_sweep
+from sb3_maddpg.experiments.backends import LOST_RUN, ray_parallel_runs
+from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.experiments.results import (
+    CONFIG_FILE,
+    DONE_FILE,
+    SUMMARY_FILE,
+    SWEEP_LOG,
+    is_finished,
+    load_summaries,
+    write_experiment,
+    write_result_files,
+)
+from sb3_maddpg.experiments.runner import execute_run
+from sb3_maddpg.experiments.sweep import SweepProgress, SweepResult, plan_sweep
+from tests.fault_helpers import stalled_pid
+
+REPO = Path(__file__).resolve().parents[1]
+STALLING = "tests.fault_helpers:StallingMADDPG"
+FOUR = ("full", "independent", "actions", "observations")
+
+
+def experiment(schemes: tuple[str, ...] = FOUR, stalls: dict[str, Path] | None = None) -> ExperimentConfig:
+    """Tiny runs; ``stalls`` maps schemes to trigger files: while its trigger exists, that scheme's run stalls."""
+    return SMOKE.replace(
+        name="faults",
+        schemes=schemes,
+        seeds=(0,),
+        episodes=20,
+        n_checkpoints=1,
+        eval_episodes=2,
+        curve_points=0,
+        algorithm=STALLING if stalls else None,
+        scheme_model_kwargs={scheme: {"stall_trigger": str(trigger)} for scheme, trigger in stalls.items()}
+        if stalls
+        else None,
+    )
+
+
+def wait_for(condition: Callable[[], object], what: str, timeout: float = 90.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
+        time.sleep(0.05)
+
+
+def alive(pid: int) -> bool:
+    """Whether a process runs (a zombie, dead but not reaped by its parent, does not)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
+def finished_runs(results: Path, exp: ExperimentConfig) -> set[str]:
+    return {config.run_id for config in exp.runs() if is_finished(results, config)}
+
+
+def done_stamps(results: Path, run_ids: set[str]) -> dict[str, int]:
+    return {run_id: (results / run_id / DONE_FILE).stat().st_mtime_ns for run_id in run_ids}
+
+
+def run_directories(results: Path) -> set[str]:
+    return {str(path.parent.relative_to(results)) for path in results.glob(f"*/*/seed_*/{CONFIG_FILE}")}
+
+
+def done_lines(log: str, run_id: str) -> int:
+    """How many times a sweep log says the run finished."""
+    return sum(f" {run_id} done in " in line for line in log.splitlines())
+
+
+def start_cli_sweep(exp: ExperimentConfig, results: Path, *options: str) -> subprocess.Popen[str]:
+    """``python -m sb3_maddpg.experiments run`` in its own session (a terminal's process group), from the repository."""
+    config_path = results.parent / f"{results.name}.json"
+    config_path.write_text(json.dumps(exp.to_dict()))
+    command = [sys.executable, "-m", "sb3_maddpg.experiments", "run", "--config", str(config_path), "--results", str(results)]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+    return subprocess.Popen(
+        [*command, *options],
+        cwd=REPO,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+
+
+def stop_session(process: subprocess.Popen[str]) -> None:
+    """Kill what is left of a subprocess's session (its workers too), whatever the test did."""
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(process.pid, signal.SIGKILL)
+    process.communicate()
+
+
+def check_resume(results: Path, exp: ExperimentConfig, resume: Callable[[], SweepResult]) -> None:
+    """The same sweep again runs exactly the missing runs, leaves the finished ones alone, ends like a clean sweep."""
+    everything = {config.run_id for config in exp.runs()}
+    before = finished_runs(results, exp)
+    stamps = done_stamps(results, before)
+    log_before = (results / SWEEP_LOG).read_text()
+    resumed = resume()
+    assert resumed.ok, resumed.failed
+    assert resumed.skipped == len(before)
+    assert sorted(summary["run_id"] for summary in resumed.completed) == sorted(everything - before)
+    assert done_stamps(results, before) == stamps  # finished runs untouched
+    assert finished_runs(results, exp) == everything
+    assert run_directories(results) == everything  # a clean sweep's set of run directories, nothing more
+    assert {summary["run_id"] for summary in load_summaries(results)} == everything
+    log = (results / SWEEP_LOG).read_text().removeprefix(log_before)
+    for run_id in everything:
+        assert done_lines(log, run_id) == (run_id not in before), run_id  # each missing run once, no other
+    assert not list(results.rglob("*.tmp"))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Files
+
+
+def test_half_written_run_directories_are_run_again(tmp_path: Path) -> None:
+    exp = experiment(schemes=("full", "independent", "actions", "observations", "selected"))
+    results = tmp_path / "results"
+    assert run_sweep([exp], results, verbose=0).ok
+    intact, no_done, no_summary, truncated_summary, truncated_config = (results / c.run_id for c in exp.runs())
+    (no_done / DONE_FILE).unlink()  # files, but no done marker
+    (no_summary / SUMMARY_FILE).unlink()  # a done marker without a summary
+    text = (truncated_summary / SUMMARY_FILE).read_text()
+    (truncated_summary / SUMMARY_FILE).write_text(text[: len(text) // 2])
+    text = (truncated_config / CONFIG_FILE).read_text()
+    (truncated_config / CONFIG_FILE).write_text(text[: len(text) // 2])
+
+    run_id = {directory: directory.relative_to(results).as_posix() for directory in results.glob("*/*/seed_*")}
+    assert finished_runs(results, exp) == {run_id[intact]}
+    with pytest.warns(UserWarning, match="unreadable"):
+        summaries = load_summaries(results)  # the report leaves out the runs without a readable summary
+    assert {summary["run_id"] for summary in summaries} == {run_id[intact], run_id[truncated_config]}
+    check_resume(results, exp, lambda: run_sweep([exp], results, verbose=0))
+
+
+def test_run_files_are_written_whole_and_done_last(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    config = experiment(schemes=("full",)).runs()[0]
+    replaced: list[str] = []
+    real_replace = os.replace
+
+    def recording_replace(source: str | os.PathLike[str], target: str | os.PathLike[str]) -> None:
+        replaced.append(Path(target).name)
+        real_replace(source, target)
+
+    monkeypatch.setattr(os, "replace", recording_replace)
+    result = execute_run(config, tmp_path, verbose=0)
+    # Every file a resume reads is renamed into place whole, and the done marker is the last of them.
+    assert {CONFIG_FILE, SUMMARY_FILE, "checkpoint_evals.csv", DONE_FILE} <= set(replaced)
+    assert replaced[-1] == DONE_FILE and replaced.count(DONE_FILE) == 1
+
+    # A crash just before a file is renamed into place leaves the old file (or none) and no finished run.
+    def crashing_replace(source: str | os.PathLike[str], target: str | os.PathLike[str]) -> None:
+        if Path(target).name in (SUMMARY_FILE, "experiment.json", DONE_FILE):
+            raise OSError("simulated crash")
+        real_replace(source, target)
+
+    monkeypatch.setattr(os, "replace", crashing_replace)
+    with pytest.raises(OSError, match="simulated crash"):
+        execute_run(config, tmp_path / "crashed", verbose=0)
+    assert not (tmp_path / "crashed" / config.run_id / SUMMARY_FILE).exists()
+    assert not is_finished(tmp_path / "crashed", config)
+    monkeypatch.setattr(os, "replace", real_replace)
+    write_experiment(tmp_path, "exp", {"version": 1})
+    monkeypatch.setattr(os, "replace", crashing_replace)
+    with pytest.raises(OSError, match="simulated crash"):
+        write_experiment(tmp_path, "exp", {"version": 2})
+    assert json.loads((tmp_path / "exp" / "experiment.json").read_text()) == {"version": 1}
+    with pytest.raises(OSError, match="simulated crash"):
+        write_result_files(tmp_path / "collected", result)  # a remote run's files, collected here
+    assert not is_finished(tmp_path / "collected", config)
+    monkeypatch.setattr(os, "replace", real_replace)
+    write_result_files(tmp_path / "collected", result)
+    assert is_finished(tmp_path / "collected", config)
+    assert not list(tmp_path.rglob("*.tmp"))  # no temporary file is left behind, crash or not
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Killed workers, killed sweeps, two sweeps at once (local process pool)
+
+
+def test_a_killed_local_worker_loses_only_the_runs_in_progress(tmp_path: Path) -> None:
+    trigger, results = tmp_path / "stall", tmp_path / "results"
+    trigger.touch()
+    exp = experiment(stalls={"independent": trigger})
+    first_run = exp.runs()[0].run_id
+
+    def kill_the_stalled_worker() -> None:
+        wait_for(lambda: stalled_pid(trigger) and (results / first_run / DONE_FILE).exists(), "a stalled run")
+        os.kill(stalled_pid(trigger), signal.SIGKILL)  # type: ignore[arg-type]
+
+    killer = threading.Thread(target=kill_the_stalled_worker, daemon=True)
+    killer.start()
+    result = run_sweep([exp], results, workers=2, verbose=0)
+    killer.join()
+    everything = {config.run_id for config in exp.runs()}
+    completed = {summary["run_id"] for summary in result.completed}
+    assert "faults/independent/seed_000" in result.lost
+    assert set(result.lost) == set(result.failed) and all(error.startswith(LOST_RUN) for error in result.failed.values())
+    assert completed | set(result.failed) == everything and not completed & set(result.failed)
+    assert first_run in completed
+    log = (results / SWEEP_LOG).read_text()
+    assert "a worker process died" in log and "lost with a worker process that died" in log
+    assert "run the same command again" in log
+
+    assert finished_runs(results, exp) == completed
+    check_resume(results, exp, lambda: run_sweep([exp], results, verbose=0))
+
+
+def test_a_killed_local_sweep_resumes_and_a_second_sweep_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    trigger, results = tmp_path / "stall", tmp_path / "results"
+    trigger.touch()
+    exp = experiment(stalls={"independent": trigger})
+    sweep = start_cli_sweep(exp, results, "--workers", "2", "--quiet")
+    try:
+        first_run = exp.runs()[0].run_id
+        wait_for(lambda: stalled_pid(trigger) and (results / first_run / DONE_FILE).exists(), "a stalled run")
+        # A second sweep on the same directory is refused, naming the first one, and changes nothing.
+        log_before = (results / SWEEP_LOG).read_text()
+        assert main(["run", "--config", str(tmp_path / "results.json"), "--results", str(results)]) == 1
+        error = capsys.readouterr().err
+        assert f"in use by another sweep (PID {sweep.pid}" in error and "--results" in error
+        assert (results / SWEEP_LOG).read_text() == log_before
+
+        os.kill(sweep.pid, signal.SIGKILL)  # the sweep's process only: its workers are orphaned ...
+        sweep.wait()
+        worker = stalled_pid(trigger)
+        assert worker is not None
+        wait_for(lambda: not alive(worker), "the killed sweep's worker to exit", timeout=10)  # ... and exit
+    finally:
+        stop_session(sweep)
+    before = finished_runs(results, exp)
+    assert first_run in before and "faults/independent/seed_000" not in before
+    check_resume(results, exp, lambda: run_sweep([exp], results, verbose=0))  # the lock died with the sweep
+
+
+def test_ctrl_c_stops_the_cli_cleanly_and_the_same_command_resumes(tmp_path: Path) -> None:
+    trigger, results = tmp_path / "stall", tmp_path / "results"
+    trigger.touch()
+    exp = experiment(schemes=("full", "independent"), stalls={"independent": trigger})
+    sweep = start_cli_sweep(exp, results, "--workers", "2", "--quiet")
+    try:
+        wait_for(lambda: stalled_pid(trigger), "a stalled run")
+        wait_for(lambda: (results / exp.runs()[0].run_id / DONE_FILE).exists(), "the other run")
+        os.killpg(sweep.pid, signal.SIGINT)  # Ctrl-C in a terminal: the whole foreground process group
+        out, err = sweep.communicate(timeout=60)
+    finally:
+        stop_session(sweep)
+    assert sweep.returncode == 130, err
+    assert "Traceback" not in out + err, err  # neither the sweep nor its workers dump one
+    assert "sweep interrupted: 1 of 2 run(s) finished (1 by this sweep)" in out
+    assert "Run the same command again to resume." in out
+    worker = stalled_pid(trigger)
+    assert worker is not None and not alive(worker)  # the workers are stopped, not left running
+    todo, finished = plan_sweep([exp], results)  # the partial run is left for the next sweep
+    assert [config.run_id for config in todo] == ["faults/independent/seed_000"] and finished == 1
+    assert (results / "faults/independent/seed_000" / CONFIG_FILE).exists()
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Ray
+
+
+def test_ray_sweep_retries_a_killed_worker_and_resumes_after_a_killed_sweep(tmp_path: Path) -> None:
+    pytest.importorskip("ray", reason="the Ray backend test needs ray (installed in CI through the dev extra)")
+    retried, stalled, results = tmp_path / "retried", tmp_path / "stalled", tmp_path / "results"
+    retried.touch()
+    stalled.touch()
+    exp = experiment(stalls={"independent": retried, "actions": stalled})
+    sweep = start_cli_sweep(exp, results, "--backend", "ray", "--workers", "2", "--quiet")
+    try:
+        # A Ray worker killed mid-run: Ray runs the task again (the trigger is spent, so it finishes) ...
+        wait_for(lambda: stalled_pid(retried), "a stalled run")
+        os.kill(stalled_pid(retried), signal.SIGKILL)  # type: ignore[arg-type]
+        done = [results / config.run_id / DONE_FILE for config in exp.runs() if config.scheme != "actions"]
+        wait_for(lambda: stalled_pid(stalled) and all(path.exists() for path in done), "the other runs, one stalled")
+        # ... and the whole sweep killed: Ray's workers go with it.
+        os.kill(sweep.pid, signal.SIGKILL)
+        sweep.wait()
+        worker = stalled_pid(stalled)
+        assert worker is not None
+        wait_for(lambda: not alive(worker), "the killed sweep's Ray worker to exit", timeout=30)
+    finally:
+        stop_session(sweep)
+    log = (results / SWEEP_LOG).read_text()
+    assert "FAILED" not in log and done_lines(log, "faults/independent/seed_000") == 1  # retried, counted once
+    assert finished_runs(results, exp) == {config.run_id for config in exp.runs() if config.scheme != "actions"}
+    check_resume(results, exp, lambda: run_sweep([exp], results, verbose=0))  # the runs are the same on either backend
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The command line and the time-left estimate
+
+
+def test_run_without_a_config_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "--results", str(tmp_path / "results")]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("sb3-maddpg run: no experiment given: name one with --config")
+    for words in ("--config exp1 --config exp2 (310 runs", "--dry-run", "smoke: 10 runs", "exp1: 155 runs"):
+        assert words in error
+    assert not (tmp_path / "results").exists()
+
+
+def test_report_and_render_team_without_the_experiments_extra(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    results = REPO / "benchmarks" / "paper_small" / "results"
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib fails as if it were not installed
+    assert main(["report", str(results), "--out", str(tmp_path / "report")]) == 1
+    error = capsys.readouterr().err
+    assert error.startswith("sb3-maddpg report: the figures need matplotlib, which is not installed")
+    assert 'pip install "sb3-maddpg[experiments]"' in error and "--no-plots" in error
+    assert main(["report", str(results), "--out", str(tmp_path / "report"), "--no-plots"]) == 0  # tables need no extra
+
+    monkeypatch.setitem(sys.modules, "imageio", None)
+    monkeypatch.setitem(sys.modules, "imageio.v3", None)
+    with pytest.raises(SystemExit, match=r'needs imageio, which is not installed: pip install "sb3-maddpg\[experiments\]"'):
+        runpy.run_path(str(REPO / "examples" / "render_team.py"))
+
+
+def test_the_time_left_counts_the_runs_executing_at_once() -> None:
+    lines: list[str] = []
+    progress = SweepProgress(total=10, skipped=0, parallel=4, echo=False)
+    progress.log = lines.append  # type: ignore[method-assign]
+    progress.update("a", "done", duration=60)
+    progress.update("b", "done", duration=120)
+    assert lines[-1].endswith("left ~3m00s")  # mean 90 s x 8 runs left / 4 at once
+    for run_id in "cdefgh":
+        progress.update(run_id, "done", duration=90)
+    assert lines[-1].endswith("left ~1m30s")  # 2 runs left share 2 of the 4 slots
+    progress.update("i", "FAILED")
+    progress.update("j", "done", duration=90)
+    assert lines[-1].endswith("left ~0m00s")
+    assert ray_parallel_runs({"CPU": 16.0}, threads=3) == 5
+    assert ray_parallel_runs({"CPU": 2.0}, threads=4) == 1 and ray_parallel_runs({}, threads=1) == 1
+
+
+@pytest.mark.parametrize(("threads", "parallel"), [(1, 6), (2, 3)])
+def test_a_ray_sweep_counts_the_clusters_cpus(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, threads: int, parallel: int
+) -> None:
+    # workers=0 means all of Ray's CPUs: the estimate must use what Ray reports, not max(1, workers) // threads.
+    cluster = types.SimpleNamespace(
+        is_initialized=lambda: True, cluster_resources=lambda: {"CPU": 6.0}, remote=lambda **options: lambda task: task
+    )
+    monkeypatch.setitem(sys.modules, "ray", cluster)
+    assert run_sweep([experiment().replace(seeds=())], tmp_path, backend="ray", workers=0, threads=threads, verbose=0).ok
+    assert f"Ray: {parallel} run(s) at once ({threads} CPU(s) each)" in (tmp_path / SWEEP_LOG).read_text()
