@@ -6,8 +6,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch as th
+from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.noise import VectorizedActionNoise
+from stable_baselines3.common.save_util import save_to_pkl
 
 from sb3_maddpg import MADDPG, AgentLayout
 from sb3_maddpg.envs import make_simple_spread
@@ -150,6 +152,10 @@ def test_replay_buffer_of_another_team_is_refused(tmp_path):
     two_envs = MADDPG("MlpPolicy", env, critic_sharing="selected", selection=2, **FAST)
     with pytest.raises(ValueError, match=r"from 1 env\(s\).*and 2 env\(s\)"):
         two_envs.load_replay_buffer(tmp_path / "buffer.pkl")
+
+    save_to_pkl(tmp_path / "plain.pkl", ReplayBuffer(10, model.observation_space, model.action_space))
+    with pytest.raises(TypeError, match="is a ReplayBuffer, not a MultiAgentReplayBuffer"):
+        other_team.load_replay_buffer(tmp_path / "plain.pkl")
 
     # The same team loads it, and stores new rows with its own selector.
     same = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selection=NearestAgents(k=2), **FAST)
