@@ -108,7 +108,7 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         :param done: Episode ends (termination or truncation).
         :param infos: Per-env infos with ``agent_rewards`` (and ``agent_terminations``).
         """
-        pos, n_envs = self.pos, self.n_envs
+        pos, n_envs, handle_timeouts = self.pos, self.n_envs, self.handle_timeout_termination
         obs = np.asarray(obs).reshape(n_envs, self.obs_shape[0])
         self.observations[pos] = obs
         self.next_observations[pos] = np.asarray(next_obs).reshape(n_envs, self.obs_shape[0])
@@ -121,31 +121,20 @@ class MultiAgentReplayBuffer(ReplayBuffer):
                     "The env's info has no 'agent_rewards': MADDPG trains critic i on agent i's reward. Wrap the "
                     "PettingZoo env in sb3_maddpg.envs.PettingZooToGym, or put one reward per agent in info['agent_rewards']."
                 ) from None
-            self.dones[pos, env_index] = self._agent_dones(info, bool(done[env_index]))
-            self.timeouts[pos, env_index] = self.handle_timeout_termination and bool(info.get("TimeLimit.truncated", False))
+            timeout = handle_timeouts and bool(info.get("TimeLimit.truncated", False))
+            terminations = info.get("agent_terminations")
+            if terminations is None:
+                terminations = float(done[env_index]) * (1.0 - timeout)
+            elif not handle_timeouts and done[env_index]:
+                terminations = 1.0  # SB3's meaning without timeout handling: every end of an episode is terminal
+            self.dones[pos, env_index] = terminations
+            self.timeouts[pos, env_index] = timeout
         if self.selector is not None:
             self.selections[pos] = self.selector.select(obs, self.layout)
         self.pos += 1
         if self.pos == self.buffer_size:
             self.full = True
             self.pos = 0
-
-    def _agent_dones(self, info: dict[str, Any], done: bool) -> Any:
-        """
-        Each agent's done flag d_i for the critic targets.
-
-        :param info: One env's info.
-        :param done: Whether that env's episode ended (termination or truncation).
-        :return: ``info["agent_terminations"]`` (or the episode's termination when absent); with
-            ``handle_timeout_termination=False``, any end of the episode counts too (SB3's meaning: no bootstrap
-            at a time limit).
-        """
-        if not self.handle_timeout_termination:
-            return np.maximum(np.asarray(info.get("agent_terminations", False), dtype=np.float32), float(done))
-        terminations = info.get("agent_terminations")
-        if terminations is None:
-            return float(done and not info.get("TimeLimit.truncated", False))
-        return terminations
 
     def sample(self, batch_size: int, env: VecNormalize | None = None) -> MultiAgentReplayBufferSamples:  # type: ignore[override]
         """
