@@ -346,10 +346,10 @@ def test_many_worlds_write_the_logs_once_per_step(tmp_path: Any) -> None:
     """100 worlds end 100 episodes in one step; SB3 would dump its logs at every 4th of them."""
     model = MADDPG("MlpPolicy", VecMonitor(SimpleSpreadVecEnv(100, n_agents=3)), seed=0, **TINY)  # type: ignore[arg-type]
     model.set_logger(configure(str(tmp_path), ["csv"]))
-    model.learn(5_000)  # 50 steps of 100 worlds: two rounds of episodes end
+    model.learn(5_000, log_interval=4)  # 50 steps of 100 worlds: two rounds of episodes end
     assert len((tmp_path / "progress.csv").read_text().strip().splitlines()[1:]) == 2
-    model.learn(2_500)  # counting restarts: its only log, at step 2,500, is new (the last one was at 5,000)
-    model.learn(2_500)  # and so is this one, at step 2,500 again
+    model.learn(2_500, log_interval=4)  # counting restarts: its only log, at step 2,500, is new (the last one was at 5,000)
+    model.learn(2_500, log_interval=4)  # and so is this one, at step 2,500 again
     assert len((tmp_path / "progress.csv").read_text().strip().splitlines()[1:]) == 4
 
 
