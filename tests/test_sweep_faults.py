@@ -354,6 +354,7 @@ def test_report_and_render_team_without_the_experiments_extra(
     error = capsys.readouterr().err
     assert error.startswith("sb3-maddpg report: the figures need matplotlib, which is not installed")
     assert 'pip install "sb3-maddpg[experiments]"' in error and "--no-plots" in error
+    assert not (tmp_path / "report").exists()  # said before anything is written
     assert main(["report", str(results), "--out", str(tmp_path / "report"), "--no-plots"]) == 0  # tables need no extra
 
     monkeypatch.setitem(sys.modules, "imageio", None)

@@ -1,6 +1,7 @@
 """Command line: ``sb3-maddpg run ...`` (or ``python -m sb3_maddpg.experiments run ...``) and ``... report ...``."""
 
 import argparse
+import importlib.util
 import json
 import sys
 from collections.abc import Sequence
@@ -197,6 +198,12 @@ def run_command(args: argparse.Namespace) -> int:
     return 0 if result.ok else 1
 
 
+NO_MATPLOTLIB = (
+    "sb3-maddpg report: the figures need matplotlib, which is not installed. Install the experiments extra, "
+    'pip install "sb3-maddpg[experiments]", or add --no-plots for the tables only.'
+)
+
+
 def report_command(args: argparse.Namespace) -> int:
     """
     :param args: Parsed ``report`` arguments.
@@ -204,18 +211,18 @@ def report_command(args: argparse.Namespace) -> int:
     """
     from sb3_maddpg.experiments.report import make_report
 
+    plots = not args.no_plots
+    if plots and importlib.util.find_spec("matplotlib") is None:  # said before any table is written
+        print(NO_MATPLOTLIB, file=sys.stderr)
+        return 1
     out = args.out or f"{args.results.rstrip('/')}/report"
     try:
-        for path in make_report(args.results, out, metrics=args.metric or ["success_rate"], plots=not args.no_plots):
+        for path in make_report(args.results, out, metrics=args.metric or ["success_rate"], plots=plots):
             print(path)
-    except ModuleNotFoundError as error:
+    except ModuleNotFoundError as error:  # a part of matplotlib missing: the same advice
         if error.name is None or error.name.split(".")[0] != "matplotlib":
             raise
-        print(
-            "sb3-maddpg report: the figures need matplotlib, which is not installed. Install the experiments extra, "
-            'pip install "sb3-maddpg[experiments]", or add --no-plots for the tables only.',
-            file=sys.stderr,
-        )
+        print(NO_MATPLOTLIB, file=sys.stderr)
         return 1
     return 0
 
