@@ -17,9 +17,10 @@ from sb3_maddpg.experiments.config import (
     load_experiment,
 )
 from sb3_maddpg.experiments.report import make_report
+from sb3_maddpg.experiments.results import ResultsDirectoryLocked
 from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.stats import aggregate, mann_whitney, significance_stars
-from sb3_maddpg.experiments.sweep import SweepResult, run_sweep
+from sb3_maddpg.experiments.sweep import SweepInterrupted, SweepResult, run_sweep
 
 __all__ = [
     "BASELINE_SCHEME",
@@ -30,7 +31,9 @@ __all__ = [
     "SCHEMES",
     "SMOKE",
     "ExperimentConfig",
+    "ResultsDirectoryLocked",
     "RunConfig",
+    "SweepInterrupted",
     "SweepResult",
     "aggregate",
     "execute_run",
