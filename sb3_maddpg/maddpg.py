@@ -493,6 +493,14 @@ class MADDPG(OffPolicyAlgorithm):
             self.logger.record(f"train/{name}", sum(values) / len(values))
             for agent, value in zip(self.agent_layout.agent_ids, values):
                 self.logger.record(f"train/{agent}/{name}", value)
+        # What each critic's features extractor reports (e.g. whom an attention critic listens to).
+        diagnostics = self.critic.diagnostics()
+        for name in sorted({key for summary in diagnostics for key in summary}):
+            values = [summary[name] for summary in diagnostics if name in summary]
+            self.logger.record(f"train/{name}", sum(values) / len(values))
+            for agent, summary in zip(self.agent_layout.agent_ids, diagnostics):
+                if name in summary:
+                    self.logger.record(f"train/{agent}/{name}", summary[name])
 
     def learn(
         self: SelfMADDPG,

@@ -130,6 +130,10 @@ class MultiAgentCritic(nn.Module):
         ]
         return self.mlp(stack_padded(features, self.mlp.max_in_dim)).squeeze(-1).transpose(0, 1)
 
+    def diagnostics(self) -> list[dict[str, float]]:
+        """:return: Each critic's extractor's :meth:`~sb3_maddpg.sharing.CriticFeaturesExtractor.diagnostics`."""
+        return [extractor.diagnostics() for extractor in self.extractors]  # type: ignore[operator]
+
     def clip_grad_norm_per_agent(self, max_norm: float) -> None:
         """Clip each agent's gradient norm (its network slice and its extractor) separately, like N optimisers."""
         squared = self.mlp.squared_grad_norms()

@@ -68,6 +68,15 @@ class CriticFeaturesExtractor(nn.Module):
         """Length of the critic input this extractor builds."""
         return self._features_dim
 
+    def diagnostics(self) -> dict[str, float]:
+        """
+        Summaries of what this extractor did on the last training batch, logged by MADDPG after each training round
+        as ``train/<agent_id>/<key>`` (and their team mean as ``train/<key>``). None by default.
+
+        :return: Names and values.
+        """
+        return {}
+
     def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
         """
         :param observations: Joint observations ``[batch, obs_dim]``.
@@ -210,19 +219,32 @@ SCHEME_ALIASES: dict[str, str] = {
 """The paper's short names for the built-in schemes."""
 
 
+def learned_schemes() -> dict[str, type[CriticFeaturesExtractor]]:
+    """
+    :return: The schemes whose critics learn whom to listen to (:mod:`sb3_maddpg.attention`): ``"attention"`` and
+        ``"learned_selection"``.
+    """
+    # Imported here: sb3_maddpg.attention builds on this module.
+    from sb3_maddpg.attention import AttentionCriticFeatures, LearnedSelectionCriticFeatures
+
+    return {"attention": AttentionCriticFeatures, "learned_selection": LearnedSelectionCriticFeatures}
+
+
 def resolve_scheme(scheme: Any) -> type[CriticFeaturesExtractor]:
     """
     The extractor class for a scheme name, a paper alias or a user's subclass.
 
     :param scheme: ``"independent"``, ``"full"``, ``"observations"``, ``"actions"``, ``"selected"``,
-        one of the aliases in :data:`SCHEME_ALIASES`, or a :class:`CriticFeaturesExtractor` subclass.
+        ``"attention"``, ``"learned_selection"``, one of the aliases in :data:`SCHEME_ALIASES`, or a
+        :class:`CriticFeaturesExtractor` subclass.
     :return: The class.
     """
     if isinstance(scheme, type) and issubclass(scheme, CriticFeaturesExtractor):
         return scheme
+    schemes = {**SHARING_SCHEMES, **learned_schemes()}
     if isinstance(scheme, str):
         name = SCHEME_ALIASES.get(scheme.lower(), scheme.lower())
-        if name in SHARING_SCHEMES:
-            return SHARING_SCHEMES[name]
-    known = ", ".join(repr(name) for name in [*SHARING_SCHEMES, *SCHEME_ALIASES])
+        if name in schemes:
+            return schemes[name]
+    known = ", ".join(repr(name) for name in [*schemes, *SCHEME_ALIASES])
     raise ValueError(f"Unknown critic_sharing {scheme!r}: use one of {known}, or a CriticFeaturesExtractor subclass.")

@@ -1,0 +1,327 @@
+"""Critics that learn whom to listen to: attention over the other agents, and a learned hard choice of k of them.
+
+The paper's conclusion is that a critic fed a few *selected* agents beats one fed everything, with the selection
+fixed by a rule (k nearest); its named future work is a selection that is learned. Two schemes do that here:
+
+=================== ==================================================================================================
+scheme              critic i's input
+=================== ==================================================================================================
+attention           ``[e_i, sum_j w_ij v_j]``: its own encoding ``e_i = g_i(o_i, a_i)`` and the values of every other
+                    agent's encoding ``g_ij(o_j, a_j)``, weighted by multi-head attention (query from ``e_i``); in the
+                    spirit of MAAC (Iqbal and Sha, 2019), for deterministic actions
+learned_selection   ``[o_i, a_i, o_s1, a_s1, .., o_sk, a_sk]``: its own data and that of the k agents with the highest
+                    learned attention scores, highest first: exactly k other agents, as ``selected``, chosen by learning
+=================== ==================================================================================================
+
+Both are :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor` subclasses with parameters: they train with their
+critic's loss (critic i's encoders, attention and scores are its own, so critic i's loss moves only critic i's
+parameters), have target copies, and are saved with the model. Agents of unequal sizes are zero-padded to the
+largest ``(o_j, a_j)``.
+
+The hard choice is trained with a straight-through estimator: the forward pass uses the top-k one-hot rows exactly;
+the backward pass takes the gradient of the softmax of the scores in their place, so the scores learn from how the
+chosen agents' data changes Q. The choice is deterministic (no sampling): it changes when the scores' order does.
+"""
+
+import math
+from typing import Any
+
+import torch as th
+from torch import nn
+
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.networks import AgentEnsembleMLP, stack_padded
+from sb3_maddpg.sharing import CriticFeaturesExtractor
+
+DEFAULT_POSITION_SLICE = slice(2, 4)
+"""Where an MPE observation holds the agent's own position: the diagnostics rank the others by distance from it."""
+
+
+class _OtherAgentsEncoder(nn.Module):
+    """
+    Critic i's encoders: ``e_i = act(W_i [o_i, a_i])`` and, for every other agent j, ``e_j = act(W_ij [o_j, a_j])``
+    (one linear layer per other agent, evaluated together).
+
+    :param layout: The team's agent layout.
+    :param agent_index: The critic's agent.
+    :param embed_dim: Size of each encoding.
+    """
+
+    def __init__(self, layout: AgentLayout, agent_index: int, embed_dim: int) -> None:
+        super().__init__()
+        self.layout = layout
+        self.agent_index = agent_index
+        self.others = [j for j in range(layout.n_agents) if j != agent_index]
+        sizes = [layout.obs_sizes[j] + layout.action_sizes[j] for j in range(layout.n_agents)]
+        self.own = nn.Linear(sizes[agent_index], embed_dim)
+        self.other = AgentEnsembleMLP([sizes[j] for j in self.others], [embed_dim] * len(self.others), [])
+        self.max_other_size = self.other.max_in_dim
+        self.activation = nn.LeakyReLU()
+
+    def own_input(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        """:return: ``[o_i, a_i]``, ``[batch, obs_i + act_i]``."""
+        i = self.agent_index
+        return th.cat((observations[:, self.layout.obs_slices[i]], actions[:, self.layout.action_slices[i]]), dim=1)
+
+    def others_input(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        """:return: Every other agent's ``[o_j, a_j]``, zero-padded, in ascending index, ``[batch, n - 1, max size]``."""
+        layout = self.layout
+        per_agent = [
+            th.cat((observations[:, layout.obs_slices[j]], actions[:, layout.action_slices[j]]), dim=1) for j in self.others
+        ]
+        return stack_padded(per_agent, self.max_other_size).transpose(0, 1)
+
+    def forward(self, own: th.Tensor, others: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """
+        :param own: ``[batch, obs_i + act_i]``.
+        :param others: ``[batch, n - 1, max size]``.
+        :return: The own encoding ``[batch, embed_dim]`` and the others' ``[batch, n - 1, embed_dim]``.
+        """
+        return self.activation(self.own(own)), self.activation(self.other(others.transpose(0, 1))).transpose(0, 1)
+
+
+class _ListeningCritic(CriticFeaturesExtractor):
+    """What both schemes share: the encoders, and the last batch's weights kept for :meth:`diagnostics`."""
+
+    def __init__(
+        self,
+        layout: AgentLayout,
+        agent_index: int,
+        features_dim: int,
+        embed_dim: int,
+        selection_size: int = 0,
+        position_slice: slice | None = DEFAULT_POSITION_SLICE,
+    ) -> None:
+        if layout.n_agents < 2:
+            raise ValueError(f"critic_sharing={self.scheme_name!r} needs at least 2 agents, got {layout.n_agents}.")
+        if embed_dim < 1:
+            raise ValueError(f"embed_dim must be positive, got {embed_dim}.")
+        super().__init__(layout, agent_index, features_dim, selection_size)
+        self.embed_dim = int(embed_dim)
+        self.position_slice = position_slice
+        self.encoder = _OtherAgentsEncoder(layout, agent_index, embed_dim)
+        self._last: tuple[th.Tensor, th.Tensor] | None = None  # (observations, weights) of the last training forward
+
+    scheme_name = "attention"
+
+    def _remember(self, observations: th.Tensor, weights: th.Tensor) -> None:
+        if self.training and th.is_grad_enabled():  # the online critic's update, not a target or an evaluation
+            self._last = (observations.detach(), weights.detach())
+
+    def listening_weights(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        """
+        :param observations: Joint observations ``[batch, obs_dim]``.
+        :param actions: Joint actions in [-1, 1], ``[batch, action_dim]``.
+        :return: How much critic i listens to each other agent, ``[batch, n - 1]`` (ascending agent index, summing
+            to 1): the attention weights, or the softmax of the selection scores.
+        """
+        raise NotImplementedError
+
+    def chosen_agents(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor | None:
+        """
+        :param observations: Joint observations ``[batch, obs_dim]``.
+        :param actions: Joint actions in [-1, 1], ``[batch, action_dim]``.
+        :return: The agents critic i sees, ``[batch, k]`` (agent indices, highest score first), or ``None`` when it
+            sees every agent (``attention``).
+        """
+        return None
+
+    def diagnostics(self) -> dict[str, float]:
+        """
+        Summaries of the last training batch: ``attention_entropy`` (mean entropy of the listening weights, in nats;
+        ``log(n - 1)`` is uniform) and, when the observations hold positions (``position_slice``),
+        ``weight_on_nearest`` (mean weight on the nearest other agent) and, for a hard choice, ``chose_nearest``
+        (fraction of rows whose chosen set is the k nearest agents) and ``chosen_rank`` (mean distance rank of the
+        chosen agents, 1 = nearest).
+
+        :return: The summaries (empty before the first training batch).
+        """
+        if self._last is None:
+            return {}
+        observations, weights = self._last
+        result = {"attention_entropy": float(-(weights * weights.clamp_min(1e-12).log()).sum(dim=1).mean())}
+        ranks = self._distance_ranks(observations)
+        if ranks is not None:
+            result["weight_on_nearest"] = float((weights * (ranks == 1)).sum(dim=1).mean())
+            chosen = self._last_chosen_ranks(ranks)
+            if chosen is not None:
+                result["chose_nearest"] = float((chosen <= self.selection_size).all(dim=1).float().mean())
+                result["chosen_rank"] = float(chosen.float().mean())
+        return result
+
+    def _last_chosen_ranks(self, ranks: th.Tensor) -> th.Tensor | None:
+        return None
+
+    def _distance_ranks(self, observations: th.Tensor) -> th.Tensor | None:
+        """Each other agent's distance rank from agent i (1 = nearest), ``[batch, n - 1]``, or ``None`` without positions."""
+        position_slice, layout = self.position_slice, self.layout
+        if position_slice is None or any(len(range(*position_slice.indices(size))) != 2 for size in layout.obs_sizes):
+            return None
+        positions = th.stack([observations[:, layout.obs_slices[j]][:, position_slice] for j in range(layout.n_agents)], 1)
+        own = positions[:, self.agent_index : self.agent_index + 1]
+        distances = (positions[:, self.encoder.others] - own).norm(dim=-1)
+        # Stable order (ties to the lower index), as NearestAgents.
+        order = th.sort(distances, dim=1, stable=True).indices
+        return th.empty_like(order).scatter_(1, order, th.arange(1, order.shape[1] + 1).expand_as(order))
+
+
+class AttentionCriticFeatures(_ListeningCritic):
+    """
+    Critic i attends over every other agent: ``[e_i, MultiHeadAttention(query=e_i, keys=values=e_others)]``.
+
+    :param layout: The team's agent layout.
+    :param agent_index: The critic's agent.
+    :param selection_size: Unused (every agent is attended to).
+    :param embed_dim: Size of each agent's encoding (the features are twice this).
+    :param n_heads: Attention heads (``embed_dim`` must be a multiple).
+    :param position_slice: Where each observation holds its agent's position, for the diagnostics (``None``: none).
+    """
+
+    scheme_name = "attention"
+
+    def __init__(
+        self,
+        layout: AgentLayout,
+        agent_index: int,
+        selection_size: int = 0,
+        embed_dim: int = 64,
+        n_heads: int = 4,
+        position_slice: slice | None = DEFAULT_POSITION_SLICE,
+    ) -> None:
+        if n_heads < 1 or embed_dim % n_heads:
+            raise ValueError(f"embed_dim ({embed_dim}) must be a positive multiple of n_heads ({n_heads}).")
+        super().__init__(layout, agent_index, 2 * embed_dim, embed_dim, selection_size, position_slice)
+        self.attention = nn.MultiheadAttention(embed_dim, n_heads, batch_first=True)
+
+    def _attend(self, observations: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
+        own, others = self.encoder(
+            self.encoder.own_input(observations, actions), self.encoder.others_input(observations, actions)
+        )
+        attended, weights = self.attention(own.unsqueeze(1), others, others, need_weights=True, average_attn_weights=True)
+        return own, attended.squeeze(1), weights.squeeze(1)
+
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+        own, attended, weights = self._attend(observations, actions)
+        self._remember(observations, weights)
+        return th.cat((own, attended), dim=1)
+
+    def listening_weights(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        return self._attend(observations, actions)[2]
+
+
+class LearnedSelectionCriticFeatures(_ListeningCritic):
+    """
+    Critic i sees its own data and that of the ``k`` other agents it scores highest, highest first:
+    ``[o_i, a_i, o_s1, a_s1, .., o_sk, a_sk]`` (each selected agent's ``[o_j, a_j]`` zero-padded to the team's
+    largest). The scores are scaled dot products of a query from its own encoding and keys from the others'.
+
+    :param layout: The team's agent layout.
+    :param agent_index: The critic's agent.
+    :param selection_size: ``k`` (MADDPG passes it; ``critic_sharing_kwargs={"k": ...}`` sets it).
+    :param k: The number of agents chosen (default 2, or ``n_agents - 2`` when that is smaller than 2 and positive).
+    :param embed_dim: Size of the encodings the scores are computed from.
+    :param position_slice: Where each observation holds its agent's position, for the diagnostics (``None``: none).
+    """
+
+    scheme_name = "learned_selection"
+
+    def __init__(
+        self,
+        layout: AgentLayout,
+        agent_index: int,
+        selection_size: int = 0,
+        k: int | None = None,
+        embed_dim: int = 64,
+        position_slice: slice | None = DEFAULT_POSITION_SLICE,
+    ) -> None:
+        k = int(k if k is not None else (selection_size or default_selection_size(layout.n_agents)))
+        if not 1 <= k <= layout.n_agents - 1:
+            raise ValueError(
+                f"critic_sharing='learned_selection' chooses k of the {layout.n_agents - 1} other agents, got k={k}: "
+                f"give critic_sharing_kwargs={{'k': 1}} (up to {layout.n_agents - 1})."
+            )
+        own_size = layout.obs_sizes[agent_index] + layout.action_sizes[agent_index]
+        other_size = max(layout.obs_sizes[j] + layout.action_sizes[j] for j in range(layout.n_agents) if j != agent_index)
+        super().__init__(layout, agent_index, own_size + k * other_size, embed_dim, k, position_slice)
+        self.query = nn.Linear(embed_dim, embed_dim, bias=False)
+        self.key = nn.Linear(embed_dim, embed_dim, bias=False)
+        self._last_chosen: th.Tensor | None = None
+
+    def _scores(self, observations: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
+        own_input = self.encoder.own_input(observations, actions)
+        others_input = self.encoder.others_input(observations, actions)
+        own, others = self.encoder(own_input, others_input)
+        scores = (self.key(others) @ self.query(own).unsqueeze(-1)).squeeze(-1) / math.sqrt(self.embed_dim)
+        return own_input, others_input, scores
+
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+        own_input, others_input, scores = self._scores(observations, actions)
+        soft = th.softmax(scores, dim=1)
+        top = scores.topk(self.selection_size, dim=1).indices  # highest first
+        hard = nn.functional.one_hot(top, num_classes=scores.shape[1]).to(soft.dtype)
+        # Straight-through: the value of the hard one-hot rows, the gradient of the softmax.
+        choice = hard + (soft - soft.detach()).unsqueeze(1)
+        chosen_data = choice @ others_input  # [batch, k, max size]
+        self._remember(observations, soft)
+        if self.training and th.is_grad_enabled():
+            self._last_chosen = top.detach()
+        return th.cat((own_input, chosen_data.flatten(1)), dim=1)
+
+    def listening_weights(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        return th.softmax(self._scores(observations, actions)[2], dim=1)
+
+    def chosen_agents(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        top = self._scores(observations, actions)[2].topk(self.selection_size, dim=1).indices
+        return th.as_tensor(self.encoder.others, device=top.device)[top]
+
+    def _last_chosen_ranks(self, ranks: th.Tensor) -> th.Tensor | None:
+        if self._last_chosen is None or self._last_chosen.shape[0] != ranks.shape[0]:
+            return None
+        return ranks.gather(1, self._last_chosen)
+
+
+def default_selection_size(n_agents: int) -> int:
+    """
+    :param n_agents: Team size.
+    :return: The default k of a learned selection: 2, but at most ``n_agents - 2`` (so it does not choose every other
+        agent), and at least 1.
+    """
+    return max(1, min(2, n_agents - 2))
+
+
+def critic_listening(model: Any, observations: Any, actions: Any = None) -> dict[str, Any]:
+    """
+    What each critic of a model with ``attention`` or ``learned_selection`` critics listens to, for a batch.
+
+    :param model: A trained :class:`~sb3_maddpg.MADDPG`.
+    :param observations: Joint observations ``[batch, obs_dim]`` (numpy or torch).
+    :param actions: Joint actions in the env's units, ``[batch, action_dim]``; default: the model's deterministic actions.
+    :return: ``weights``: ``[batch, n_agents, n_agents]`` numpy, row i the weights critic i gives the others (0 on the
+        diagonal); ``chosen``: ``[batch, n_agents, k]`` agent indices (highest score first) for a learned selection,
+        else ``None``.
+    """
+    import numpy as np
+
+    policy = model.policy
+    extractors = list(policy.critic.extractors)
+    if not all(isinstance(extractor, _ListeningCritic) for extractor in extractors):
+        raise TypeError(
+            f"critic_listening needs critics that learn whom to listen to (critic_sharing='attention' or "
+            f"'learned_selection'), got {type(extractors[0]).__name__}."
+        )
+    observations = np.asarray(observations, dtype=np.float32).reshape(-1, model.observation_space.shape[0])
+    if actions is None:
+        actions, _ = model.predict(observations, deterministic=True)
+    scaled = policy.scale_action(np.asarray(actions, dtype=np.float32).reshape(observations.shape[0], -1))
+    obs_tensor = th.as_tensor(observations, device=policy.device)
+    act_tensor = th.as_tensor(scaled, dtype=th.float32, device=policy.device)
+    n_agents = len(extractors)
+    weights = np.zeros((observations.shape[0], n_agents, n_agents), dtype=np.float32)
+    chosen = []
+    with th.no_grad():
+        for i, extractor in enumerate(extractors):
+            weights[:, i, extractor.encoder.others] = extractor.listening_weights(obs_tensor, act_tensor).cpu().numpy()
+            choice = extractor.chosen_agents(obs_tensor, act_tensor)
+            if choice is not None:
+                chosen.append(choice.cpu().numpy())
+    return {"weights": weights, "chosen": np.stack(chosen, axis=1) if chosen else None}

@@ -1,0 +1,193 @@
+"""Critics that learn whom to listen to: shapes, what each critic sees, gradient isolation between critics, the hard
+choice of a learned selection, targets, save/load, logged diagnostics and the listening helper."""
+
+import csv
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch as th
+from stable_baselines3.common.logger import configure
+from torch import nn
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.attention import (
+    AttentionCriticFeatures,
+    LearnedSelectionCriticFeatures,
+    critic_listening,
+    default_selection_size,
+)
+from sb3_maddpg.envs import SimpleSpreadVecEnv
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.policies import MultiAgentCritic
+from sb3_maddpg.sharing import resolve_scheme
+
+N_AGENTS, BATCH = 4, 32
+# MPE-like observations: [velocity (2), position (2), rest]; agent 3 is larger, so the team is heterogeneous.
+LAYOUT = AgentLayout(tuple(f"agent_{i}" for i in range(N_AGENTS)), (6, 6, 6, 8), (2, 2, 2, 3))
+SCHEMES = {"attention": AttentionCriticFeatures, "learned_selection": LearnedSelectionCriticFeatures}
+FAST = dict(
+    learning_starts=200, batch_size=64, buffer_size=5_000, transitions_per_update=20, policy_kwargs=dict(net_arch=[16, 16])
+)
+
+
+def make_critic(scheme: str, **kwargs: object) -> MultiAgentCritic:
+    th.manual_seed(0)
+    return MultiAgentCritic(LAYOUT, SCHEMES[scheme], {"embed_dim": 8, **kwargs}, 0, [16, 16], nn.ReLU)
+
+
+def batch() -> tuple[th.Tensor, th.Tensor]:
+    th.manual_seed(1)
+    return th.randn(BATCH, LAYOUT.obs_dim), th.rand(BATCH, LAYOUT.action_dim) * 2 - 1
+
+
+def test_names_and_feature_sizes() -> None:
+    assert resolve_scheme("attention") is AttentionCriticFeatures
+    assert resolve_scheme("learned_selection") is LearnedSelectionCriticFeatures
+    assert AttentionCriticFeatures(LAYOUT, 0, embed_dim=8, n_heads=2).features_dim == 16  # [own, attended]
+    # Own (6 + 2) and k = 2 chosen agents, each padded to the largest other agent's 8 + 3.
+    assert LearnedSelectionCriticFeatures(LAYOUT, 0, k=2, embed_dim=8).features_dim == 8 + 2 * 11
+    assert LearnedSelectionCriticFeatures(LAYOUT, 3, k=1, embed_dim=8).features_dim == 11 + 8  # agent 3 is the largest
+    assert [default_selection_size(n) for n in (2, 3, 4, 5, 8)] == [1, 1, 2, 2, 2]
+    obs, actions = batch()
+    for scheme in SCHEMES:
+        assert make_critic(scheme)(obs, actions).shape == (BATCH, N_AGENTS)
+
+
+def test_bad_settings_say_what_to_do() -> None:
+    with pytest.raises(ValueError, match=r"chooses k of the 3 other agents, got k=4: give critic_sharing_kwargs"):
+        LearnedSelectionCriticFeatures(LAYOUT, 0, k=4)
+    with pytest.raises(ValueError, match="multiple of n_heads"):
+        AttentionCriticFeatures(LAYOUT, 0, embed_dim=10, n_heads=4)
+    solo = AgentLayout(("a",), (4,), (2,))
+    with pytest.raises(ValueError, match="needs at least 2 agents"):
+        AttentionCriticFeatures(solo, 0)
+
+
+@pytest.mark.parametrize("scheme", list(SCHEMES))
+def test_each_critics_loss_moves_only_its_own_parameters(scheme: str) -> None:
+    critic = make_critic(scheme)
+    obs, actions = batch()
+    for i in range(N_AGENTS):
+        critic.zero_grad()
+        critic(obs, actions)[:, i].sum().backward()
+        for j, extractor in enumerate(critic.extractors):
+            touched = any(p.grad is not None and p.grad.abs().sum() > 0 for p in extractor.parameters())
+            assert touched == (i == j), f"critic {i}'s loss vs extractor {j}"
+        for weight in critic.mlp.weights:
+            moved = weight.grad.abs().sum(dim=(1, 2)) > 0  # type: ignore[union-attr]
+            assert moved.tolist() == [j == i for j in range(N_AGENTS)]
+
+
+def test_attention_listens_to_every_agent() -> None:
+    critic = make_critic("attention")
+    obs, actions = batch()
+    obs.requires_grad_(True)
+    actions.requires_grad_(True)
+    for i in range(N_AGENTS):
+        obs_grad, action_grad = th.autograd.grad(critic(obs, actions)[:, i].sum(), (obs, actions))
+        for j in range(N_AGENTS):
+            assert obs_grad[:, LAYOUT.obs_slices[j]].abs().sum() > 0
+            assert action_grad[:, LAYOUT.action_slices[j]].abs().sum() > 0
+        weights = critic.extractors[i].listening_weights(obs, actions)  # type: ignore[operator]
+        assert weights.shape == (BATCH, N_AGENTS - 1)
+        assert th.allclose(weights.sum(dim=1), th.ones(BATCH))
+
+
+def test_learned_selection_sees_exactly_its_k_highest_scored_agents() -> None:
+    extractor = make_critic("learned_selection", k=2).extractors[1]
+    obs, actions = batch()
+    features = extractor(obs, actions)
+    own_input, others_input, scores = extractor._scores(obs, actions)  # type: ignore[operator]
+    top = scores.topk(2, dim=1).indices
+    # By hand: own [o_1, a_1], then each chosen agent's [o_j, a_j] padded to 11, highest score first.
+    expected = [own_input]
+    for rank in range(2):
+        expected.append(others_input[th.arange(BATCH), top[:, rank]])
+    th.testing.assert_close(features, th.cat(expected, dim=1))
+    others = [0, 2, 3]
+    chosen = extractor.chosen_agents(obs, actions)  # type: ignore[operator]
+    assert chosen.tolist() == [[others[j] for j in row] for row in top.tolist()]
+    assert (chosen != 1).all()
+    # The rows differ: the choice depends on the data, not only on the parameters.
+    assert len({tuple(row) for row in chosen.tolist()}) > 1
+    # Straight-through: the scores' parameters get a gradient from Q although the forward choice is hard.
+    critic = make_critic("learned_selection", k=2)
+    critic(obs, actions)[:, 1].sum().backward()
+    scorer = critic.extractors[1]
+    assert scorer.query.weight.grad.abs().sum() > 0 and scorer.key.weight.grad.abs().sum() > 0  # type: ignore[union-attr]
+
+
+def test_learned_selection_value_ignores_unchosen_agents() -> None:
+    critic = make_critic("learned_selection", k=1)
+    extractor = critic.extractors[0]
+    obs, actions = batch()
+    with th.no_grad():
+        base = critic(obs, actions)[:, 0]
+        chosen = extractor.chosen_agents(obs, actions)[:, 0]  # type: ignore[operator]
+        # Scale one unchosen agent's data by a tiny factor: the choice stays, and so does Q_0.
+        for row in range(BATCH):
+            unchosen = next(j for j in (1, 2, 3) if j != chosen[row])
+            nudged_obs = obs.clone()
+            nudged_obs[row, LAYOUT.obs_slices[unchosen]] *= 1.0 + 1e-4
+            if extractor.chosen_agents(nudged_obs, actions)[row, 0] == chosen[row]:  # type: ignore[operator]
+                assert critic(nudged_obs, actions)[row, 0] == base[row]
+
+
+@pytest.mark.parametrize("scheme", list(SCHEMES))
+def test_trains_saves_loads_and_logs_what_critics_listen_to(scheme: str, tmp_path: Path) -> None:
+    env = SimpleSpreadVecEnv(n_envs=4, n_agents=3)
+    kwargs = {"k": 1} if scheme == "learned_selection" else {"n_heads": 2}
+    model = MADDPG("MlpPolicy", env, critic_sharing=scheme, critic_sharing_kwargs={"embed_dim": 8, **kwargs}, seed=0, **FAST)
+    target = model.critic_target.extractors[0]
+    assert target is not model.critic.extractors[0]  # a target copy, Polyak-averaged
+    before = [p.detach().clone() for p in target.parameters()]
+    model.set_logger(configure(str(tmp_path), ["csv"]))
+    model.learn(1_000, log_interval=1)
+    assert any(not th.equal(a, b) for a, b in zip(before, target.parameters()))
+
+    with open(tmp_path / "progress.csv", newline="") as file:
+        rows = [row for row in csv.DictReader(file) if row.get("train/attention_entropy")]
+    assert rows, "the diagnostics are logged"
+    entropy = float(rows[-1]["train/attention_entropy"])
+    assert 0.0 <= entropy <= np.log(2) + 1e-6  # two other agents
+    assert 0.0 <= float(rows[-1]["train/agent_0/weight_on_nearest"]) <= 1.0
+    if scheme == "learned_selection":
+        assert 0.0 <= float(rows[-1]["train/chose_nearest"]) <= 1.0
+        assert 1.0 <= float(rows[-1]["train/agent_2/chosen_rank"]) <= 2.0
+
+    obs = env.reset()
+    q_before = model.policy.q_values(th.as_tensor(obs), th.zeros(4, 15))
+    model.save(tmp_path / "model.zip")
+    loaded = MADDPG.load(tmp_path / "model.zip")
+    th.testing.assert_close(loaded.policy.q_values(th.as_tensor(obs), th.zeros(4, 15)), q_before)
+    for mine, theirs in zip(model.critic_target.parameters(), loaded.critic_target.parameters()):
+        th.testing.assert_close(mine, theirs)
+
+    listening = critic_listening(loaded, obs)
+    assert listening["weights"].shape == (4, 3, 3)
+    np.testing.assert_allclose(listening["weights"].sum(axis=2), 1.0, rtol=1e-5)
+    assert np.all(np.diagonal(listening["weights"], axis1=1, axis2=2) == 0)
+    if scheme == "learned_selection":
+        assert listening["chosen"].shape == (4, 3, 1)
+        assert all(listening["chosen"][:, i, 0].tolist().count(i) == 0 for i in range(3))
+    else:
+        assert listening["chosen"] is None
+
+
+def test_listening_helper_refuses_other_critics() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = MADDPG("MlpPolicy", SimpleSpreadVecEnv(n_envs=2, n_agents=3), critic_sharing="full", **FAST)
+    with pytest.raises(TypeError, match="critic_sharing='attention' or 'learned_selection'"):
+        critic_listening(model, np.zeros((1, model.observation_space.shape[0])))
+
+
+def test_distance_ranks_follow_positions() -> None:
+    extractor = LearnedSelectionCriticFeatures(LAYOUT, 0, k=1, embed_dim=8)
+    obs = th.zeros(1, LAYOUT.obs_dim)
+    for agent, x in enumerate([0.0, 3.0, 1.0, 2.0]):  # agent 0 at the origin; agent 2 nearest, then 3, then 1
+        obs[0, LAYOUT.obs_slices[agent].start + 2] = x
+    assert extractor._distance_ranks(obs).tolist() == [[3, 1, 2]]  # others in ascending index: 1, 2, 3
+    assert LearnedSelectionCriticFeatures(LAYOUT, 0, k=1, position_slice=None)._distance_ranks(obs) is None
