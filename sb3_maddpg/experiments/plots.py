@@ -21,6 +21,8 @@ COLORS = {
     "observations": "tab:green",
     "actions": "tab:red",
     "selected": "tab:purple",
+    "attention": "tab:brown",
+    "learned_selection": "tab:pink",
 }
 """One color per scheme, the same in every figure."""
 

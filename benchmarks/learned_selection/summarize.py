@@ -1,0 +1,116 @@
+"""
+Issue 12's measurement, summarised: the report of the runs (Table 2 with Mann-Whitney U against ``full``, the
+aggregate estimates, learning curves, boxplots) and what the learned critics listen to over training.
+
+Reads the runs in ``results/`` (written by ``run.sh``) and writes into ``report/``:
+
+- ``sb3-maddpg report``'s files for ``min_dist_sum``, ``return_mean`` and ``success_rate``;
+- ``listening.md`` and ``listening.png``: for ``attention`` and ``learned_selection``, the team means of
+  ``train/weight_on_nearest``, ``train/attention_entropy`` and (learned selection) ``train/chose_nearest`` from
+  SB3's log, mean over seeds every 100k steps: whether the learned selection converges to the k nearest agents.
+
+Usage::
+
+    python benchmarks/learned_selection/summarize.py [results] [report]
+"""
+
+import csv
+import statistics
+import sys
+from pathlib import Path
+
+from sb3_maddpg.experiments import make_report
+
+HERE = Path(__file__).resolve().parent
+DIAGNOSTICS = ("weight_on_nearest", "attention_entropy", "chose_nearest")
+LEARNED = ("attention", "learned_selection")
+
+
+def logged(run: Path, key: str) -> list[tuple[int, float]]:
+    """``(step, value)`` of a logged key of a run's SB3 log."""
+    with open(run / "progress.csv", newline="") as file:
+        rows = list(csv.DictReader(file))
+    return [
+        (int(float(row["time/total_timesteps"])), float(row[key]))
+        for row in rows
+        if row.get(key) and row.get("time/total_timesteps")
+    ]
+
+
+def series(results: Path, experiment: str, scheme: str, key: str, steps: list[int]) -> list[float | None]:
+    """The mean over finished seeds of the logged value nearest each step (``None`` where no run has it)."""
+    runs = [run for run in sorted((results / experiment / scheme).glob("seed_*")) if (run / "done").exists()]
+    values: list[float | None] = []
+    for step in steps:
+        at_step = []
+        for run in runs:
+            points = logged(run, f"train/{key}")
+            if points:
+                at_step.append(min(points, key=lambda point: abs(point[0] - step))[1])
+        values.append(statistics.mean(at_step) if at_step else None)
+    return values
+
+
+def listening_table(results: Path, experiments: list[str], steps: list[int]) -> str:
+    lines = ["| setting | scheme | summary | " + " | ".join(f"{step // 1000}k" for step in steps) + " |"]
+    lines.append("|---|---|---|" + "---|" * len(steps))
+    for experiment in experiments:
+        for scheme in LEARNED:
+            for key in DIAGNOSTICS:
+                values = series(results, experiment, scheme, key, steps)
+                if all(value is None for value in values):
+                    continue
+                cells = ["" if value is None else f"{value:.2f}" for value in values]
+                lines.append(f"| {experiment} | {scheme} | {key} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def listening_plot(results: Path, experiments: list[str], steps: list[int], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(1, len(experiments), figsize=(5.5 * len(experiments), 4), squeeze=False)
+    for axis, experiment in zip(axes[0], experiments):
+        for scheme, key, style in (
+            ("attention", "weight_on_nearest", "-"),
+            ("learned_selection", "weight_on_nearest", "--"),
+            ("learned_selection", "chose_nearest", ":"),
+        ):
+            values = series(results, experiment, scheme, key, steps)
+            points = [(step, value) for step, value in zip(steps, values) if value is not None]
+            if points:
+                axis.plot(*zip(*points), style, label=f"{scheme}: {key}")
+        axis.set_title(experiment)
+        axis.set_xlabel("env steps")
+        axis.set_ylabel("fraction (mean over seeds)")
+        axis.set_ylim(0, 1)
+        axis.grid(alpha=0.3)
+        axis.legend(fontsize=8)
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+
+
+def main() -> None:
+    results = Path(sys.argv[1]) if len(sys.argv) > 1 else HERE / "results"
+    out = Path(sys.argv[2]) if len(sys.argv) > 2 else HERE / "report"
+    for path in make_report(results, out, metrics=("min_dist_sum", "return_mean", "success_rate")):
+        print(path)
+    experiments = sorted(path.name for path in results.iterdir() if (path / "experiment.json").exists())
+    total = max(int(float(row)) for row in _totals(results))
+    steps = list(range(total // 10, total + 1, total // 10))
+    (out / "listening.md").write_text(listening_table(results, experiments, steps))
+    listening_plot(results, experiments, steps, out / "listening.png")
+    print(out / "listening.md", out / "listening.png", sep="\n")
+
+
+def _totals(results: Path) -> list[str]:
+    import json
+
+    return [str(json.loads(path.read_text())["total_timesteps"]) for path in results.glob("*/*/seed_*/summary.json")]
+
+
+if __name__ == "__main__":
+    main()
