@@ -24,7 +24,7 @@ from sb3_maddpg.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSam
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.selection import NearestAgents, Selector
-from sb3_maddpg.sharing import CriticFeaturesExtractor, resolve_scheme
+from sb3_maddpg.sharing import CriticSharing, schemes_per_agent, validate_critic_sharing
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
 
@@ -62,8 +62,10 @@ class MADDPG(OffPolicyAlgorithm):
         them, or a registered id), which exposes ``agent_layout`` and ``info["agent_rewards"]``.
     :param critic_sharing: What critic i sees: ``"independent"`` (IDDPG), ``"full"`` (MADDPG),
         ``"observations"`` (MADDPG-fo), ``"actions"`` (MADDPG-fa), ``"selected"`` (MADDPG-soa), the paper's
-        short names ``"iddpg"``, ``"maddpg"``, ``"fo"``, ``"fa"``, ``"soa"``, or a
-        :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor` subclass.
+        short names ``"iddpg"``, ``"maddpg"``, ``"fo"``, ``"fa"``, ``"soa"``, beyond the paper ``"attention"`` and
+        ``"learned_selection"`` (:mod:`sb3_maddpg.attention`), or a :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor`
+        subclass; or a mapping from each agent id to its own critic's scheme, e.g. ``{"adversary_0": "full",
+        "agent_0": "independent", "agent_1": "independent"}``.
     :param selection: For schemes that use a selection: a :class:`~sb3_maddpg.selection.Selector`, or an int
         ``k`` for ``NearestAgents(k)`` (default ``NearestAgents(k=2)``). It is applied to the observation when a
         transition is stored. A ``k`` of ``n_agents - 1`` selects every other agent (full sharing in another order)
@@ -98,7 +100,8 @@ class MADDPG(OffPolicyAlgorithm):
     :param actor_reg_coef: Weight of the penalty on each actor's pre-``tanh`` output, added to its loss as
         ``actor_reg_coef * mean(pre-activation ** 2)`` over the batch and the agent's action components (Lowe et al.'s
         code, 1e-3). It keeps the actors out of ``tanh`` saturation; 0 turns it off.
-    :param critic_sharing_kwargs: Extra keyword arguments for the sharing scheme's extractor.
+    :param critic_sharing_kwargs: Extra keyword arguments for the sharing scheme's extractor (e.g. ``{"k": 1}`` for
+        ``learned_selection``), or, keyed by agent id, each critic's own.
     :param replay_buffer_class: Replay buffer class (default :class:`~sb3_maddpg.buffers.MultiAgentReplayBuffer`).
     :param replay_buffer_kwargs: Keyword arguments for the replay buffer.
     :param stats_window_size: Window size for the rollout logging (episodes).
@@ -122,7 +125,7 @@ class MADDPG(OffPolicyAlgorithm):
         self,
         policy: str | type[MADDPGPolicy],
         env: GymEnv | str | None,
-        critic_sharing: str | type[CriticFeaturesExtractor] = "full",
+        critic_sharing: CriticSharing = "full",
         selection: Selector | int | None = None,
         learning_rate: float | Schedule = 1e-2,
         buffer_size: int = 1_000_000,
@@ -148,7 +151,7 @@ class MADDPG(OffPolicyAlgorithm):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ) -> None:
-        scheme = resolve_scheme(critic_sharing)  # fail early on an unknown name
+        validate_critic_sharing(critic_sharing)  # fail early on an unknown name
         if not (math.isfinite(actor_reg_coef) and actor_reg_coef >= 0):
             raise ValueError(
                 f"actor_reg_coef must be a finite number >= 0, got {actor_reg_coef}: use 1e-3 (Lowe et al.'s value) "
@@ -215,8 +218,10 @@ class MADDPG(OffPolicyAlgorithm):
         if self.env is not None:
             self.agent_layout = _layout_of(self.env)
             _refuse_reward_normalization(self.env)
-            scheme.check_layout(self.agent_layout)  # a team the scheme cannot serve: say so before the selection's errors
-            if scheme.uses_selection:
+            schemes = schemes_per_agent(critic_sharing, self.agent_layout.agent_ids)
+            for scheme in dict.fromkeys(schemes):  # a team a scheme cannot serve: say so before the selection's errors
+                scheme.check_layout(self.agent_layout)
+            if any(scheme.uses_selection for scheme in schemes):
                 self.selection = _resolve_selection(selection)
                 self.selection.validate(self.agent_layout)
                 if _init_setup_model:  # load() sets the saved selection over this one

@@ -1,5 +1,6 @@
 """The multi-agent policy: one actor and one critic per agent (and their targets), evaluated together."""
 
+from collections.abc import Sequence
 from typing import Any
 
 import torch as th
@@ -10,7 +11,7 @@ from torch import nn
 
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.networks import AgentEnsembleMLP, clip_coefficients, stack_padded
-from sb3_maddpg.sharing import CriticFeaturesExtractor, resolve_scheme
+from sb3_maddpg.sharing import CriticFeaturesExtractor, CriticSharing, kwargs_per_agent, schemes_per_agent
 
 DEFAULT_NET_ARCH = {"pi": [64, 64], "qf": [64, 64, 64]}
 """The paper's networks: actor of 3 and critic of 4 fully connected layers, 64 hidden units."""
@@ -85,8 +86,8 @@ class MultiAgentCritic(nn.Module):
     Every agent's critic Q_i(x_i), where ``x_i`` comes from agent i's :class:`CriticFeaturesExtractor`.
 
     :param layout: The team's agent layout.
-    :param extractor_class: The sharing scheme.
-    :param extractor_kwargs: Extra keyword arguments for the extractor.
+    :param extractor_class: The sharing scheme, or one per agent.
+    :param extractor_kwargs: Extra keyword arguments for the extractor, or one dict per agent.
     :param selection_size: ``k`` selected agents per agent (0 when the scheme uses no selection).
     :param hidden_sizes: Hidden layer sizes.
     :param activation_fn: Activation function.
@@ -96,8 +97,8 @@ class MultiAgentCritic(nn.Module):
     def __init__(
         self,
         layout: AgentLayout,
-        extractor_class: type[CriticFeaturesExtractor],
-        extractor_kwargs: dict[str, Any],
+        extractor_class: type[CriticFeaturesExtractor] | Sequence[type[CriticFeaturesExtractor]],
+        extractor_kwargs: dict[str, Any] | Sequence[dict[str, Any]],
         selection_size: int,
         hidden_sizes: list[int],
         activation_fn: type[nn.Module],
@@ -105,8 +106,13 @@ class MultiAgentCritic(nn.Module):
     ) -> None:
         super().__init__()
         self.layout = layout
+        classes = list(extractor_class) if isinstance(extractor_class, Sequence) else [extractor_class] * layout.n_agents
+        kwargs = list(extractor_kwargs) if isinstance(extractor_kwargs, Sequence) else [extractor_kwargs] * layout.n_agents
+        if len(classes) != layout.n_agents or len(kwargs) != layout.n_agents:
+            raise ValueError(f"Need one extractor class and one kwargs dict per agent ({layout.n_agents}).")
         extractors = [
-            extractor_class(layout, i, selection_size=selection_size, **extractor_kwargs) for i in range(layout.n_agents)
+            cls(layout, i, selection_size=selection_size if cls.uses_selection else 0, **kwargs[i])
+            for i, cls in enumerate(classes)
         ]
         self.extractors = nn.ModuleList(extractors)
         features_dims = [extractor.features_dim for extractor in extractors]
@@ -207,8 +213,9 @@ class MADDPGPolicy(BasePolicy):
     :param lr_schedule: Learning rate schedule (for every optimiser).
     :param agent_layout: The team's agent layout (MADDPG fills it in from the env).
     :param critic_sharing: The sharing scheme: a name from :data:`~sb3_maddpg.sharing.SHARING_SCHEMES`,
-        an alias, or a :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor` subclass.
-    :param critic_sharing_kwargs: Extra keyword arguments for the extractor.
+        an alias, a :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor` subclass, or a mapping from each agent id to
+        its critic's scheme.
+    :param critic_sharing_kwargs: Extra keyword arguments for the extractors, or a dict of them per agent id.
     :param selection_size: ``k`` selected agents per agent (0 when the scheme uses no selection).
     :param net_arch: Hidden sizes, ``dict(pi=[...], qf=[...])`` (default: the paper's ``pi=[64, 64], qf=[64, 64, 64]``)
         or one list for both.
@@ -226,7 +233,7 @@ class MADDPGPolicy(BasePolicy):
         action_space: spaces.Box,
         lr_schedule: Schedule,
         agent_layout: AgentLayout | None = None,
-        critic_sharing: str | type[CriticFeaturesExtractor] = "full",
+        critic_sharing: CriticSharing = "full",
         critic_sharing_kwargs: dict[str, Any] | None = None,
         selection_size: int = 0,
         net_arch: list[int] | dict[str, list[int]] | None = None,
@@ -290,10 +297,11 @@ class MADDPGPolicy(BasePolicy):
 
     def make_critic(self) -> MultiAgentCritic:
         """A new team critic."""
+        agent_ids = self.agent_layout.agent_ids
         return MultiAgentCritic(
             self.agent_layout,
-            resolve_scheme(self.critic_sharing),
-            self.critic_sharing_kwargs,
+            schemes_per_agent(self.critic_sharing, agent_ids),
+            kwargs_per_agent(self.critic_sharing_kwargs, agent_ids),
             self.selection_size,
             self.net_arch["qf"],
             self.activation_fn,

@@ -17,7 +17,7 @@ selected       soa     ``[o_i, o_s1 .. o_sk, a_i, a_s1 .. a_sk]`` (selection ord
 ============== ======= ===================================================================
 """
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import torch as th
@@ -248,3 +248,62 @@ def resolve_scheme(scheme: Any) -> type[CriticFeaturesExtractor]:
             return schemes[name]
     known = ", ".join(repr(name) for name in [*schemes, *SCHEME_ALIASES])
     raise ValueError(f"Unknown critic_sharing {scheme!r}: use one of {known}, or a CriticFeaturesExtractor subclass.")
+
+
+CriticSharing = str | type[CriticFeaturesExtractor] | Mapping[str, str | type[CriticFeaturesExtractor]]
+"""A scheme for every critic (a name or a class), or a mapping from agent id to each critic's scheme."""
+
+
+def validate_critic_sharing(critic_sharing: Any) -> None:
+    """
+    Fail early, before any env is known, on an unknown scheme name (in a mapping, on any of them).
+
+    :param critic_sharing: ``MADDPG``'s ``critic_sharing``.
+    """
+    if isinstance(critic_sharing, Mapping):
+        if not critic_sharing:
+            raise ValueError("critic_sharing is an empty mapping: give each agent id a scheme, e.g. {'agent_0': 'full', ...}.")
+        for scheme in critic_sharing.values():
+            resolve_scheme(scheme)
+    else:
+        resolve_scheme(critic_sharing)
+
+
+def schemes_per_agent(critic_sharing: CriticSharing, agent_ids: Sequence[str]) -> list[type[CriticFeaturesExtractor]]:
+    """
+    Each critic's scheme.
+
+    :param critic_sharing: One scheme for every critic, or a mapping from each agent id to its critic's scheme (e.g.
+        ``{"adversary_0": "full", "agent_0": "independent", "agent_1": "independent"}``).
+    :param agent_ids: The team's agent ids, in order.
+    :return: One extractor class per agent, in the team's order.
+    """
+    if not isinstance(critic_sharing, Mapping):
+        return [resolve_scheme(critic_sharing)] * len(agent_ids)
+    unknown = sorted(set(critic_sharing) - set(agent_ids))
+    missing = [agent for agent in agent_ids if agent not in critic_sharing]
+    if unknown or missing:
+        problems = ([f"it names agents not in the team: {unknown}"] if unknown else []) + (
+            [f"it gives no scheme to {missing}"] if missing else []
+        )
+        raise ValueError(
+            f"critic_sharing maps agent ids to schemes, but {'; '.join(problems)}: give exactly the team's agents "
+            f"{list(agent_ids)} a scheme each."
+        )
+    return [resolve_scheme(critic_sharing[agent]) for agent in agent_ids]
+
+
+def kwargs_per_agent(critic_sharing_kwargs: Mapping[str, Any] | None, agent_ids: Sequence[str]) -> list[dict[str, Any]]:
+    """
+    Each critic's extractor keyword arguments.
+
+    :param critic_sharing_kwargs: The same keyword arguments for every critic, or, when every key is an agent id and
+        every value a dict, each agent's own (agents left out get none).
+    :param agent_ids: The team's agent ids, in order.
+    :return: One dict per agent, in the team's order.
+    """
+    kwargs = dict(critic_sharing_kwargs or {})
+    per_agent = bool(kwargs) and set(kwargs) <= set(agent_ids) and all(isinstance(v, Mapping) for v in kwargs.values())
+    if per_agent:
+        return [dict(kwargs.get(agent, {})) for agent in agent_ids]
+    return [dict(kwargs) for _ in agent_ids]

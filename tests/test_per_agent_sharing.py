@@ -1,0 +1,96 @@
+"""critic_sharing as a mapping from agent id to scheme: each critic sees exactly what its own scheme allows."""
+
+import warnings
+from pathlib import Path
+
+import pytest
+import torch as th
+from torch import nn
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.attention import AttentionCriticFeatures
+from sb3_maddpg.envs import SimpleSpreadVecEnv
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.policies import MultiAgentCritic
+from sb3_maddpg.sharing import (
+    FullCriticFeatures,
+    IndependentCriticFeatures,
+    SelectedCriticFeatures,
+    kwargs_per_agent,
+    schemes_per_agent,
+)
+
+N_AGENTS, BATCH = 4, 16
+LAYOUT = AgentLayout(tuple(f"agent_{i}" for i in range(N_AGENTS)), (3,) * N_AGENTS, (2,) * N_AGENTS)
+MIXED = {"agent_0": "full", "agent_1": "independent", "agent_2": "actions", "agent_3": "selected"}
+SELECTION = th.tensor([[1, 2], [3, 0], [0, 3], [2, 1]]).expand(BATCH, N_AGENTS, 2)
+# Whose observations and whose actions each critic of MIXED may see (agent 3 selected agents 2 and 1).
+VISIBLE = {0: ({0, 1, 2, 3}, {0, 1, 2, 3}), 1: ({1}, {1}), 2: ({2}, {0, 1, 2, 3}), 3: ({3, 2, 1}, {3, 2, 1})}
+FAST = dict(
+    learning_starts=200, batch_size=32, buffer_size=2_000, transitions_per_update=20, policy_kwargs=dict(net_arch=[16])
+)
+
+
+def test_each_critic_sees_exactly_what_its_own_scheme_allows() -> None:
+    th.manual_seed(0)
+    schemes = schemes_per_agent(MIXED, LAYOUT.agent_ids)
+    critic = MultiAgentCritic(LAYOUT, schemes, kwargs_per_agent({}, LAYOUT.agent_ids), 2, [16], nn.Tanh)
+    obs = th.randn(BATCH, LAYOUT.obs_dim, requires_grad=True)
+    actions = (th.rand(BATCH, LAYOUT.action_dim) * 2 - 1).requires_grad_(True)
+    for i in range(N_AGENTS):
+        obs_grad, action_grad = th.autograd.grad(critic(obs, actions, SELECTION)[:, i].sum(), (obs, actions))
+        seen_obs, seen_actions = VISIBLE[i]
+        for j in range(N_AGENTS):
+            assert bool(obs_grad[:, LAYOUT.obs_slices[j]].abs().sum() > 0) == (j in seen_obs), (i, j)
+            assert bool(action_grad[:, LAYOUT.action_slices[j]].abs().sum() > 0) == (j in seen_actions), (i, j)
+
+
+def test_mapping_must_name_exactly_the_team() -> None:
+    assert schemes_per_agent("full", LAYOUT.agent_ids) == [FullCriticFeatures] * N_AGENTS
+    assert schemes_per_agent(MIXED, LAYOUT.agent_ids)[1] is IndependentCriticFeatures
+    assert schemes_per_agent(MIXED, LAYOUT.agent_ids)[3] is SelectedCriticFeatures
+    with pytest.raises(ValueError, match=r"it gives no scheme to \['agent_3'\]: give exactly the team's agents"):
+        schemes_per_agent({k: v for k, v in MIXED.items() if k != "agent_3"}, LAYOUT.agent_ids)
+    with pytest.raises(ValueError, match=r"it names agents not in the team: \['agent_9'\]"):
+        schemes_per_agent({**MIXED, "agent_9": "full"}, LAYOUT.agent_ids)
+    with pytest.raises(ValueError, match="Unknown critic_sharing 'everything'"):
+        MADDPG("MlpPolicy", SimpleSpreadVecEnv(2, n_agents=3), critic_sharing={"agent_0": "everything"})
+
+
+def test_kwargs_are_shared_or_per_agent() -> None:
+    assert kwargs_per_agent({"embed_dim": 8}, LAYOUT.agent_ids) == [{"embed_dim": 8}] * N_AGENTS
+    per_agent = kwargs_per_agent({"agent_2": {"embed_dim": 8}}, LAYOUT.agent_ids)
+    assert per_agent == [{}, {}, {"embed_dim": 8}, {}]
+
+
+def test_a_mixed_team_trains_saves_and_loads(tmp_path: Path) -> None:
+    sharing = {"agent_0": "full", "agent_1": "independent", "agent_2": "attention"}
+    kwargs = {"agent_2": {"embed_dim": 8, "n_heads": 2}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # selection is not used here, so no selected-sharing warning either
+        model = MADDPG(
+            "MlpPolicy", SimpleSpreadVecEnv(4, n_agents=3), critic_sharing=sharing, critic_sharing_kwargs=kwargs, **FAST
+        )
+    extractors = model.critic.extractors
+    assert [type(e) for e in extractors] == [FullCriticFeatures, IndependentCriticFeatures, AttentionCriticFeatures]
+    assert extractors[2].embed_dim == 8
+    assert model.selection is None
+    model.learn(600)
+    model.save(tmp_path / "mixed.zip")
+    loaded = MADDPG.load(tmp_path / "mixed.zip")
+    assert [type(e) for e in loaded.critic.extractors] == [type(e) for e in extractors]
+    for mine, theirs in zip(model.critic.parameters(), loaded.critic.parameters()):
+        th.testing.assert_close(mine, theirs)
+    # A selection is made and stored as soon as one critic reads it.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with_selected = MADDPG(
+            "MlpPolicy",
+            SimpleSpreadVecEnv(4, n_agents=3),
+            critic_sharing={**sharing, "agent_1": "selected"},
+            selection=1,
+            **FAST,
+        )
+    assert with_selected.selection is not None and with_selected.selection.k == 1
+    with pytest.raises(ValueError, match="selection is used only by schemes that read one"):
+        MADDPG("MlpPolicy", SimpleSpreadVecEnv(4, n_agents=3), critic_sharing=sharing, selection=1, **FAST)
