@@ -82,14 +82,16 @@ class NearestAgents(Selector):
         self.position_slice = position_slice
 
     def validate(self, layout: AgentLayout) -> None:
-        super().validate(layout)
+        # The positions first: without them this selector cannot serve the team whatever k is.
         for agent, size in zip(layout.agent_ids, layout.obs_sizes):
             start, stop, _ = self.position_slice.indices(size)
             if stop <= start or (self.position_slice.stop is not None and self.position_slice.stop > size):
                 raise ValueError(
                     f"position_slice={self.position_slice} does not fit agent {agent!r}'s observation of size {size}: "
-                    "pass NearestAgents(position_slice=...) pointing at the position inside each agent's observation."
+                    "pass NearestAgents(position_slice=...) pointing at the position inside each agent's observation, "
+                    "or select by another rule (FixedGraph, CallableSelector)."
                 )
+        super().validate(layout)
 
     def _select(self, observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
         positions = np.stack([observations[:, sl][:, self.position_slice] for sl in layout.obs_slices], axis=1)

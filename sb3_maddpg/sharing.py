@@ -164,25 +164,17 @@ class SelectedCriticFeatures(CriticFeaturesExtractor):
     """
     MADDPG-soa (Algorithm 3): critic i sees its own observation and action and those of the ``k``
     agents it selected, ``[o_i, o_s1 .. o_sk, a_i, a_s1 .. a_sk]`` in selection order. The selection
-    is the one stored with the transition. Needs agents of equal observation and action sizes.
+    is the one stored with the transition. On a team of unequal agents every observation is zero-padded to the
+    largest observation and every action to the largest action, so that each slot has one size whoever fills it.
     """
 
     uses_selection = True
-
-    @classmethod
-    def check_layout(cls, layout: AgentLayout) -> None:
-        if not layout.is_homogeneous:
-            raise ValueError(
-                "critic_sharing='selected' needs agents with equal observation and action sizes (a selected agent's "
-                f"data fills a fixed slot), got obs sizes {layout.obs_sizes} and action sizes {layout.action_sizes}: "
-                "use 'full', 'observations', 'actions' or 'independent' for this team, or pad the agents' spaces."
-            )
 
     def __init__(self, layout: AgentLayout, agent_index: int, selection_size: int = 2) -> None:
         self.check_layout(layout)
         if not 1 <= selection_size <= layout.n_agents - 1:
             raise ValueError(f"selection_size must be between 1 and {layout.n_agents - 1}, got {selection_size}.")
-        obs_size, action_size = layout.obs_sizes[0], layout.action_sizes[0]
+        obs_size, action_size = max(layout.obs_sizes), max(layout.action_sizes)
         super().__init__(layout, agent_index, (1 + selection_size) * (obs_size + action_size), selection_size)
         self._obs_size, self._action_size = obs_size, action_size
 
@@ -193,11 +185,21 @@ class SelectedCriticFeatures(CriticFeaturesExtractor):
         chosen = selection[:, self.agent_index, :]
         # Own agent first, then the selected ones, for observations and for actions alike.
         agents = th.cat((th.full_like(chosen[:, :1], self.agent_index), chosen), dim=1)
-        obs = observations.view(batch, n_agents, self._obs_size)
-        act = actions.reshape(batch, n_agents, self._action_size)
+        if self.layout.is_homogeneous:
+            obs = observations.view(batch, n_agents, self._obs_size)
+            act = actions.reshape(batch, n_agents, self._action_size)
+        else:
+            obs = _padded_per_agent(observations, self.layout.obs_slices, self._obs_size)
+            act = _padded_per_agent(actions, self.layout.action_slices, self._action_size)
         seen_obs = obs.gather(1, agents.unsqueeze(-1).expand(batch, k + 1, self._obs_size))
         seen_act = act.gather(1, agents.unsqueeze(-1).expand(batch, k + 1, self._action_size))
         return th.cat((seen_obs.reshape(batch, -1), seen_act.reshape(batch, -1)), dim=1)
+
+
+def _padded_per_agent(joint: th.Tensor, slices: Sequence[slice], width: int) -> th.Tensor:
+    """``[batch, n_agents, width]``: each agent's part of a joint vector, zero-padded to ``width``."""
+    parts = [joint[:, part] for part in slices]
+    return th.stack([nn.functional.pad(part, (0, width - part.shape[1])) for part in parts], dim=1)
 
 
 SHARING_SCHEMES: dict[str, type[CriticFeaturesExtractor]] = {

@@ -94,3 +94,26 @@ def test_a_mixed_team_trains_saves_and_loads(tmp_path: Path) -> None:
     assert with_selected.selection is not None and with_selected.selection.k == 1
     with pytest.raises(ValueError, match="selection is used only by schemes that read one"):
         MADDPG("MlpPolicy", SimpleSpreadVecEnv(4, n_agents=3), critic_sharing=sharing, selection=1, **FAST)
+
+
+def test_selected_sharing_pads_unequal_agents_into_equal_slots() -> None:
+    layout = AgentLayout(("a", "b", "c"), (3, 5, 4), (2, 1, 2))
+    extractor = SelectedCriticFeatures(layout, 0, selection_size=1)
+    assert extractor.features_dim == (1 + 1) * (5 + 2)
+    obs, actions = th.randn(6, layout.obs_dim), th.rand(6, layout.action_dim)
+    selection = th.tensor([[[2], [0], [1]]] * 3 + [[[1], [2], [0]]] * 3)  # agent 0 selects c, then b
+
+    def padded(part: th.Tensor, width: int) -> th.Tensor:
+        return nn.functional.pad(part, (0, width - part.shape[1]))
+
+    for rows, other in ((slice(0, 3), 2), (slice(3, 6), 1)):
+        expected = th.cat(
+            [
+                padded(obs[rows, layout.obs_slices[0]], 5),
+                padded(obs[rows, layout.obs_slices[other]], 5),
+                padded(actions[rows, layout.action_slices[0]], 2),
+                padded(actions[rows, layout.action_slices[other]], 2),
+            ],
+            dim=1,
+        )
+        th.testing.assert_close(extractor(obs, actions, selection)[rows], expected)

@@ -408,13 +408,21 @@ def test_heterogeneous_team():
     assert actions.shape == (2, 8)
 
 
-@pytest.mark.parametrize("selection", [None, 1, FixedGraph([[1], [0]])])
+@pytest.mark.parametrize("selection", [None, 1])
 def test_selected_sharing_on_a_heterogeneous_team_names_the_cause_first(selection):
-    # The first error is the real cause, whatever the selection: not the default k=2 (too many for a team of two),
-    # nor NearestAgents' position slice (outside the speaker's 3-component observation).
-    message = "critic_sharing='selected' needs agents with equal observation and action sizes"
-    with pytest.raises(ValueError, match=re.escape(message) + r".*obs sizes \(3, 11\) and action sizes \(3, 5\)"):
+    # The first error is the real cause, whatever k is: NearestAgents finds no position in the speaker's
+    # 3-component observation (not the default k=2, too many for a team of two).
+    message = "position_slice=slice(2, 4, None) does not fit agent 'speaker_0''s observation of size 3"
+    with pytest.raises(ValueError, match=re.escape(message) + r".*FixedGraph, CallableSelector"):
         MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selection=selection, **FAST)
+
+
+def test_selected_sharing_trains_a_heterogeneous_team_with_padded_slots():
+    model = MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selection=FixedGraph([[1], [0]]), **FAST)
+    # Each slot holds the largest observation (11) and action (5): (1 + k) * (11 + 5).
+    assert [extractor.features_dim for extractor in model.critic.extractors] == [32, 32]
+    model.learn(total_timesteps=120)
+    assert model._n_updates > 0
 
 
 # ---------------------------------------------------------------------------------------------- exploration noise

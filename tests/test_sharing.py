@@ -182,10 +182,7 @@ def test_scheme_registry_and_aliases() -> None:
         resolve_scheme(nn.Linear)
 
 
-def test_selected_sharing_refuses_heterogeneous_agents_and_bad_k() -> None:
-    hetero = AgentLayout(("a", "b", "c"), (3, 4, 3), (2, 2, 2))
-    with pytest.raises(ValueError, match="equal observation and action sizes.*'full'"):
-        SelectedCriticFeatures(hetero, 0, selection_size=1)
+def test_selected_sharing_refuses_bad_k() -> None:
     with pytest.raises(ValueError, match="selection_size must be between 1 and 3"):
         SelectedCriticFeatures(LAYOUT, 0, selection_size=4)
     with pytest.raises(ValueError, match="needs the selection"):
