@@ -100,12 +100,12 @@ class _ListeningCritic(CriticFeaturesExtractor):
         self.embed_dim = int(embed_dim)
         self.position_slice = position_slice
         self.encoder = _OtherAgentsEncoder(layout, agent_index, embed_dim)
-        self._last: tuple[th.Tensor, th.Tensor] | None = None  # (observations, weights) of the last training forward
+        self._last: tuple[th.Tensor, th.Tensor] | None = None  # (observations, weights) of the last recorded batch
 
     scheme_name = "attention"
 
     def _remember(self, observations: th.Tensor, weights: th.Tensor) -> None:
-        if self.training and th.is_grad_enabled():  # the online critic's update, not a target or an evaluation
+        if self.recording:  # the critic update's batch (stored actions), not the actor update's or a target's
             self._last = (observations.detach(), weights.detach())
 
     def listening_weights(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
@@ -128,11 +128,15 @@ class _ListeningCritic(CriticFeaturesExtractor):
 
     def diagnostics(self) -> dict[str, float]:
         """
-        Summaries of the last training batch: ``attention_entropy`` (mean entropy of the listening weights, in nats;
-        ``log(n - 1)`` is uniform) and, when the observations hold positions (``position_slice``),
-        ``weight_on_nearest`` (mean weight on the nearest other agent) and, for a hard choice, ``chose_nearest``
-        (fraction of rows whose chosen set is the k nearest agents) and ``chosen_rank`` (mean distance rank of the
-        chosen agents, 1 = nearest).
+        Summaries of the last critic update's batch (replayed observations and actions):
+
+        - ``attention_entropy``: mean entropy of the listening weights, in nats (``log(n - 1)`` is uniform);
+        - when the observations hold positions (``position_slice``), ``weight_on_nearest``: mean weight on the
+          nearest other agent, and, for a hard choice, ``chose_nearest`` (fraction of rows whose chosen set is the k
+          nearest agents) and ``chosen_rank`` (mean distance rank of the chosen agents, 1 = nearest).
+
+        The distances are those of the observations the critic is given: under ``VecNormalize`` the normalised
+        ones, whose ranks can differ from the world's.
 
         :return: The summaries (empty before the first training batch).
         """
@@ -162,7 +166,8 @@ class _ListeningCritic(CriticFeaturesExtractor):
         distances = (positions[:, self.encoder.others] - own).norm(dim=-1)
         # Stable order (ties to the lower index), as NearestAgents.
         order = th.sort(distances, dim=1, stable=True).indices
-        return th.empty_like(order).scatter_(1, order, th.arange(1, order.shape[1] + 1).expand_as(order))
+        ranks = th.arange(1, order.shape[1] + 1, device=order.device).expand_as(order)
+        return th.empty_like(order).scatter_(1, order, ranks)
 
 
 class AttentionCriticFeatures(_ListeningCritic):
@@ -217,8 +222,9 @@ class LearnedSelectionCriticFeatures(_ListeningCritic):
 
     :param layout: The team's agent layout.
     :param agent_index: The critic's agent.
-    :param selection_size: ``k`` (MADDPG passes it; ``critic_sharing_kwargs={"k": ...}`` sets it).
-    :param k: The number of agents chosen (default 2, or ``n_agents - 2`` when that is smaller than 2 and positive).
+    :param selection_size: ``k`` when ``k`` is not given (MADDPG passes 0: this scheme reads no stored selection).
+    :param k: The number of agents chosen, set through ``critic_sharing_kwargs={"k": ...}`` (default: 2, at most
+        ``n_agents - 2``, at least 1; see :func:`default_selection_size`).
     :param embed_dim: Size of the encodings the scores are computed from.
     :param position_slice: Where each observation holds its agent's position, for the diagnostics (``None``: none).
     """
@@ -263,7 +269,7 @@ class LearnedSelectionCriticFeatures(_ListeningCritic):
         choice = hard + (soft - soft.detach()).unsqueeze(1)
         chosen_data = choice @ others_input  # [batch, k, max size]
         self._remember(observations, soft)
-        if self.training and th.is_grad_enabled():
+        if self.recording:
             self._last_chosen = top.detach()
         return th.cat((own_input, chosen_data.flatten(1)), dim=1)
 

@@ -443,7 +443,8 @@ class MADDPG(OffPolicyAlgorithm):
         :param data: A replay batch.
         :return: One loss per agent, ``[n_agents]``.
         """
-        current_q = self.critic(data.observations, data.actions, data.selections)
+        with self.critic.recording_diagnostics():  # what the extractors report: this batch, as replayed
+            current_q = self.critic(data.observations, data.actions, data.selections)
         return F.mse_loss(current_q, self._critic_targets(data), reduction="none").mean(dim=0)
 
     def _actor_losses(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:

@@ -1,6 +1,7 @@
 """The multi-agent policy: one actor and one critic per agent (and their targets), evaluated together."""
 
-from collections.abc import Sequence
+import contextlib
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import torch as th
@@ -135,6 +136,18 @@ class MultiAgentCritic(nn.Module):
             for i, extractor in enumerate(self.extractors)
         ]
         return self.mlp(stack_padded(features, self.mlp.max_in_dim)).squeeze(-1).transpose(0, 1)
+
+    @contextlib.contextmanager
+    def recording_diagnostics(self) -> Iterator[None]:
+        """Let the extractors record what they report in :meth:`diagnostics` during the forward passes inside."""
+        extractors: list[CriticFeaturesExtractor] = list(self.extractors)  # type: ignore[arg-type]
+        for extractor in extractors:
+            extractor.recording = True
+        try:
+            yield
+        finally:
+            for extractor in extractors:
+                extractor.recording = False
 
     def diagnostics(self) -> list[dict[str, float]]:
         """:return: Each critic's extractor's :meth:`~sb3_maddpg.sharing.CriticFeaturesExtractor.diagnostics`."""

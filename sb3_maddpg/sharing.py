@@ -44,6 +44,10 @@ class CriticFeaturesExtractor(nn.Module):
     uses_selection: ClassVar[bool] = False
     """Whether :meth:`forward` reads the stored selection (then MADDPG makes and stores one)."""
 
+    recording: bool = False
+    """True while MADDPG's critic update runs its forward pass: what an extractor reports in :meth:`diagnostics`
+    should come from those batches (replayed actions), not from the actor update's or the targets'."""
+
     def __init__(self, layout: AgentLayout, agent_index: int, features_dim: int, selection_size: int = 0) -> None:
         super().__init__()
         _check_agent_index(layout, agent_index)

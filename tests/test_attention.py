@@ -123,6 +123,7 @@ def test_learned_selection_value_ignores_unchosen_agents() -> None:
     critic = make_critic("learned_selection", k=1)
     extractor = critic.extractors[0]
     obs, actions = batch()
+    checked = 0
     with th.no_grad():
         base = critic(obs, actions)[:, 0]
         chosen = extractor.chosen_agents(obs, actions)[:, 0]  # type: ignore[operator]
@@ -133,6 +134,38 @@ def test_learned_selection_value_ignores_unchosen_agents() -> None:
             nudged_obs[row, LAYOUT.obs_slices[unchosen]] *= 1.0 + 1e-4
             if extractor.chosen_agents(nudged_obs, actions)[row, 0] == chosen[row]:  # type: ignore[operator]
                 assert critic(nudged_obs, actions)[row, 0] == base[row]
+                checked += 1
+            # The chosen agent's data does change Q_0.
+            moved_obs = obs.clone()
+            moved_obs[row, LAYOUT.obs_slices[int(chosen[row])]] += 0.5
+            assert critic(moved_obs, actions)[row, 0] != base[row]
+    assert checked >= BATCH // 2  # not vacuous: most nudges keep the choice
+
+
+def test_diagnostics_come_from_the_critic_update_and_match_a_hand_computation() -> None:
+    critic = make_critic("learned_selection", k=1)
+    extractor = critic.extractors[0]
+    obs, actions = batch()
+    with th.no_grad():
+        critic(obs, actions)  # outside the critic update: nothing is recorded
+    assert extractor.diagnostics() == {}
+    with th.no_grad(), critic.recording_diagnostics():
+        critic(obs, actions)
+    assert not extractor.recording  # switched off again
+    report = extractor.diagnostics()
+    # By hand: agent 0's distances to agents 1, 2, 3 from the positions at columns 2:4 of each observation.
+    positions = th.stack([obs[:, LAYOUT.obs_slices[j]][:, 2:4] for j in range(N_AGENTS)], dim=1)
+    distances = (positions[:, 1:] - positions[:, :1]).norm(dim=-1)
+    nearest = distances.argmin(dim=1)
+    with th.no_grad():
+        weights = extractor.listening_weights(obs, actions)
+        chosen = extractor.chosen_agents(obs, actions)[:, 0] - 1  # agents 1..3 are others 0..2
+    assert report["weight_on_nearest"] == pytest.approx(float(weights[th.arange(BATCH), nearest].mean()), rel=1e-5)
+    assert report["chose_nearest"] == pytest.approx(float((chosen == nearest).float().mean()))
+    rank_of_chosen = (distances < distances[th.arange(BATCH), chosen].unsqueeze(1)).sum(dim=1) + 1
+    assert report["chosen_rank"] == pytest.approx(float(rank_of_chosen.float().mean()))
+    entropy = -(weights * weights.log()).sum(dim=1).mean()
+    assert report["attention_entropy"] == pytest.approx(float(entropy), rel=1e-5)
 
 
 @pytest.mark.parametrize("scheme", list(SCHEMES))

@@ -39,7 +39,7 @@ def sample(model: MADDPG) -> MultiAgentReplayBufferSamples:
     return data._replace(rewards=rewards, dones=dones)
 
 
-@pytest.mark.parametrize("scheme", ["full", "independent", "selected"])
+@pytest.mark.parametrize("scheme", ["full", "independent", "selected", "attention", "learned_selection"])
 def test_critic_target_matches_hand_computation(scheme: str) -> None:
     model = make_model(scheme)
     data = sample(model)
@@ -95,7 +95,7 @@ def test_critic_loss_reaches_only_its_own_critic() -> None:
             assert all(grad[j].abs().sum() == 0 for j in range(3) if j != i)
 
 
-@pytest.mark.parametrize("scheme", ["full", "actions", "selected"])
+@pytest.mark.parametrize("scheme", ["full", "actions", "selected", "attention", "learned_selection"])
 def test_actor_loss_reaches_only_its_own_actor(scheme: str) -> None:
     model = make_model(scheme)
     losses = model._actor_losses(sample(model))
@@ -170,6 +170,32 @@ def test_each_agents_whole_gradient_is_clipped(max_grad_norm: float | None) -> N
         assert th.allclose(critic_steps, th.full((3,), max_grad_norm), rtol=1e-3), critic_steps
     else:  # the same step unclipped is far longer: the clipped case above is not vacuous
         assert actor_steps.min() > 10 * 1e-3 and critic_steps.min() > 10 * 1e-3, (actor_steps, critic_steps)
+
+
+@pytest.mark.parametrize("scheme", ["attention", "learned_selection"])
+def test_each_critics_gradient_is_clipped_with_its_extractors(scheme: str) -> None:
+    """Learned critics: agent i's critic step is its network slice and its extractor's parameters, clipped together."""
+    model = MADDPG(
+        "MlpPolicy",
+        make_simple_spread(n_agents=3),
+        critic_sharing=scheme,
+        learning_rate=1.0,
+        max_grad_norm=1e-3,
+        policy_kwargs=dict(net_arch=[16, 16], optimizer_class=th.optim.SGD),
+        learning_starts=10_000,
+        buffer_size=1_000,
+        batch_size=BATCH,
+        seed=0,
+    )
+    model.learn(60)
+    mlp_before = [p.detach().clone() for p in model.critic.mlp.parameters()]
+    extractors_before = [[p.detach().clone() for p in e.parameters()] for e in model.critic.extractors]
+    model.train(gradient_steps=1, batch_size=BATCH)
+    mlp_steps = _per_agent_step_norms(mlp_before, list(model.critic.mlp.parameters()))
+    for i, (before, extractor) in enumerate(zip(extractors_before, model.critic.extractors)):
+        extractor_step = sum((a.detach() - b).pow(2).sum() for b, a in zip(before, extractor.parameters()))
+        assert extractor_step > 0  # the extractor learns
+        assert float((mlp_steps[i] ** 2 + extractor_step).sqrt()) == pytest.approx(1e-3, rel=1e-3)
 
 
 def test_learning_rate_schedule_reaches_both_optimizers() -> None:

@@ -179,7 +179,10 @@ def format_aggregates_markdown(
             if row["setting"] == "all"
             else setting_label(row["setting"], (experiments or {}).get(row["setting"]))
         )
-        improvement = "baseline" if row["improvement"] is None else row["improvement"].format(2)
+        if row["improvement"] is not None:
+            improvement = row["improvement"].format(2)
+        else:
+            improvement = "baseline" if row["scheme"] == baseline else f"n/a (no {baseline_name} runs)"
         lines.append(
             f"| {label} | {row['method']} | {row['n']} | {row['iqm'].format(2)} | {_number(row['mean'])} | {improvement} |"
         )
