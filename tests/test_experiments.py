@@ -351,6 +351,14 @@ def test_cli_run_and_report(tmp_path: Path, local_results: Path, capsys: pytest.
     for metric in ("coverage", "return_mean"):
         for name in (f"table_{metric}.md", f"table_{metric}.csv", f"learning_curves_{metric}.png", f"boxplot_{metric}.png"):
             assert (report / name).exists(), name
+    assert main(["report", str(results), "--out", str(report), "--metric", "success_rate_r0.2", "--no-plots"]) == 0
+    capsys.readouterr()
+    assert main(["report", str(tmp_path / "nothing"), "--no-plots"]) == 1
+    assert "sb3-maddpg report: No finished runs" in capsys.readouterr().err
+    # One scheme's kwargs from the command line, over the preset's.
+    fresh = ["run", "--config", "smoke", "--results", str(tmp_path / "fresh")]
+    assert main([*fresh, "--scheme-model-kwargs", '{"selected": {"selection": 1}}', "--dry-run"]) == 0
+    assert '"scheme_model_kwargs": {"selected": {"selection": 1}}' in capsys.readouterr().out
     table = (report / "table_coverage.md").read_text()
     assert "| smoke (N=3, 1 nearest obs., 30 ep.) |" in table
     assert "| smoke_local" in table

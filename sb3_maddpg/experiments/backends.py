@@ -29,13 +29,18 @@ OnResult = Callable[[RunConfig, dict[str, Any] | None, str | None], None]
 """Called as each run ends: ``(config, result, None)`` on success, ``(config, None, traceback)`` on failure."""
 
 LOST_RUN = "lost: the worker process running it died"
+RAY_MAX_RETRIES = 3
+"""Ray runs a task again this many times when its worker process or node dies (Ray's default, stated)."""
+RAY_MAX_RETRIES_TEXT = f"after Ray's retries (max_retries={RAY_MAX_RETRIES})"
 """How the error of a run lost with its worker process begins."""
 LOST_RUN_ERROR = (
     f"{LOST_RUN} (killed by a signal: the out-of-memory killer or a kill -9?); a local process pool also stops "
     "the runs beside it. Nothing of it counts as finished: run the same command again to run it."
 )
-RAY_MAX_RETRIES = 3
-"""Ray runs a task again this many times when its worker process or node dies (Ray's default, stated)."""
+RAY_LOST_RUN_ERROR = (
+    f"{LOST_RUN} on Ray (its worker or node died, or Ray's memory monitor killed it) {RAY_MAX_RETRIES_TEXT}. Nothing "
+    "of it counts as finished: run the same command again to run it (with fewer runs per node if memory ran out)."
+)
 
 
 def set_worker_threads(threads: int) -> None:
@@ -230,8 +235,8 @@ def run_ray(
             for ref in finished:
                 try:
                     result = ray.get(ref)
-                except (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError):
-                    on_result(refs[ref], None, f"{LOST_RUN_ERROR}\n{traceback.format_exc()}")
+                except (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError, ray.exceptions.OutOfMemoryError):
+                    on_result(refs[ref], None, f"{RAY_LOST_RUN_ERROR}\n{traceback.format_exc()}")
                 except Exception:
                     on_result(refs[ref], None, traceback.format_exc())
                 else:

@@ -58,6 +58,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--model-kwargs", type=json.loads, help="JSON merged into the MADDPG kwargs, e.g. '{\"batch_size\": 256}'"
     )
     group.add_argument(
+        "--scheme-model-kwargs",
+        type=json.loads,
+        help='JSON of MADDPG kwargs for one scheme only, merged per scheme, e.g. \'{"selected": {"selection": 1}}\'',
+    )
+    group.add_argument(
         "--vec-env",
         choices=VEC_ENVS,
         help="batched: SimpleSpreadVecEnv (the same MDP as mpe2, arrays; default); mpe2: DummyVecEnv over mpe2 itself",
@@ -107,6 +112,12 @@ def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
         experiment = load_experiment(name)
         seeds = args.seed_list or (tuple(range(args.seeds)) if args.seeds is not None else None)
         model_kwargs = {**experiment.model_kwargs, **args.model_kwargs} if args.model_kwargs else None
+        scheme_model_kwargs = None
+        if args.scheme_model_kwargs:
+            scheme_model_kwargs = {
+                scheme: {**experiment.scheme_model_kwargs.get(scheme, {}), **kwargs}
+                for scheme, kwargs in {**experiment.scheme_model_kwargs, **args.scheme_model_kwargs}.items()
+            }
         experiment = experiment.replace(
             name=args.name,
             schemes=args.schemes,
@@ -118,6 +129,7 @@ def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
             curve_points=args.curve_points,
             curve_eval_episodes=args.curve_eval_episodes,
             model_kwargs=model_kwargs,
+            scheme_model_kwargs=scheme_model_kwargs,
             keep_checkpoints=args.keep_checkpoints,
             vec_env=args.vec_env,
             n_envs=args.n_envs,
@@ -223,6 +235,9 @@ def report_command(args: argparse.Namespace) -> int:
         if error.name is None or error.name.split(".")[0] != "matplotlib":
             raise
         print(NO_MATPLOTLIB, file=sys.stderr)
+        return 1
+    except (FileNotFoundError, ValueError) as error:  # no finished runs, or a metric the runs do not have
+        print(f"sb3-maddpg report: {error}", file=sys.stderr)
         return 1
     return 0
 

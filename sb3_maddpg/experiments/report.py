@@ -249,7 +249,10 @@ def make_report(
         raise FileNotFoundError(f"No finished runs under {results_dir} (expected <experiment>/<scheme>/seed_*/summary.json).")
     unknown = [metric for metric in metrics if metric not in summaries[0]["score"]]
     if unknown:
-        raise ValueError(f"Unknown metric(s) {unknown}; the runs have {sorted(summaries[0]['score'])}.")
+        raise ValueError(
+            f"Unknown metric(s) {unknown}: the runs in {results_dir} score {sorted(summaries[0]['score'])} (runs written "
+            "before 0.2 have no success or coverage at other radii); pick --metric among those."
+        )
     experiments = load_experiments(results_dir)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
