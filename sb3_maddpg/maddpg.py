@@ -17,14 +17,22 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
 from stable_baselines3.common.utils import polyak_update
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize, unwrap_vec_normalize
+from stable_baselines3.common.vec_env import VecEnv
 from torch.nn import functional as F
 
 from sb3_maddpg.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentCritic
-from sb3_maddpg.selection import NearestAgents, Selector
+from sb3_maddpg.selection import Selector
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent, validate_critic_sharing
+from sb3_maddpg.team_setup import (
+    check_same_layout,
+    draw_noise,
+    layout_of,
+    refuse_reward_normalization,
+    resolve_selection,
+    warn_if_selecting_everyone,
+)
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
 
@@ -216,16 +224,16 @@ class MADDPG(OffPolicyAlgorithm):
         self.agent_layout: AgentLayout | None = None
         self.selection: Selector | None = None
         if self.env is not None:
-            self.agent_layout = _layout_of(self.env)
-            _refuse_reward_normalization(self.env)
+            self.agent_layout = layout_of(self.env)
+            refuse_reward_normalization(self.env)
             schemes = schemes_per_agent(critic_sharing, self.agent_layout.agent_ids)
             for scheme in dict.fromkeys(schemes):  # a team a scheme cannot serve: say so before the selection's errors
                 scheme.check_layout(self.agent_layout)
             if any(scheme.uses_selection for scheme in schemes):
-                self.selection = _resolve_selection(selection)
+                self.selection = resolve_selection(selection)
                 self.selection.validate(self.agent_layout)
                 if _init_setup_model:  # load() sets the saved selection over this one
-                    _warn_if_selecting_everyone(self.selection, self.agent_layout)
+                    warn_if_selecting_everyone(self.selection, self.agent_layout)
             elif selection is not None:
                 raise ValueError(
                     f"selection is used only by schemes that read one (critic_sharing='selected'), got "
@@ -248,7 +256,7 @@ class MADDPG(OffPolicyAlgorithm):
         if self.agent_layout is None:
             raise ValueError("MADDPG needs an env to read the agent layout from (or a saved model to load).")
         if self.env is not None:  # on load(path, env=...), SB3 compares only the spaces
-            _check_same_layout(_layout_of(self.env), self.agent_layout)
+            check_same_layout(layout_of(self.env), self.agent_layout)
         selection_size = self.selection.k if self.selection is not None else 0
         # New dicts: SB3 keeps the caller's, which must not change under them.
         if self.replay_buffer_class is not None and issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
@@ -379,7 +387,7 @@ class MADDPG(OffPolicyAlgorithm):
                 observations = th.as_tensor(self._last_obs, dtype=th.float32, device=self.device)
                 buffer_action = self.actor(observations.reshape(n_envs, -1)).cpu().numpy()
         if action_noise is not None:
-            buffer_action = np.clip(buffer_action + _draw_noise(action_noise, buffer_action.shape), -1.0, 1.0)
+            buffer_action = np.clip(buffer_action + draw_noise(action_noise, buffer_action.shape), -1.0, 1.0)
         return self.policy.unscale_action(buffer_action), buffer_action
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
@@ -567,8 +575,8 @@ class MADDPG(OffPolicyAlgorithm):
         """
         # Check before replacing: a refused env must not stay in the model.
         wrapped = self._wrap_env(env, self.verbose)
-        _check_same_layout(_layout_of(wrapped), self.agent_layout)
-        _refuse_reward_normalization(wrapped)
+        check_same_layout(layout_of(wrapped), self.agent_layout)
+        refuse_reward_normalization(wrapped)
         super().set_env(wrapped, force_reset)
 
     def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
@@ -617,82 +625,3 @@ class MADDPG(OffPolicyAlgorithm):
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         return ["policy", "actor.optimizer", "critic.optimizer"], []
-
-
-def _layout_of(env: VecEnv) -> AgentLayout:
-    try:
-        layouts = env.get_attr("agent_layout")
-    except AttributeError:
-        raise ValueError(
-            "The env has no agent_layout: MADDPG needs to know which part of the joint observation and action belongs "
-            "to which agent. Wrap your PettingZoo ParallelEnv in sb3_maddpg.envs.PettingZooToGym (or use "
-            "sb3_maddpg.envs.make_simple_spread)."
-        ) from None
-    if any(layout != layouts[0] for layout in layouts):
-        raise ValueError(f"All envs of the VecEnv must have the same agent layout, got {set(layouts)}.")
-    if not isinstance(layouts[0], AgentLayout):
-        raise TypeError(f"env.agent_layout must be an sb3_maddpg.AgentLayout, got {type(layouts[0]).__name__}.")
-    return layouts[0]
-
-
-def _check_same_layout(env_layout: AgentLayout, model_layout: AgentLayout | None) -> None:
-    if env_layout != model_layout:
-        raise ValueError(
-            f"The env's agent layout {env_layout} differs from the model's agent layout {model_layout}: "
-            "use an env with the same agents, in the same order, with the same observation and action sizes."
-        )
-
-
-def _refuse_reward_normalization(env: VecEnv) -> None:
-    vec_normalize = unwrap_vec_normalize(env)
-    if isinstance(vec_normalize, VecNormalize) and vec_normalize.norm_reward:
-        raise ValueError(
-            "VecNormalize(norm_reward=True) would normalise only the team's scalar reward, not the per-agent rewards "
-            "the critics learn from: use VecNormalize(env, norm_reward=False) (observation normalisation is fine)."
-        )
-
-
-def _draw_noise(action_noise: ActionNoise, action_shape: tuple[int, ...]) -> np.ndarray:
-    """
-    One draw of the exploration noise, refused with the cause when it does not fit the joint actions.
-
-    :param action_noise: The noise.
-    :param action_shape: The joint actions' shape, ``[n_envs, action_dim]``.
-    :return: Noise of shape ``[n_envs, action_dim]`` or ``[action_dim]``.
-    """
-    noise = action_noise()
-    if np.shape(noise) != action_shape and np.shape(noise) != action_shape[1:]:
-        n_envs, action_dim = action_shape
-        raise ValueError(
-            f"action_noise gives noise of shape {np.shape(noise)}, but the joint actions have shape {action_shape} "
-            f"({n_envs} env(s), {action_dim} action components over all agents): give a noise over the joint action, "
-            f"e.g. NormalActionNoise(mean=np.zeros({action_dim}), sigma=...) (SB3 vectorises it over the envs), or "
-            "leave action_noise=None for the default noise of noise_std."
-        )
-    return noise
-
-
-def _resolve_selection(selection: Selector | int | None) -> Selector:
-    """The selector of ``selected`` sharing: the default ``NearestAgents(k=2)``, or an int ``k`` for ``NearestAgents(k)``."""
-    if selection is None:
-        return NearestAgents(k=2)
-    if isinstance(selection, int) and not isinstance(selection, bool):
-        return NearestAgents(k=selection)
-    if not isinstance(selection, Selector):
-        raise TypeError(
-            f"selection must be a sb3_maddpg.selection.Selector or an int k (the k nearest agents), got "
-            f"{type(selection).__name__}: wrap a function as CallableSelector(fn, k=...)."
-        )
-    return selection
-
-
-def _warn_if_selecting_everyone(selection: Selector, layout: AgentLayout) -> None:
-    """Selecting all n - 1 other agents is full sharing in another order: say so, since it compares nothing."""
-    if selection.k == layout.n_agents - 1:
-        warnings.warn(
-            f"critic_sharing='selected' with k={selection.k} selects every other agent of this {layout.n_agents}-agent "
-            f"team: each critic sees what 'full' sees, in another order. Select fewer (e.g. selection=1, the nearest "
-            "agent) for a critic that selects.",
-            UserWarning,
-            stacklevel=3,
-        )
