@@ -52,6 +52,7 @@ def series(results: Path, experiment: str, scheme: str, key: str, steps: list[in
 
 
 def listening_table(results: Path, experiments: list[str], steps: list[int]) -> str:
+    """:return: Markdown: per setting, learned scheme and summary, its mean over seeds at each step."""
     lines = ["| setting | scheme | summary | " + " | ".join(f"{step // 1000}k" for step in steps) + " |"]
     lines.append("|---|---|---|" + "---|" * len(steps))
     for experiment in experiments:
@@ -66,6 +67,7 @@ def listening_table(results: Path, experiments: list[str], steps: list[int]) -> 
 
 
 def listening_plot(results: Path, experiments: list[str], steps: list[int], path: Path) -> None:
+    """Draw, per setting, the weight on the nearest agent and how often the choice is the k nearest, over training."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -94,6 +96,7 @@ def listening_plot(results: Path, experiments: list[str], steps: list[int], path
 
 
 def main() -> None:
+    """Write the report and the listening summaries."""
     results = Path(sys.argv[1]) if len(sys.argv) > 1 else HERE / "results"
     out = Path(sys.argv[2]) if len(sys.argv) > 2 else HERE / "report"
     for path in make_report(results, out, metrics=("min_dist_sum", "return_mean", "success_rate")):
@@ -107,6 +110,7 @@ def main() -> None:
 
 
 def _totals(results: Path) -> list[str]:
+    """Every finished run's budget, in env steps."""
     import json
 
     return [str(json.loads(path.read_text())["total_timesteps"]) for path in results.glob("*/*/seed_*/summary.json")]
