@@ -211,15 +211,16 @@ def make_mpe_env(
     **task_kwargs: Any,
 ) -> PettingZooToGym:
     """
-    Build one of the nine MPE tasks of :data:`MPE_TASKS` as a :class:`PettingZooToGym` env for MADDPG, with the
-    task's metrics in ``info`` at every reset and step (see :data:`MPE_TASK_METRICS`).
+    Build one of the nine MPE tasks of :data:`~sb3_maddpg.envs.mpe_tasks.MPE_TASKS` as a :class:`PettingZooToGym` env
+    for MADDPG, with the task's metrics in ``info`` at every reset and step
+    (see :data:`~sb3_maddpg.envs.mpe_tasks.MPE_TASK_METRICS`).
 
     Agents come in mpe2's ``possible_agents`` order; every agent's action is a ``Box(0, 1)``. Episodes end by
     truncation after ``max_cycles`` steps. ``make_mpe_env("simple_spread", **kwargs)`` is
     :func:`~sb3_maddpg.envs.make_simple_spread` ``(**kwargs)``: 5 agents by default (the paper's; mpe2's is 3),
     and mpe2's ``N`` is accepted for ``n_agents``.
 
-    :param task: The task's name, a key of :data:`MPE_TASKS` (e.g. ``"simple_tag"``).
+    :param task: The task's name, a key of :data:`~sb3_maddpg.envs.mpe_tasks.MPE_TASKS` (e.g. ``"simple_tag"``).
     :param continuous_actions: Must be ``True`` for now: discrete actions are not supported yet.
     :param max_cycles: Episode length in steps.
     :param team_reward: How the agents' rewards are combined into SB3's scalar reward, ``"sum"`` or ``"mean"``
