@@ -190,15 +190,15 @@ def test_simple_goal_distance() -> None:
 def test_goal_race_distances(task: str) -> None:
     env = built(task)
     world = env.parallel_env.unwrapped.world
-    goal = world.agents[0].goal_a
-    other = next(landmark for landmark in world.landmarks if landmark is not goal)
-    goal.state.p_pos, other.state.p_pos = np.array([0.0, 0.0]), np.array([0.1, 0.1])
     # Agent 0 is the adversary; the last good agent is the nearest one to the goal (3-4-5 triangle: 0.5).
     last = len(world.agents) - 1
-    place(env, {0: (0.0, -0.2), last: (0.3, 0.4)}, {})
-    for index in range(1, last):
-        place(env, {index: (1.0, 1.0)}, {})
-    assert metrics(env) == {"goal_distance": pytest.approx(0.5), "adversary_goal_distance": pytest.approx(0.2)}
+    place(env, {0: (0.0, -0.2), last: (0.3, 0.4), **dict.fromkeys(range(1, last), (1.0, 1.0))}, {})
+    for goal_index, goal in enumerate(world.landmarks):  # whichever landmark mpe2 draws as the goal
+        for agent in world.agents:
+            agent.goal_a = goal
+        place(env, {}, {index: (-2.0, 2.0 + index) for index in range(len(world.landmarks))})
+        place(env, {}, {goal_index: (0.0, 0.0)})
+        assert metrics(env) == {"goal_distance": pytest.approx(0.5), "adversary_goal_distance": pytest.approx(0.2)}
 
 
 def test_simple_crypto_who_recovers_the_message() -> None:
