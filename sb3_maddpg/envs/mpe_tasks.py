@@ -177,7 +177,7 @@ MPE_TASK_METRICS: dict[str, tuple[TaskMetric, ...]] = {
     ),
     "simple_spread": (
         TaskMetric("success", "last", "higher", "team", "1 when every landmark is covered, else 0"),
-        TaskMetric("coverage", "last", "higher", "team", "fraction of landmarks with an agent within 0.1"),
+        TaskMetric("coverage", "last", "higher", "team", "fraction of landmarks with an agent within the capture radius"),
         TaskMetric("collisions", "sum", "lower", "team", "agent pairs in contact"),
         TaskMetric("min_dist_sum", "last", "lower", "team", "sum over landmarks of the nearest agent's distance"),
     ),
