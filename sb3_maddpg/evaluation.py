@@ -4,6 +4,7 @@ import copy
 import csv
 import os
 import warnings
+from collections.abc import Sequence
 from typing import Any, Protocol
 
 import gymnasium as gym
@@ -47,6 +48,14 @@ EVAL_KEYS = (
 """The scalar results of :func:`evaluate_team`, in the order they are logged and written."""
 
 
+class DeclaredMetric(Protocol):
+    """A task metric an env adds to ``info`` (e.g. :class:`~sb3_maddpg.envs.TaskMetric`): its key, and whether an
+    episode is scored by its ``"last"`` step's value or the ``"sum"`` over its steps."""
+
+    key: str
+    per_episode: str
+
+
 class PredictsActions(Protocol):
     """Anything with SB3's ``predict`` (a model or a policy)."""
 
@@ -65,6 +74,7 @@ def evaluate_team(
     n_episodes: int = 100,
     deterministic: bool = True,
     seed: int | None = None,
+    task_metrics: Sequence[DeclaredMetric] = (),
 ) -> dict[str, Any]:
     """
     Run a team for ``n_episodes`` episodes and measure the task, as the paper's evaluation does.
@@ -87,6 +97,9 @@ def evaluate_team(
         samples (for stochastic policies), and a model with ``action_noise`` (MADDPG, SB3's TD3 and DDPG) gets a copy
         of that noise added in the [-1, 1] action space and clipped there, as in the model's data collection (the
         model's own noise process is not advanced).
+    :param task_metrics: Other task metrics to score from ``info``, e.g. ``MPE_TASK_METRICS["simple_tag"]`` for an
+        env of :func:`~sb3_maddpg.envs.make_mpe_env`: each is returned under its key, the mean over episodes of its
+        last-step value or of its sum over the episode. When given, only their absence is warned about.
     :param seed: Seed for the env's first reset, so that two evaluations with the same seed see the
         same episodes (the same initial states); ``None`` to continue the env's own random stream.
     :return: A dict with ``success_rate`` (fraction of episodes in which every landmark is covered at
@@ -111,6 +124,9 @@ def evaluate_team(
     collisions = np.zeros(n_envs)
     agent_returns: list[np.ndarray | None] = [None] * n_envs
     episodes: dict[str, list[Any]] = {key: [] for key in ("return", "length", "agent_returns", *TASK_METRICS, *RADIUS_KEYS)}
+    declared = {metric.key: metric.per_episode for metric in task_metrics}
+    declared_values: dict[str, list[float]] = {key: [] for key in declared}
+    declared_sums = {key: np.zeros(n_envs) for key, per_episode in declared.items() if per_episode == "sum"}
     states = None
     episode_starts = np.ones(n_envs, dtype=bool)
     exploration = None if deterministic else _exploration_noise(model, n_envs)
@@ -125,6 +141,8 @@ def evaluate_team(
         for i in range(n_envs):
             info = infos[i]
             collisions[i] += float(info.get("collisions", np.nan))
+            for key, sums in declared_sums.items():
+                sums[i] += float(info.get(key, np.nan))
             if "agent_rewards" in info:
                 step_rewards = np.asarray(info["agent_rewards"], dtype=np.float64)
                 previous = agent_returns[i]
@@ -140,21 +158,33 @@ def evaluate_team(
                     episodes[key].append(float(info.get(key, np.nan)))
                 for key, value in _radius_metrics(info.get("landmark_distances")).items():
                     episodes[key].append(value)
+                for key, per_episode in declared.items():
+                    declared_values[key].append(
+                        declared_sums[key][i] if per_episode == "sum" else float(info.get(key, np.nan))
+                    )
                 counts[i] += 1
             team_returns[i], lengths[i], collisions[i], agent_returns[i] = 0.0, 0, 0.0, None
+            for sums in declared_sums.values():
+                sums[i] = 0.0
         episode_starts = dones
         if exploration is not None and dones.any():
             exploration.reset(np.flatnonzero(dones))
 
     returns = np.asarray(episodes["return"])
     per_agent = [r for r in episodes["agent_returns"] if r is not None]
-    missing = [key for key in TASK_METRICS if np.isnan(episodes[key]).all()]
-    missing += ["landmark_distances"] if np.isnan(episodes[RADIUS_KEYS[0]]).all() else []
+    if declared:
+        missing = [key for key, values in declared_values.items() if np.isnan(values).all()]
+        hint = "the task_metrics given are not in the env's info"
+    else:
+        missing = [key for key in TASK_METRICS if np.isnan(episodes[key]).all()]
+        missing += ["landmark_distances"] if np.isnan(episodes[RADIUS_KEYS[0]]).all() else []
+        hint = (
+            "simple_spread's envs give them; for another MPE task pass its task_metrics=MPE_TASK_METRICS[task], "
+            "or read return_mean and agent_returns"
+        )
     if missing:
         warnings.warn(
-            f"evaluate_team: the env's info has no task metrics for {missing} (simple_spread's envs give them; "
-            "other envs do not), so they are nan; read return_mean and agent_returns instead.",
-            stacklevel=2,
+            f"evaluate_team: the env's info has no task metrics for {missing}, so they are nan: {hint}.", stacklevel=2
         )
     return {
         "success_rate": float(np.mean(episodes["success"])),
@@ -167,6 +197,7 @@ def evaluate_team(
         "agent_returns": np.mean(per_agent, axis=0).tolist() if len(per_agent) == len(returns) else [],
         "n_episodes": len(returns),
         **{key: float(np.mean(episodes[key])) for key in RADIUS_KEYS},
+        **{key: float(np.mean(values)) for key, values in declared_values.items()},
     }
 
 

@@ -264,3 +264,27 @@ def test_team_eval_callback_copies_vec_normalize_statistics() -> None:
     model = MADDPG("MlpPolicy", VecNormalize(DummyVecEnv([make_env]), norm_reward=False), seed=0, **TINY)
     with pytest.raises(ValueError, match="the training env is normalised by VecNormalize but the eval env is not"):
         model.learn(100, callback=TeamEvalCallback(make_env(), eval_freq=50, n_eval_episodes=1))
+
+
+def test_evaluate_team_scores_declared_task_metrics() -> None:
+    from sb3_maddpg.envs import MPE_TASK_METRICS, TaskMetric, make_mpe_env
+
+    # On the scripted env: min_dist_sum scored at the last step, collisions summed, as declared.
+    declared = (
+        TaskMetric("min_dist_sum", "last", "lower", "team", "scripted"),
+        TaskMetric("collisions", "sum", "lower", "team", "scripted"),
+    )
+    result = evaluate_team(
+        ConstantModel(np.zeros(2, np.float32)), ScriptedEnv(lengths=(3, 5)), n_episodes=4, task_metrics=declared
+    )
+    assert result["min_dist_sum"] == pytest.approx(np.mean([3, 15, 23, 35]))
+    assert result["collisions"] == pytest.approx(np.mean([6, 15, 6, 15]))
+    # On simple_tag: catches per episode, and no warning about simple_spread's keys.
+    env = make_mpe_env("simple_tag", max_cycles=10)
+    model = ConstantModel(np.zeros(env.action_space.shape, np.float32))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tag = evaluate_team(model, env, n_episodes=2, task_metrics=MPE_TASK_METRICS["simple_tag"])
+    assert tag["collisions"] >= 0.0 and not math.isnan(tag["collisions"])
+    with pytest.warns(UserWarning, match=r"no task metrics for \['goal_distance'\].*not in the env's info"):
+        evaluate_team(model, env, n_episodes=1, task_metrics=MPE_TASK_METRICS["simple"])
