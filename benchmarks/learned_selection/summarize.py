@@ -5,6 +5,8 @@ aggregate estimates, learning curves, boxplots) and what the learned critics lis
 Reads the runs in ``results/`` (written by ``run.sh``) and writes into ``report/``:
 
 - ``sb3-maddpg report``'s files for ``min_dist_sum``, ``return_mean`` and ``success_rate``;
+- ``cost.md``: per setting and scheme, the runs' mean training throughput (env steps/s, updates included) and
+  its ratio to ``full``'s, from the same sweep;
 - ``listening.md`` and ``listening.png``: for ``attention`` and ``learned_selection``, the team means of
   ``train/weight_on_nearest``, ``train/attention_entropy`` and (learned selection) ``train/chose_nearest`` from
   SB3's log, mean over seeds every 100k steps: whether the learned selection converges to the k nearest agents.
@@ -49,6 +51,23 @@ def series(results: Path, experiment: str, scheme: str, key: str, steps: list[in
                 at_step.append(min(points, key=lambda point: abs(point[0] - step))[1])
         values.append(statistics.mean(at_step) if at_step else None)
     return values
+
+
+def cost_table(results: Path) -> str:
+    """:return: Markdown: per setting and scheme, mean training steps/s over the finished runs and the ratio to full."""
+    import json
+
+    rates: dict[tuple[str, str], list[float]] = {}
+    for path in sorted(results.glob("*/*/seed_*/summary.json")):
+        if (path.parent / "done").exists():
+            summary = json.loads(path.read_text())
+            rates.setdefault((summary["experiment"], summary["scheme"]), []).append(summary["train_steps_per_s"])
+    lines = ["| setting | scheme | runs | train steps/s (mean) | vs full |", "|---|---|---|---|---|"]
+    for (experiment, scheme), values in sorted(rates.items()):
+        full = rates.get((experiment, "full"))
+        ratio = f"{statistics.mean(values) / statistics.mean(full):.2f}" if full else ""
+        lines.append(f"| {experiment} | {scheme} | {len(values)} | {statistics.mean(values):,.0f} | {ratio} |")
+    return "\n".join(lines) + "\n"
 
 
 def listening_table(results: Path, experiments: list[str], steps: list[int]) -> str:
@@ -104,9 +123,10 @@ def main() -> None:
     experiments = sorted(path.name for path in results.iterdir() if (path / "experiment.json").exists())
     total = max(int(float(row)) for row in _totals(results))
     steps = list(range(total // 10, total + 1, total // 10))
+    (out / "cost.md").write_text(cost_table(results))
     (out / "listening.md").write_text(listening_table(results, experiments, steps))
     listening_plot(results, experiments, steps, out / "listening.png")
-    print(out / "listening.md", out / "listening.png", sep="\n")
+    print(out / "cost.md", out / "listening.md", out / "listening.png", sep="\n")
 
 
 def _totals(results: Path) -> list[str]:
