@@ -48,12 +48,28 @@ EVAL_KEYS = (
 """The scalar results of :func:`evaluate_team`, in the order they are logged and written."""
 
 
+def eval_keys(task_metrics: Sequence["DeclaredMetric"] = (), score_agents: Sequence[str] = ()) -> tuple[str, ...]:
+    """
+    :param task_metrics: Task metrics scored besides simple_spread's.
+    :param score_agents: Agent ids scored as a group.
+    :return: The scalar keys :func:`evaluate_team` returns with them: :data:`EVAL_KEYS`, the task metrics' keys, and
+        ``group_return`` when a group is scored.
+    """
+    extra = [metric.key for metric in task_metrics if metric.key not in EVAL_KEYS]
+    return (*EVAL_KEYS, *extra, *(("group_return",) if score_agents else ()))
+
+
 class DeclaredMetric(Protocol):
     """A task metric an env adds to ``info`` (e.g. :class:`~sb3_maddpg.envs.TaskMetric`): its key, and whether an
     episode is scored by its ``"last"`` step's value or the ``"sum"`` over its steps."""
 
-    key: str
-    per_episode: str
+    @property
+    def key(self) -> str:
+        """The key in ``info``."""
+
+    @property
+    def per_episode(self) -> str:
+        """``"last"`` or ``"sum"``."""
 
 
 class PredictsActions(Protocol):
@@ -75,6 +91,7 @@ def evaluate_team(
     deterministic: bool = True,
     seed: int | None = None,
     task_metrics: Sequence[DeclaredMetric] = (),
+    score_agents: Sequence[str] = (),
 ) -> dict[str, Any]:
     """
     Run a team for ``n_episodes`` episodes and measure the task, as the paper's evaluation does.
@@ -100,6 +117,8 @@ def evaluate_team(
     :param task_metrics: Other task metrics to score from ``info``, e.g. ``MPE_TASK_METRICS["simple_tag"]`` for an
         env of :func:`~sb3_maddpg.envs.make_mpe_env`: each is returned under its key, the mean over episodes of its
         last-step value or of its sum over the episode. When given, only their absence is warned about.
+    :param score_agents: Agent ids (of the env's ``agent_layout``) whose summed mean return is returned as
+        ``group_return``, e.g. the adversaries of ``simple_tag``.
     :param seed: Seed for the env's first reset, so that two evaluations with the same seed see the
         same episodes (the same initial states); ``None`` to continue the env's own random stream.
     :return: A dict with ``success_rate`` (fraction of episodes in which every landmark is covered at
@@ -198,7 +217,18 @@ def evaluate_team(
         "n_episodes": len(returns),
         **{key: float(np.mean(episodes[key])) for key in RADIUS_KEYS},
         **{key: float(np.mean(values)) for key, values in declared_values.items()},
+        **({"group_return": _group_return(vec_env, per_agent, score_agents)} if score_agents else {}),
     }
+
+
+def _group_return(vec_env: VecEnv, per_agent: list[np.ndarray], group: Sequence[str]) -> float:
+    """The summed mean return of the agents in ``group``."""
+    agent_ids = tuple(vec_env.get_attr("agent_layout")[0].agent_ids)
+    unknown = sorted(set(group) - set(agent_ids))
+    if unknown:
+        raise ValueError(f"score_agents names agents not in the team: {unknown}; the team is {list(agent_ids)}.")
+    means = np.mean(per_agent, axis=0)
+    return float(sum(value for agent, value in zip(agent_ids, means) if agent in group))
 
 
 def _exploration_noise(model: PredictsActions, n_envs: int) -> VectorizedActionNoise | None:
@@ -254,6 +284,8 @@ class TeamEvalCallback(BaseCallback):
     :param log_prefix: The logger key prefix.
     :param eval_at_start: Also evaluate the untrained team when training starts (timestep 0).
     :param verbose: 1 to print each evaluation.
+    :param task_metrics: Other task metrics to score and log (see :func:`evaluate_team`).
+    :param score_agents: Agent ids whose summed return to log as ``group_return`` (see :func:`evaluate_team`).
     """
 
     def __init__(
@@ -267,6 +299,8 @@ class TeamEvalCallback(BaseCallback):
         log_prefix: str = "eval",
         eval_at_start: bool = False,
         verbose: int = 0,
+        task_metrics: Sequence[DeclaredMetric] = (),
+        score_agents: Sequence[str] = (),
     ) -> None:
         super().__init__(verbose=verbose)
         if eval_freq < 1:
@@ -279,6 +313,9 @@ class TeamEvalCallback(BaseCallback):
         self.log_path = log_path
         self.log_prefix = log_prefix
         self.eval_at_start = eval_at_start
+        self.task_metrics = tuple(task_metrics)
+        self.score_agents = tuple(score_agents)
+        self.keys = eval_keys(self.task_metrics, self.score_agents)
         self.history: list[dict[str, float]] = []
 
     def _on_training_start(self) -> None:
@@ -295,11 +332,17 @@ class TeamEvalCallback(BaseCallback):
         if self.model.get_vec_normalize_env() is not None:
             self._sync_normalization()
         result = evaluate_team(
-            self.model, self.eval_env, n_episodes=self.n_eval_episodes, deterministic=self.deterministic, seed=self.seed
+            self.model,
+            self.eval_env,
+            n_episodes=self.n_eval_episodes,
+            deterministic=self.deterministic,
+            seed=self.seed,
+            task_metrics=self.task_metrics,
+            score_agents=self.score_agents,
         )
-        row = {"timesteps": float(self.num_timesteps), **{key: float(result[key]) for key in EVAL_KEYS}}
+        row = {"timesteps": float(self.num_timesteps), **{key: float(result[key]) for key in self.keys}}
         self.history.append(row)
-        for key in EVAL_KEYS:
+        for key in self.keys:
             self.logger.record(f"{self.log_prefix}/{key}", row[key])
         self.logger.record("time/total_timesteps", self.num_timesteps, exclude="tensorboard")
         self.logger.dump(self.num_timesteps)

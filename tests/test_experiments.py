@@ -231,7 +231,7 @@ def test_a_run_on_mpe2_itself(tmp_path: Path) -> None:
     config = tiny(schemes=("full",), seeds=(0,), vec_env="mpe2", n_envs=2).runs()[0]
     result = execute_run(config, tmp_path, verbose=0)
     assert result["n_checkpoints"] == 2 and np.isfinite(result["score"]["return_mean"])
-    assert "on 2 mpe2 env(s)" in (tmp_path / config.run_id / "train.log").read_text()
+    assert "on 2 mpe2 simple_spread env(s)" in (tmp_path / config.run_id / "train.log").read_text()
 
 
 def test_interrupted_sweep_resumes(tmp_path: Path) -> None:

@@ -63,6 +63,15 @@ def build_parser() -> argparse.ArgumentParser:
         help='JSON of MADDPG kwargs for one scheme only, merged per scheme, e.g. \'{"selected": {"selection": 1}}\'',
     )
     group.add_argument(
+        "--env",
+        help="the task: simple_spread (default), another MPE task (e.g. simple_tag), a PettingZoo factory "
+        "'module:function', or a gymnasium id",
+    )
+    group.add_argument("--env-kwargs", type=json.loads, help="JSON of the task constructor's keyword arguments")
+    group.add_argument(
+        "--score-agents", type=_str_list, help="comma-separated agent ids whose summed return is scored (group_return)"
+    )
+    group.add_argument(
         "--vec-env",
         choices=VEC_ENVS,
         help="batched: SimpleSpreadVecEnv (the same MDP as mpe2, arrays; default); mpe2: DummyVecEnv over mpe2 itself",
@@ -130,6 +139,9 @@ def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
             curve_eval_episodes=args.curve_eval_episodes,
             model_kwargs=model_kwargs,
             scheme_model_kwargs=scheme_model_kwargs,
+            env=args.env,
+            env_kwargs=args.env_kwargs,
+            score_agents=args.score_agents,
             keep_checkpoints=args.keep_checkpoints,
             vec_env=args.vec_env,
             n_envs=args.n_envs,

@@ -41,6 +41,8 @@ def setting_label(name: str, experiment: dict[str, Any] | None) -> str:
     """
     if not experiment:
         return name
+    if experiment.get("env", DEFAULT_ENV) != DEFAULT_ENV:
+        return f"{name} ({experiment['env']}, {experiment['episodes']:,} ep.)"
     neighbors = experiment.get("num_agent_neighbors")
     observability = "full obs." if neighbors is None else f"{neighbors} nearest obs."
     return f"{name} (N={experiment['n_agents']}, {observability}, {experiment['episodes']:,} ep.)"
@@ -57,6 +59,17 @@ PAPER_NAMES = {
     "selected": "MADDPG-soa",
 }
 """The paper's name of each scheme."""
+
+
+DEFAULT_ENV = "simple_spread"
+"""The paper's task."""
+
+
+def _check_env(env: str) -> None:
+    if not isinstance(env, str) or not env.strip():
+        raise ValueError(
+            f"env must name a task: 'simple_spread', another MPE task, 'module:function' or a gymnasium id, got {env!r}."
+        )
 
 
 def _check_vec_env(vec_env: str, n_envs: int) -> None:
@@ -92,6 +105,13 @@ class RunConfig:
     :param vec_env: ``"batched"`` (:class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`) or ``"mpe2"`` (``DummyVecEnv``
         over mpe2 through the adapter): the same MDP, the first 92-152x faster to step with 64-256 worlds.
     :param n_envs: Worlds (envs) stepped together during training.
+    :param env: The task: ``"simple_spread"`` (the paper's; ``n_agents``, ``num_agent_neighbors`` and ``vec_env`` apply
+        to it only), another MPE task of :data:`~sb3_maddpg.envs.MPE_TASKS` (scored by its
+        :data:`~sb3_maddpg.envs.MPE_TASK_METRICS` too), a PettingZoo parallel env factory as ``"module:function"``, or a
+        registered gymnasium id whose env has an ``agent_layout``. Other tasks step ``n_envs`` envs in a ``DummyVecEnv``.
+    :param env_kwargs: Keyword arguments for the task's constructor (MPE tasks also get ``max_cycles=episode_length``).
+    :param score_agents: Agent ids whose summed return is scored as ``group_return`` (e.g. the adversaries of
+        ``simple_tag``); empty for none.
     """
 
     experiment: str
@@ -111,9 +131,14 @@ class RunConfig:
     algorithm: str = DEFAULT_ALGORITHM
     vec_env: str = "batched"
     n_envs: int = DEFAULT_N_ENVS
+    env: str = DEFAULT_ENV
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    score_agents: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         _check_vec_env(self.vec_env, self.n_envs)
+        _check_env(self.env)
+        object.__setattr__(self, "score_agents", tuple(self.score_agents))
         if self.episodes < 1 or self.episode_length < 1:
             raise ValueError(f"episodes and episode_length must be positive, got {self.episodes}, {self.episode_length}.")
         if not 0 < self.checkpoint_fraction <= 1:
@@ -213,6 +238,9 @@ class ExperimentConfig:
     :param n_envs: Worlds (envs) stepped together during training.
     :param scheme_model_kwargs: Keyword arguments for ``MADDPG`` of one scheme only, over ``model_kwargs``, e.g.
         ``{"selected": {"selection": 1}}`` (the nearest agent) for the ``selected`` runs.
+    :param env: The task (see :class:`RunConfig`).
+    :param env_kwargs: Keyword arguments for the task's constructor.
+    :param score_agents: Agent ids whose summed return is scored as ``group_return``.
     """
 
     name: str
@@ -234,9 +262,14 @@ class ExperimentConfig:
     vec_env: str = "batched"
     n_envs: int = DEFAULT_N_ENVS
     scheme_model_kwargs: dict[str, dict[str, Any]] = field(default_factory=dict)
+    env: str = DEFAULT_ENV
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    score_agents: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         _check_vec_env(self.vec_env, self.n_envs)
+        _check_env(self.env)
+        object.__setattr__(self, "score_agents", tuple(self.score_agents))
         unknown = sorted(set(self.scheme_model_kwargs) - set(SCHEMES) - set(self.schemes))
         if unknown:
             raise ValueError(
@@ -283,7 +316,7 @@ class ExperimentConfig:
         :return: The config.
         """
         data = {"vec_env": "mpe2", "n_envs": 1, **data}
-        for key in ("schemes", "seeds"):
+        for key in ("schemes", "seeds", "score_agents"):
             if key in data:
                 data[key] = tuple(data[key])
         return cls(**data)

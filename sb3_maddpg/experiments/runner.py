@@ -13,8 +13,8 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
-from sb3_maddpg.evaluation import EVAL_KEYS, TeamEvalCallback, evaluate_team, write_rows
-from sb3_maddpg.experiments.config import PAPER_NAMES, RunConfig
+from sb3_maddpg.evaluation import TeamEvalCallback, eval_keys, evaluate_team, write_rows
+from sb3_maddpg.experiments.config import DEFAULT_ENV, PAPER_NAMES, RunConfig
 from sb3_maddpg.experiments.results import (
     CHECKPOINT_DIR,
     CHECKPOINT_EVALS_FILE,
@@ -28,6 +28,7 @@ from sb3_maddpg.experiments.results import (
     run_directory,
     write_json_atomic,
 )
+from sb3_maddpg.experiments.tasks import describe, make_task_vec_env, task_metrics
 
 
 def load_algorithm(path: str) -> type[BaseAlgorithm]:
@@ -45,17 +46,9 @@ def make_env(config: RunConfig, n_envs: int | None = None) -> VecEnv:
     """
     :param config: The run.
     :param n_envs: Worlds (default: the run's ``n_envs``).
-    :return: The run's simple_spread VecEnv, batched or over mpe2 as the config says (a new one on each call).
+    :return: The run's task as a VecEnv (simple_spread batched or over mpe2 as the config says; a new one on each call).
     """
-    from sb3_maddpg.envs import make_simple_spread_vec_env
-
-    return make_simple_spread_vec_env(
-        config.n_envs if n_envs is None else n_envs,
-        config.vec_env,  # type: ignore[arg-type]  # RunConfig checks it
-        n_agents=config.n_agents,
-        num_agent_neighbors=config.num_agent_neighbors,
-        max_cycles=config.episode_length,
-    )
+    return make_task_vec_env(config, config.n_envs if n_envs is None else n_envs)
 
 
 def make_eval_env(config: RunConfig, n_episodes: int) -> VecEnv:
@@ -64,7 +57,8 @@ def make_eval_env(config: RunConfig, n_episodes: int) -> VecEnv:
     :param n_episodes: Episodes per evaluation.
     :return: An evaluation env: on the batched env, one world per episode, so an evaluation takes one episode's steps.
     """
-    return make_env(config, n_episodes if config.vec_env == "batched" else 1)
+    batched = config.env == DEFAULT_ENV and config.vec_env == "batched"
+    return make_env(config, n_episodes if batched else 1)
 
 
 def log_line(line: str, log_path: str | None, echo: bool) -> None:
@@ -233,11 +227,12 @@ def execute_run(
                 seed=config.eval_seed,
                 log_path=str(directory / CURVE_FILE),
                 eval_at_start=True,
+                task_metrics=task_metrics(config),
+                score_agents=config.score_agents,
             )
         )
     progress.log(
-        f"{config.run_id}: training {config.total_timesteps:,} steps ({config.episodes:,} episodes) on "
-        f"{config.n_envs} {config.vec_env} env(s)"
+        f"{config.run_id}: training {config.total_timesteps:,} steps ({config.episodes:,} episodes) on {describe(config)}"
     )
     model.learn(config.total_timesteps, callback=CallbackList(callbacks), log_interval=max(1, config.episodes // 100))
     train_time = time.perf_counter() - started
@@ -248,17 +243,25 @@ def execute_run(
     eval_started = time.perf_counter()
     eval_env = make_eval_env(config, config.eval_episodes)
     rows = []
+    keys = eval_keys(task_metrics(config), config.score_agents)
     for steps, path in checkpoints.saved:
         checkpoint = algorithm.load(path, device="cpu")
-        result = evaluate_team(checkpoint, eval_env, n_episodes=config.eval_episodes, seed=config.eval_seed)
-        rows.append({"timesteps": steps, "episodes": steps // config.episode_length, **{k: result[k] for k in EVAL_KEYS}})
+        result = evaluate_team(
+            checkpoint,
+            eval_env,
+            n_episodes=config.eval_episodes,
+            seed=config.eval_seed,
+            task_metrics=task_metrics(config),
+            score_agents=config.score_agents,
+        )
+        rows.append({"timesteps": steps, "episodes": steps // config.episode_length, **{k: result[k] for k in keys}})
     write_rows(str(directory / CHECKPOINT_EVALS_FILE), rows)
     eval_time = time.perf_counter() - eval_started
     eval_env.close()
     if not config.keep_checkpoints:
         shutil.rmtree(directory / CHECKPOINT_DIR, ignore_errors=True)
 
-    score = {key: sum(row[key] for row in rows) / len(rows) for key in EVAL_KEYS}
+    score = {key: sum(row[key] for row in rows) / len(rows) for key in keys}
     summary: dict[str, Any] = {
         "run_id": config.run_id,
         "experiment": config.experiment,
@@ -276,11 +279,20 @@ def execute_run(
     write_json_atomic(directory / SUMMARY_FILE, summary)
     progress.log(
         f"{config.run_id}: done in {_format_seconds(summary['wall_time_s'])} "
-        f"({summary['train_steps_per_s']:,.0f} steps/s), score: success {100 * score['success_rate']:.1f}%, "
-        f"coverage {100 * score['coverage']:.1f}%, min-dist sum {score['min_dist_sum']:.3f}"
+        f"({summary['train_steps_per_s']:,.0f} steps/s), score: {score_line(score)}"
     )
     mark_done(directory)
     return collect_result(directory)
+
+
+def score_line(score: dict[str, float]) -> str:
+    """
+    :param score: A run's score.
+    :return: Its headline in a few words: simple_spread's success and coverage, or else the team return.
+    """
+    if score.get("success_rate", float("nan")) == score.get("success_rate"):  # not nan: a simple_spread run
+        return f"success {100 * score['success_rate']:.1f}%, coverage {100 * score['coverage']:.1f}%"
+    return f"team return {score['return_mean']:.1f}"
 
 
 def _format_seconds(seconds: float) -> str:

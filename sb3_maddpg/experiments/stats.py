@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from sb3_maddpg.envs.mpe_tasks import MPE_TASK_METRICS
 from sb3_maddpg.evaluation import SUCCESS_RADII, radius_key
 from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, ordered_schemes
 
@@ -41,11 +42,22 @@ METRICS: dict[str, Metric] = {
             for radius in SUCCESS_RADII
             for key, label in (("success_rate", "success rate"), ("coverage", "landmark coverage"))
         ),
+        Metric("group_return", "return of the scored agents (score_agents)", 1.0),
     )
 }
 """The metrics a report can score runs by: ``success_rate`` (the paper's, at mpe2's 0.1 radius), ``coverage``,
 ``min_dist_sum``, ``return_mean``, ``collisions``, and success and coverage at each radius of
-:data:`~sb3_maddpg.evaluation.SUCCESS_RADII` (``success_rate_r0.2``: every landmark within 0.2 of an agent)."""
+:data:`~sb3_maddpg.evaluation.SUCCESS_RADII` (``success_rate_r0.2``: every landmark within 0.2 of an agent),
+``group_return`` (the summed return of a run's ``score_agents``), and the other MPE tasks' metrics
+(:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`, added below with their direction)."""
+
+for _task_metric in (metric for task, metrics in MPE_TASK_METRICS.items() if task != "simple_spread" for metric in metrics):
+    # The other MPE tasks' metrics, with their direction for the team they are written for (collisions keeps
+    # simple_spread's: fewer is better, although in simple_tag they are the adversaries' catches).
+    METRICS.setdefault(
+        _task_metric.key,
+        Metric(_task_metric.key, _task_metric.key.replace("_", " "), 1.0, _task_metric.better == "higher"),
+    )
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ from typing import Any
 from sb3_maddpg.experiments.backends import BACKENDS, LOST_RUN, run_local, run_ray
 from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
 from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, lock_results, write_experiment
-from sb3_maddpg.experiments.runner import _format_seconds, log_line
+from sb3_maddpg.experiments.runner import _format_seconds, log_line, score_line
 
 
 @dataclass
@@ -191,7 +191,7 @@ def _run_locked_sweep(
             progress.update(
                 config.run_id,
                 f"done in {_format_seconds(summary['wall_time_s'])} ({summary['train_steps_per_s']:,.0f} steps/s, "
-                f"success {100 * score['success_rate']:.1f}%, coverage {100 * score['coverage']:.1f}%)",
+                f"{score_line(score)})",
                 duration=summary["wall_time_s"],
             )
         else:
