@@ -144,12 +144,12 @@ def _per_agent_step_norms(before: list[th.Tensor], after: list[th.Tensor]) -> th
     return th.stack([(a.detach() - b).pow(2).flatten(1).sum(1) for b, a in zip(before, after)]).sum(0).sqrt()
 
 
-@pytest.mark.parametrize("max_grad_norm", [1e-3, None])
-def test_each_agents_whole_gradient_is_clipped(max_grad_norm: float | None) -> None:
-    """With SGD at learning rate 1 a step is minus the gradient: each agent's step norm is its clipped gradient norm."""
+def sgd_model(scheme: str, max_grad_norm: float | None) -> MADDPG:
+    """A model whose step is minus its (clipped) gradient: SGD at learning rate 1, after 60 collected steps."""
     model = MADDPG(
         "MlpPolicy",
         make_simple_spread(n_agents=3),
+        critic_sharing=scheme,
         learning_rate=1.0,
         max_grad_norm=max_grad_norm,
         policy_kwargs=dict(net_arch=[16, 16], optimizer_class=th.optim.SGD),
@@ -159,6 +159,13 @@ def test_each_agents_whole_gradient_is_clipped(max_grad_norm: float | None) -> N
         seed=0,
     )
     model.learn(60)
+    return model
+
+
+@pytest.mark.parametrize("max_grad_norm", [1e-3, None])
+def test_each_agents_whole_gradient_is_clipped(max_grad_norm: float | None) -> None:
+    """With SGD at learning rate 1 a step is minus the gradient: each agent's step norm is its clipped gradient norm."""
+    model = sgd_model("full", max_grad_norm)
     actor_before = [p.detach().clone() for p in model.actor.parameters()]
     critic_before = [p.detach().clone() for p in model.critic.parameters()]
     model.train(gradient_steps=1, batch_size=BATCH)
@@ -175,19 +182,7 @@ def test_each_agents_whole_gradient_is_clipped(max_grad_norm: float | None) -> N
 @pytest.mark.parametrize("scheme", ["attention", "learned_selection"])
 def test_each_critics_gradient_is_clipped_with_its_extractors(scheme: str) -> None:
     """Learned critics: agent i's critic step is its network slice and its extractor's parameters, clipped together."""
-    model = MADDPG(
-        "MlpPolicy",
-        make_simple_spread(n_agents=3),
-        critic_sharing=scheme,
-        learning_rate=1.0,
-        max_grad_norm=1e-3,
-        policy_kwargs=dict(net_arch=[16, 16], optimizer_class=th.optim.SGD),
-        learning_starts=10_000,
-        buffer_size=1_000,
-        batch_size=BATCH,
-        seed=0,
-    )
-    model.learn(60)
+    model = sgd_model(scheme, 1e-3)
     mlp_before = [p.detach().clone() for p in model.critic.mlp.parameters()]
     extractors_before = [[p.detach().clone() for p in e.parameters()] for e in model.critic.extractors]
     model.train(gradient_steps=1, batch_size=BATCH)
