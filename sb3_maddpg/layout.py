@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class AgentLayout:
     """
     Where each agent's part lies in the flat joint observation and joint action.
@@ -18,12 +18,16 @@ class AgentLayout:
 
     :param agent_ids: The agents' names, in ``possible_agents`` order.
     :param obs_sizes: The length of each agent's flat observation.
-    :param action_sizes: The length of each agent's flat action.
+    :param action_sizes: The length of each agent's flat action (for a discrete agent: its number of actions, the
+        length of the one-hot vector that stands for its choice in the joint action).
+    :param discrete_actions: Which agents choose one of ``action_sizes[i]`` actions (a ``Discrete`` space) rather
+        than a continuous vector; empty (the default) for none.
     """
 
     agent_ids: tuple[str, ...]
     obs_sizes: tuple[int, ...]
     action_sizes: tuple[int, ...]
+    discrete_actions: tuple[bool, ...] = ()
     obs_slices: tuple[slice, ...] = field(init=False, repr=False, compare=False)
     action_slices: tuple[slice, ...] = field(init=False, repr=False, compare=False)
 
@@ -43,8 +47,19 @@ class AgentLayout:
             )
         if min(self.obs_sizes) < 1 or min(self.action_sizes) < 1:
             raise ValueError(f"Every agent needs a non-empty observation and action, got {self}.")
+        discrete = tuple(bool(flag) for flag in self.discrete_actions)
+        if discrete and len(discrete) != n_agents:
+            raise ValueError(f"discrete_actions needs one flag per agent ({n_agents}), got {self.discrete_actions}.")
+        # All-continuous is stored as (), so that layouts saved before discrete actions existed compare equal.
+        object.__setattr__(self, "discrete_actions", discrete if any(discrete) else ())
         object.__setattr__(self, "obs_slices", _consecutive_slices(self.obs_sizes))
         object.__setattr__(self, "action_slices", _consecutive_slices(self.action_sizes))
+
+    def __repr__(self) -> str:
+        discrete = f", discrete_actions={self.discrete_actions}" if self.discrete_actions else ""
+        return (
+            f"AgentLayout(agent_ids={self.agent_ids}, obs_sizes={self.obs_sizes}, action_sizes={self.action_sizes}{discrete})"
+        )
 
     @property
     def n_agents(self) -> int:
@@ -60,6 +75,18 @@ class AgentLayout:
     def action_dim(self) -> int:
         """The length of the flat joint action."""
         return sum(self.action_sizes)
+
+    @property
+    def has_discrete_actions(self) -> bool:
+        """Whether any agent chooses a discrete action."""
+        return any(self.discrete_actions)
+
+    def is_discrete(self, agent: int) -> bool:
+        """
+        :param agent: An agent's index.
+        :return: Whether it chooses a discrete action.
+        """
+        return bool(self.discrete_actions) and self.discrete_actions[agent]
 
     @property
     def is_homogeneous(self) -> bool:

@@ -247,6 +247,8 @@ class MADDPG(OffPolicyAlgorithm):
     def _default_noise(self, layout: AgentLayout, noise_std: float | Sequence[float]) -> NormalActionNoise:
         """Gaussian noise with each agent's std given in its own action units, converted to the [-1, 1] space."""
         per_agent = np.broadcast_to(np.asarray(noise_std, dtype=np.float64), (layout.n_agents,))
+        # A discrete agent explores by sampling its action (Gumbel-max), not by noise on its one-hot.
+        per_agent = np.where([layout.is_discrete(i) for i in range(layout.n_agents)], 0.0, per_agent)
         assert isinstance(self.action_space, spaces.Box)
         half_range = (self.action_space.high - self.action_space.low) / 2.0
         sigma = np.concatenate([np.full(size, std) for std, size in zip(per_agent, layout.action_sizes)]) / half_range
@@ -280,6 +282,12 @@ class MADDPG(OffPolicyAlgorithm):
         # Row i averages over agent i's own action components: [n_agents, action_dim] @ [action_dim] -> per agent.
         sizes = th.tensor(self.agent_layout.action_sizes, dtype=th.float32).unsqueeze(1)
         self._own_action_mean = (mask[:, 0].float() / sizes).to(self.device)
+        # Action components of discrete agents: their one-hots take no noise and are never "saturated".
+        discrete = np.zeros(self.agent_layout.action_dim, dtype=bool)
+        for i, action_slice in enumerate(self.agent_layout.action_slices):
+            discrete[action_slice] = self.agent_layout.is_discrete(i)
+        self._discrete_components = discrete
+        self._continuous_components = th.as_tensor(~discrete, device=self.device)
 
     def _derive_train_freq(self) -> None:
         """Update every ``transitions_per_update // n_envs`` vectorised steps (at least every step)."""
@@ -379,16 +387,30 @@ class MADDPG(OffPolicyAlgorithm):
         :return: The action for the env and the [-1, 1] action for the replay buffer.
         """
         if self.num_timesteps < learning_starts:
-            # SB3's warm-up: uniform actions over the Box.
+            # SB3's warm-up: uniform actions over the Box (a discrete agent's: a uniform choice, one-hot).
             unscaled = np.array([self.action_space.sample() for _ in range(n_envs)])
-            buffer_action = self.policy.scale_action(unscaled)
+            buffer_action = self._one_hot_discrete(self.policy.scale_action(unscaled))
         else:
             with th.no_grad():
                 observations = th.as_tensor(self._last_obs, dtype=th.float32, device=self.device)
-                buffer_action = self.actor(observations.reshape(n_envs, -1)).cpu().numpy()
+                buffer_action = self.actor.sample(observations.reshape(n_envs, -1)).cpu().numpy()
         if action_noise is not None:
-            buffer_action = np.clip(buffer_action + draw_noise(action_noise, buffer_action.shape), -1.0, 1.0)
+            noise = draw_noise(action_noise, buffer_action.shape)
+            if self._discrete_components.any():
+                noise = np.where(self._discrete_components, 0.0, noise)
+            buffer_action = np.clip(buffer_action + noise, -1.0, 1.0)
         return self.policy.unscale_action(buffer_action), buffer_action
+
+    def _one_hot_discrete(self, actions: np.ndarray) -> np.ndarray:
+        """Each discrete agent's slot of ``[-1, 1]`` actions made the one-hot of its largest entry (in place)."""
+        layout = self.agent_layout
+        assert layout is not None
+        for i, part in enumerate(layout.action_slices):
+            if layout.is_discrete(i):
+                chosen = actions[:, part].argmax(axis=1)
+                actions[:, part] = -1.0
+                actions[np.arange(len(actions)), part.start + chosen] = 1.0
+        return actions
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         self.policy.set_training_mode(True)
@@ -440,7 +462,7 @@ class MADDPG(OffPolicyAlgorithm):
         :return: ``[batch, n_agents]``.
         """
         with th.no_grad():
-            next_actions = self.actor_target(data.next_observations)
+            next_actions = self.actor_target.sample(data.next_observations)  # continuous: mu'(o'); discrete: a sample
             next_q = self.critic_target(data.next_observations, next_actions, data.selections)
             return data.rewards + (1.0 - data.dones) * self.gamma * next_q
 
@@ -484,7 +506,7 @@ class MADDPG(OffPolicyAlgorithm):
         else:
             reg_loss = th.zeros_like(policy_loss)
         with th.no_grad():
-            saturated = (policy_actions.abs() > SATURATION_THRESHOLD).float().mean(dim=0)
+            saturated = ((policy_actions.abs() > SATURATION_THRESHOLD) & self._continuous_components).float().mean(dim=0)
             saturation = self._own_action_mean @ saturated
         return ActorLossTerms(policy_loss, reg_loss, saturation)
 
@@ -620,6 +642,8 @@ class MADDPG(OffPolicyAlgorithm):
             "critic_target",
             "_own_action_mask",
             "_own_action_mean",
+            "_discrete_components",
+            "_continuous_components",
             "_warned_never_updated",
         ]
 

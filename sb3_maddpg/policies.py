@@ -22,6 +22,12 @@ class MultiAgentActor(nn.Module):
     """
     Every agent's deterministic actor mu_i(o_i), squashed by ``tanh`` to [-1, 1].
 
+    A discrete agent's actor outputs logits over its actions instead, and its action is a one-hot vector, written
+    in the [-1, 1] space as ``2 * one_hot - 1``: the most likely action when acting (:meth:`forward`), a Gumbel-max
+    sample when exploring and for the critics' targets (:meth:`sample`), and a straight-through Gumbel-softmax
+    sample in the actor update (:meth:`forward_with_preactivation`: the one-hot forward, the softmax's gradient
+    backward), as Lowe et al. relax discrete actions (temperature 1).
+
     :param layout: The team's agent layout.
     :param hidden_sizes: Hidden layer sizes.
     :param activation_fn: Activation function.
@@ -33,12 +39,13 @@ class MultiAgentActor(nn.Module):
     ) -> None:
         super().__init__()
         self.layout = layout
+        self.has_discrete = layout.has_discrete_actions
         self.mlp = AgentEnsembleMLP(
             layout.obs_sizes,
             layout.action_sizes,
             hidden_sizes,
             activation_fn,
-            squash_output=True,
+            squash_output=not self.has_discrete,  # with discrete agents, each agent's output is shaped below
             share_parameters=share_parameters,
         )
         self.optimizer: th.optim.Optimizer
@@ -46,8 +53,11 @@ class MultiAgentActor(nn.Module):
     def forward(self, observations: th.Tensor) -> th.Tensor:
         """
         :param observations: Joint observations ``[batch, obs_dim]``.
-        :return: Joint actions in [-1, 1], ``[batch, action_dim]``; agent i's from its own observation only.
+        :return: Joint actions in [-1, 1], ``[batch, action_dim]``; agent i's from its own observation only (a
+            discrete agent's: its most likely action, one-hot).
         """
+        if self.has_discrete:
+            return self._shape(self._preactivations(observations), "greedy")
         layout, batch = self.layout, observations.shape[0]
         if layout.is_homogeneous:
             per_agent = observations.view(batch, layout.n_agents, -1).transpose(0, 1)
@@ -65,6 +75,9 @@ class MultiAgentActor(nn.Module):
         :return: ``(actions, preactivations)``, both ``[batch, action_dim]``, with ``actions = tanh(preactivations)``;
             only each agent's real action components (no padding).
         """
+        if self.has_discrete:
+            preactivations = self._preactivations(observations)
+            return self._shape(preactivations, "straight_through"), preactivations
         # forward's body with the squash moved out, not a shared helper: forward runs at batch 1 on every
         # env step, where each extra Python call is a measurable part of its cost.
         layout, batch = self.layout, observations.shape[0]
@@ -76,6 +89,40 @@ class MultiAgentActor(nn.Module):
             out = self.mlp.forward_preactivation(per_agent)
             preactivations = th.cat([out[i, :, :size] for i, size in enumerate(layout.action_sizes)], dim=1)
         return th.tanh(preactivations), preactivations
+
+    def sample(self, observations: th.Tensor) -> th.Tensor:
+        """
+        The actions of exploration and of the critics' targets: a continuous agent's as in :meth:`forward`, a discrete
+        agent's a Gumbel-max sample of its logits (one-hot).
+
+        :param observations: Joint observations ``[batch, obs_dim]``.
+        :return: Joint actions in [-1, 1], ``[batch, action_dim]``.
+        """
+        if not self.has_discrete:
+            return self(observations)
+        return self._shape(self._preactivations(observations), "sample")
+
+    def _preactivations(self, observations: th.Tensor) -> th.Tensor:
+        """Every agent's network output (logits for a discrete agent), joint, ``[batch, action_dim]``."""
+        per_agent = stack_padded([observations[:, sl] for sl in self.layout.obs_slices], self.mlp.max_in_dim)
+        out = self.mlp.forward_preactivation(per_agent)
+        return th.cat([out[i, :, :size] for i, size in enumerate(self.layout.action_sizes)], dim=1)
+
+    def _shape(self, preactivations: th.Tensor, mode: str) -> th.Tensor:
+        """Each agent's action from its output: ``tanh`` (continuous), or a one-hot choice scaled to [-1, 1]."""
+        parts = []
+        for agent, part in enumerate(self.layout.action_slices):
+            output = preactivations[:, part]
+            if not self.layout.is_discrete(agent):
+                parts.append(th.tanh(output))
+                continue
+            if mode == "straight_through":
+                one_hot = nn.functional.gumbel_softmax(output, tau=1.0, hard=True)
+            else:
+                scores = output if mode == "greedy" else output - th.empty_like(output).exponential_().log()
+                one_hot = nn.functional.one_hot(scores.argmax(dim=1), output.shape[1]).to(output.dtype)
+            parts.append(2.0 * one_hot - 1.0)
+        return th.cat(parts, dim=1)
 
     def clip_grad_norm_per_agent(self, max_norm: float) -> None:
         """Clip each agent's actor gradient norm separately, like N optimisers."""
@@ -183,9 +230,16 @@ class AgentActor(nn.Module):
     def forward(self, observation: th.Tensor) -> th.Tensor:
         """
         :param observation: Agent i's observations ``[batch, obs_size_i]``.
-        :return: Agent i's actions in [-1, 1], ``[batch, action_size_i]``.
+        :return: Agent i's actions in [-1, 1], ``[batch, action_size_i]`` (a discrete agent's most likely action as
+            ``2 * one_hot - 1``).
         """
-        return self._team[0].mlp.forward_agent(self.agent_index, observation)
+        team = self._team[0]
+        output = team.mlp.forward_agent(self.agent_index, observation)
+        if not team.has_discrete:
+            return output  # squashed by the network
+        if not team.layout.is_discrete(self.agent_index):
+            return th.tanh(output)
+        return 2.0 * nn.functional.one_hot(output.argmax(dim=1), output.shape[1]).to(output.dtype) - 1.0
 
 
 class AgentCritic(nn.Module):

@@ -468,12 +468,10 @@ def test_heterogeneous_agents(module: Any, monkeypatch: pytest.MonkeyPatch) -> N
 # ---------------------------------------------------------------------------------------------
 
 
-def test_discrete_actions_are_refused() -> None:
-    with pytest.raises(TypeError, match=r"Discrete action space") as error:
-        PettingZooToGym(simple_spread_v3.parallel_env(N=3, continuous_actions=False))
-    assert "continuous_actions=True" in str(error.value)
-    assert "'agent_0'" in str(error.value)
-    assert "Box spaces only" in str(error.value)
+def test_multi_discrete_actions_are_refused() -> None:
+    with pytest.raises(TypeError, match=r"MultiDiscrete action space") as error:
+        PettingZooToGym(FakeParallelEnv(act_space=spaces.MultiDiscrete([3, 2])))
+    assert "'a0'" in str(error.value) and "Discrete or continuous actions" in str(error.value)
 
 
 def test_dict_observations_are_refused() -> None:

@@ -99,9 +99,11 @@ def test_declared_metrics_in_info_at_reset_and_every_step(task: str) -> None:
         assert all(isinstance(info[key], float) and math.isfinite(info[key]) for key in declared)
 
 
+@pytest.mark.parametrize("continuous_actions", [True, False], ids=["continuous", "discrete"])
 @pytest.mark.parametrize("task", NINE)
-def test_maddpg_trains_and_predicts(task: str) -> None:
-    env = make_mpe_env(task)
+def test_maddpg_trains_and_predicts(task: str, continuous_actions: bool) -> None:
+    env = make_mpe_env(task, continuous_actions=continuous_actions)
+    assert env.agent_layout.has_discrete_actions == (not continuous_actions)
     model = MADDPG(
         "MlpPolicy",
         env,
@@ -121,6 +123,9 @@ def test_maddpg_trains_and_predicts(task: str) -> None:
     noisy, _ = model.predict(np.stack([obs, env.observation_space.sample()]), deterministic=False)
     assert noisy.shape == (2, *env.action_space.shape)
     assert all(env.action_space.contains(row.astype(np.float32)) for row in noisy)
+    if not continuous_actions:  # every agent's slot is an exact one-hot, which the env reads as its action
+        for sl in env.agent_layout.action_slices:
+            assert sorted(action[sl].tolist()) == [0.0] * (sl.stop - sl.start - 1) + [1.0]
 
 
 def test_simple_spread_is_make_simple_spread() -> None:
@@ -157,9 +162,9 @@ def test_unknown_task_lists_the_nine() -> None:
 
 
 @pytest.mark.parametrize("task", ["simple_tag", "simple_spread"])
-def test_discrete_actions_are_refused_for_now(task: str) -> None:
-    with pytest.raises(NotImplementedError, match=r"^Discrete actions are not supported yet.*continuous_actions=True"):
-        make_mpe_env(task, continuous_actions=False)
+def test_discrete_actions_reach_mpe2(task: str) -> None:
+    env = make_mpe_env(task, continuous_actions=False)
+    assert all(str(env.parallel_env.action_space(agent)).startswith("Discrete") for agent in env.agent_layout.agent_ids)
 
 
 def test_bad_task_arguments() -> None:

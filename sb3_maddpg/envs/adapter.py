@@ -20,7 +20,9 @@ class PettingZooToGym(gym.Env):
 
     - Observation: a flat ``Box``, each agent's (flattened) observation in ``possible_agents`` order.
     - Action: a flat ``Box``, each agent's action in the same order; it is split per agent and cast
-      to each agent space's dtype before it reaches the PettingZoo env (mpe2 warns on float64).
+      to each agent space's dtype before it reaches the PettingZoo env (mpe2 warns on float64). An agent with a
+      ``Discrete(n)`` action space has a slot of ``n`` numbers in [0, 1], a one-hot vector (MADDPG's actions are
+      exact one-hots there): the agent takes the action of the largest entry (:meth:`agent_actions`).
     - Reward: the scalar team reward that SB3 logs is the **sum** of the agents' rewards
       (``team_reward="sum"``, the default) or their mean (``team_reward="mean"``). The per-agent
       rewards are in ``info["agent_rewards"]`` (float32 array, layout order).
@@ -33,8 +35,8 @@ class PettingZooToGym(gym.Env):
     - Metrics: an optional ``metrics_fn(parallel_env) -> dict`` adds task metrics to ``info``
       after every reset and step (see :class:`~sb3_maddpg.envs.SimpleSpreadMetrics`).
 
-    Agents may differ in observation and action sizes (heterogeneous teams). Agent spaces must be
-    ``Box`` spaces; agents must not leave mid-episode (wrap such an env with
+    Agents may differ in observation and action sizes (heterogeneous teams). Observation spaces must be ``Box``
+    spaces, action spaces ``Box`` or ``Discrete``; agents must not leave mid-episode (wrap such an env with
     ``supersuit.black_death_v3``).
 
     :param parallel_env: The PettingZoo ``ParallelEnv`` to wrap (an AEC env is refused: use the task's
@@ -58,11 +60,13 @@ class PettingZooToGym(gym.Env):
         self.team_reward = team_reward
         agent_ids = tuple(parallel_env.possible_agents)
         obs_spaces = [_check_box(parallel_env.observation_space(agent), agent, "observation") for agent in agent_ids]
-        action_spaces = [_check_box(parallel_env.action_space(agent), agent, "action") for agent in agent_ids]
+        action_spaces = [_action_slot(parallel_env.action_space(agent), agent) for agent in agent_ids]
+        self._discrete = tuple(isinstance(parallel_env.action_space(agent), spaces.Discrete) for agent in agent_ids)
         self.agent_layout = AgentLayout(
             agent_ids=agent_ids,
             obs_sizes=tuple(int(np.prod(space.shape)) for space in obs_spaces),
             action_sizes=tuple(int(np.prod(space.shape)) for space in action_spaces),
+            discrete_actions=self._discrete,
         )
         self.observation_space = _concatenate_boxes(obs_spaces, np.float32)
         self.action_space = _concatenate_boxes(action_spaces, np.float32)
@@ -70,7 +74,9 @@ class PettingZooToGym(gym.Env):
         self._agent_action_shapes = tuple(space.shape for space in action_spaces)
         # Fast path for the common case: flat float32 agent spaces need no cast or reshape.
         self._flat_float32_obs = all(space.dtype == np.float32 and len(space.shape) == 1 for space in obs_spaces)
-        self._flat_float32_actions = all(space.dtype == np.float32 and len(space.shape) == 1 for space in action_spaces)
+        self._flat_float32_actions = not any(self._discrete) and all(
+            space.dtype == np.float32 and len(space.shape) == 1 for space in action_spaces
+        )
         self.metadata = dict(getattr(parallel_env, "metadata", {}))
         self.render_mode = getattr(parallel_env, "render_mode", None)
         self._episode_over = True
@@ -116,16 +122,7 @@ class PettingZooToGym(gym.Env):
         flat_action = np.asarray(action).reshape(-1)
         if flat_action.shape[0] != layout.action_dim:
             raise ValueError(f"Expected a joint action of length {layout.action_dim}, got shape {np.shape(action)}.")
-        if self._flat_float32_actions:
-            flat_action = flat_action.astype(np.float32, copy=False)
-            agent_actions = {agent: flat_action[sl] for agent, sl in zip(layout.agent_ids, layout.action_slices)}
-        else:
-            agent_actions = {
-                agent: flat_action[sl].astype(dtype, copy=False).reshape(shape)
-                for agent, sl, dtype, shape in zip(
-                    layout.agent_ids, layout.action_slices, self._agent_action_dtypes, self._agent_action_shapes
-                )
-            }
+        agent_actions = self.agent_actions(flat_action)
         observations, rewards, terminations, truncations, agent_infos = self.parallel_env.step(agent_actions)
 
         agent_terminations = np.array([bool(terminations.get(agent, False)) for agent in layout.agent_ids])
@@ -155,6 +152,26 @@ class PettingZooToGym(gym.Env):
             info.update(self.metrics_fn(self.parallel_env))
         return self._joint_observation(observations), team, terminated, truncated, info
 
+    def agent_actions(self, action: np.ndarray) -> dict[str, Any]:
+        """
+        Split a joint action into the actions the PettingZoo env takes.
+
+        :param action: A flat joint action, agents in layout order.
+        :return: Each agent's action, by agent id: cast to its space's dtype and shape, or, for a discrete agent, the
+            index of the largest entry of its slot (an ``int``).
+        """
+        layout = self.agent_layout
+        flat_action = np.asarray(action).reshape(-1)
+        if self._flat_float32_actions:
+            flat_action = flat_action.astype(np.float32, copy=False)
+            return {agent: flat_action[sl] for agent, sl in zip(layout.agent_ids, layout.action_slices)}
+        return {
+            agent: int(np.argmax(flat_action[sl])) if discrete else flat_action[sl].astype(dtype, copy=False).reshape(shape)
+            for agent, sl, dtype, shape, discrete in zip(
+                layout.agent_ids, layout.action_slices, self._agent_action_dtypes, self._agent_action_shapes, self._discrete
+            )
+        }
+
     def render(self) -> Any:
         """Render through the PettingZoo env (``render_mode`` is the PettingZoo env's)."""
         return self.parallel_env.render()
@@ -181,17 +198,25 @@ def _refuse_aec_env(env: Any) -> None:
         )
 
 
+def _action_slot(space: spaces.Space, agent: str) -> spaces.Box:
+    """An agent's slot in the joint action: its Box, or for ``Discrete(n)`` a Box of ``n`` one-hot entries."""
+    if isinstance(space, spaces.Discrete):
+        return spaces.Box(0.0, 1.0, (int(space.n),), np.float32)
+    return _check_box(space, agent, "action")
+
+
 def _check_box(space: spaces.Space, agent: str, kind: str) -> spaces.Box:
     if isinstance(space, spaces.Box):
         return space
-    if kind == "action" and isinstance(space, spaces.Discrete | spaces.MultiDiscrete):
-        fix = "use the env's continuous actions (mpe2: continuous_actions=True)"
+    if kind == "action" and isinstance(space, spaces.MultiDiscrete):
+        fix = "use the env's Discrete or continuous actions (mpe2: continuous_actions=True)"
     elif isinstance(space, spaces.Dict | spaces.Tuple):
         fix = "flatten the observations first (e.g. supersuit.flatten_v0 or a custom wrapper)"
     else:
         fix = "convert the space to a Box with a PettingZoo or supersuit wrapper"
     raise TypeError(
-        f"Agent {agent!r} has a {type(space).__name__} {kind} space; PettingZooToGym supports Box spaces only: {fix}."
+        f"Agent {agent!r} has a {type(space).__name__} {kind} space; PettingZooToGym supports Box spaces (and Discrete "
+        f"actions) only: {fix}."
     )
 
 

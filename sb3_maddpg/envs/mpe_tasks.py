@@ -221,7 +221,8 @@ def make_mpe_env(
     and mpe2's ``N`` is accepted for ``n_agents``.
 
     :param task: The task's name, a key of :data:`~sb3_maddpg.envs.mpe_tasks.MPE_TASKS` (e.g. ``"simple_tag"``).
-    :param continuous_actions: Must be ``True`` for now: discrete actions are not supported yet.
+    :param continuous_actions: mpe2's continuous actions (``Box``), or its discrete ones (``Discrete``: one-hot slots in the
+        joint action, see :class:`~sb3_maddpg.envs.PettingZooToGym`).
     :param max_cycles: Episode length in steps.
     :param team_reward: How the agents' rewards are combined into SB3's scalar reward, ``"sum"`` or ``"mean"``
         (MADDPG trains each critic on its own agent's reward either way).
@@ -232,12 +233,15 @@ def make_mpe_env(
     :return: The gymnasium env.
     """
     module_name = _task_module(task)
-    _check_action_mode(task, continuous_actions)
     if max_cycles < 1:
         raise ValueError(f"max_cycles (the episode length) must be at least 1, got {max_cycles}.")
     if task == "simple_spread":
         return make_simple_spread(
-            max_cycles=max_cycles, render_mode=render_mode, team_reward=team_reward, **_simple_spread_kwargs(task_kwargs)
+            max_cycles=max_cycles,
+            render_mode=render_mode,
+            team_reward=team_reward,
+            continuous_actions=continuous_actions,
+            **_simple_spread_kwargs(task_kwargs),
         )
     module = importlib.import_module(module_name)  # here, so that `import sb3_maddpg` stays light
     _check_task_kwargs(task, _mpe_arguments(module), task_kwargs)
@@ -252,16 +256,6 @@ def _task_module(task: str) -> str:
     if task not in MPE_TASKS:
         raise ValueError(f"Unknown MPE task {task!r}: make_mpe_env builds one of {', '.join(MPE_TASKS)}.")
     return MPE_TASKS[task]
-
-
-def _check_action_mode(task: str, continuous_actions: bool) -> None:
-    """Refuse discrete actions until PettingZooToGym and MADDPG take ``Discrete`` spaces (then delete this check)."""
-    if not continuous_actions:
-        raise NotImplementedError(
-            f"Discrete actions are not supported yet: MADDPG and PettingZooToGym train continuous (Box) actions only, "
-            f"so make_mpe_env({task!r}, continuous_actions=False) is refused. Use continuous_actions=True (the "
-            "default): every MPE task trains with it."
-        )
 
 
 def _mpe_arguments(module: Any) -> list[str]:

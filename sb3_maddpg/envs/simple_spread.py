@@ -103,14 +103,15 @@ def make_simple_spread(
     capture_radius: float = CAPTURE_RADIUS,
     render_mode: str | None = None,
     team_reward: Literal["sum", "mean"] = "sum",
+    continuous_actions: bool = True,
     **mpe_kwargs: Any,
 ) -> PettingZooToGym:
     """
     Cooperative navigation: ``n_agents`` agents must cover ``n_agents`` landmarks without colliding.
 
-    Returns :class:`PettingZooToGym` over ``mpe2.simple_spread_v3.parallel_env(continuous_actions=True)``,
-    with :class:`SimpleSpreadMetrics` in ``info`` at every step. Each agent's action is a
-    ``Box(0, 1, (5,))`` (no-op, left, right, down, up); its observation is
+    Returns :class:`PettingZooToGym` over ``mpe2.simple_spread_v3.parallel_env``, with :class:`SimpleSpreadMetrics`
+    in ``info`` at every step. Each agent's action is a ``Box(0, 1, (5,))`` (no-op, left, right, down, up; with
+    ``continuous_actions=False`` a one-hot choice of one of them, mpe2's ``Discrete(5)``); its observation is
     ``[own velocity, own position, landmark offsets, other agents' offsets, communication]``.
 
     :param n_agents: Number of agents (and landmarks). The paper uses 5.
@@ -121,6 +122,7 @@ def make_simple_spread(
     :param capture_radius: Distance for a landmark to count as covered in the metrics.
     :param render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
     :param team_reward: How the per-agent rewards are combined into SB3's scalar reward.
+    :param continuous_actions: mpe2's continuous actions (the paper's), or its discrete ones (Lowe et al.'s MPE).
     :param mpe_kwargs: Other keyword arguments for ``simple_spread_v3.parallel_env``
         (e.g. ``num_landmark_neighbors``, ``dynamic_rescaling``).
     :return: The gymnasium env.
@@ -134,7 +136,7 @@ def make_simple_spread(
         N=n_agents,
         local_ratio=local_ratio,
         max_cycles=max_cycles,
-        continuous_actions=True,
+        continuous_actions=continuous_actions,
         render_mode=render_mode,
         num_agent_neighbors=num_agent_neighbors,
         **mpe_kwargs,

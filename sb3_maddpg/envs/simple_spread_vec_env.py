@@ -50,6 +50,8 @@ class SimpleSpreadVecEnv(VecEnv):
     :param render_mode: ``None`` or ``"rgb_array"`` (mpe2's drawing, one image per world, tiled by ``render()``).
     :param team_reward: How the per-agent rewards are combined into SB3's scalar reward, ``"sum"`` or ``"mean"``.
     :param num_landmark_neighbors: How many nearest landmarks each agent observes; ``None`` for all.
+    :param continuous_actions: mpe2's continuous actions, or its discrete ones: each agent's slot of 5 is then read as
+        the choice of its largest entry, as :class:`~sb3_maddpg.envs.PettingZooToGym` reads mpe2's ``Discrete(5)``.
     """
 
     def __init__(
@@ -63,6 +65,7 @@ class SimpleSpreadVecEnv(VecEnv):
         render_mode: str | None = None,
         team_reward: Literal["sum", "mean"] = "sum",
         num_landmark_neighbors: int | None = None,
+        continuous_actions: bool = True,
     ) -> None:
         if isinstance(n_envs, bool) or not isinstance(n_envs, int | np.integer) or n_envs < 1:
             raise ValueError(f"n_envs must be a positive integer, got {n_envs!r}.")
@@ -85,7 +88,9 @@ class SimpleSpreadVecEnv(VecEnv):
             agent_ids=tuple(f"agent_{i}" for i in range(n_agents)),
             obs_sizes=(obs_size,) * n_agents,
             action_sizes=(ACTION_SIZE,) * n_agents,
+            discrete_actions=(not continuous_actions,) * n_agents,
         )
+        self.continuous_actions = bool(continuous_actions)
         observation_space = spaces.Box(-np.inf, np.inf, (n_agents * obs_size,), dtype=np.float32)
         action_space = spaces.Box(0.0, 1.0, (n_agents * ACTION_SIZE,), dtype=np.float32)
         super().__init__(int(n_envs), observation_space, action_space)
@@ -151,7 +156,13 @@ class SimpleSpreadVecEnv(VecEnv):
         """
         if self._actions is None:
             raise RuntimeError("step_wait() needs actions: call step(actions) (or step_async first).")
-        actions = np.clip(self._actions.reshape(self.num_envs, self.n_agents, ACTION_SIZE), 0.0, 1.0)
+        actions = self._actions.reshape(self.num_envs, self.n_agents, ACTION_SIZE)
+        if self.continuous_actions:
+            actions = np.clip(actions, 0.0, 1.0)
+        else:
+            # The adapter's choice (the largest entry); mpe2's discrete action k then moves as the continuous one-hot
+            # of k does, bit for bit (u = a[2] - a[1], a[4] - a[3]).
+            actions = np.eye(ACTION_SIZE)[actions.argmax(axis=-1)]
         self._actions = None
         distances = self.worlds.step(actions)
         agent_rewards = self.worlds.rewards(distances).astype(np.float32)
