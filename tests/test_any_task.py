@@ -101,3 +101,9 @@ def test_an_mpe_task_is_scored_by_its_own_metrics(tmp_path: Path) -> None:
     assert summary["score"]["goal_distance"] > 0  # the agent's distance to its landmark, at the last step
     curve = read_rows(tmp_path / summary["run_id"] / "learning_curve.csv")
     assert "goal_distance" in curve[0]
+
+
+def test_simple_spread_takes_its_env_kwargs() -> None:
+    discrete = make_env(run_config(env_kwargs={"continuous_actions": False}), 2)
+    assert discrete.get_attr("agent_layout")[0].has_discrete_actions
+    assert not make_env(run_config(), 2).get_attr("agent_layout")[0].has_discrete_actions

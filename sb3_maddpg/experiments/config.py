@@ -109,7 +109,9 @@ class RunConfig:
         to it only), another MPE task of :data:`~sb3_maddpg.envs.MPE_TASKS` (scored by its
         :data:`~sb3_maddpg.envs.MPE_TASK_METRICS` too), a PettingZoo parallel env factory as ``"module:function"``, or a
         registered gymnasium id whose env has an ``agent_layout``. Other tasks step ``n_envs`` envs in a ``DummyVecEnv``.
-    :param env_kwargs: Keyword arguments for the task's constructor (MPE tasks also get ``max_cycles=episode_length``).
+    :param env_kwargs: Keyword arguments for the task's constructor (MPE tasks also get ``max_cycles=episode_length``;
+        for simple_spread, those of :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv` beyond the fields above, e.g.
+        ``{"continuous_actions": false}``).
     :param score_agents: Agent ids whose summed return is scored as ``group_return`` (e.g. the adversaries of
         ``simple_tag``); empty for none.
     """

@@ -54,6 +54,7 @@ def make_task_vec_env(config: RunConfig, n_envs: int) -> VecEnv:
             n_agents=config.n_agents,
             num_agent_neighbors=config.num_agent_neighbors,
             max_cycles=config.episode_length,
+            **config.env_kwargs,  # e.g. continuous_actions=False
         )
     return DummyVecEnv([env_factory(config)] * n_envs)
 
