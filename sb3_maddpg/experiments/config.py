@@ -24,6 +24,10 @@ DEFAULT_N_ENVS = 100
 """Worlds stepped together: with the paper's one update per 100 transitions, one update per vectorised step."""
 
 
+DEFAULT_ENV = "simple_spread"
+"""The paper's task."""
+
+
 def ordered_schemes(schemes: Iterable[str]) -> list[str]:
     """
     :param schemes: Scheme names, in any order, repeats allowed.
@@ -59,10 +63,6 @@ PAPER_NAMES = {
     "selected": "MADDPG-soa",
 }
 """The paper's name of each scheme."""
-
-
-DEFAULT_ENV = "simple_spread"
-"""The paper's task."""
 
 
 def _check_env(env: str) -> None:
