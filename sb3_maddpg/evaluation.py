@@ -113,7 +113,8 @@ def evaluate_team(
     :param deterministic: ``True``: the team acts without exploration. ``False``: it acts as in training: ``predict``
         samples (for stochastic policies), and a model with ``action_noise`` (MADDPG, SB3's TD3 and DDPG) gets a copy
         of that noise added in the [-1, 1] action space and clipped there, as in the model's data collection (the
-        model's own noise process is not advanced).
+        model's own noise process is not advanced). MADDPG's default noise is zero on discrete agents' one-hots, so
+        their actions stay the most likely ones here (in training they are sampled).
     :param task_metrics: Other task metrics to score from ``info``, e.g. ``MPE_TASK_METRICS["simple_tag"]`` for an
         env of :func:`~sb3_maddpg.envs.make_mpe_env`: each is returned under its key, the mean over episodes of its
         last-step value or of its sum over the episode. When given, only their absence is warned about.
