@@ -66,8 +66,12 @@ def outlook(results: Path) -> str:
             lines.append(f"| {int(step):,} | " + " | ".join(cells) + " |")
         if len(schemes) == 2:
             step = separation_step(by_scheme[schemes[0]], by_scheme[schemes[1]])
-            verdict = f"from {int(step):,} env steps on" if step is not None else "not within this budget"
-            lines += ["", f"The 95% intervals of {schemes[0]} and {schemes[1]} stay apart {verdict}.", ""]
+            verdict = (
+                f"stay apart from {int(step):,} env steps on"
+                if step is not None
+                else "do not stay apart at any step of this budget"
+            )
+            lines += ["", f"The 95% intervals of {schemes[0]}'s and {schemes[1]}'s team return {verdict}.", ""]
     # Whole runs: training, the learning-curve evaluations and the checkpoint evaluations.
     rates = [summary["total_timesteps"] / summary["wall_time_s"] for summary in summaries]
     if rates:
