@@ -2,6 +2,7 @@
 
 import copy
 import importlib
+import math
 import os
 import shutil
 import time
@@ -290,7 +291,7 @@ def score_line(score: dict[str, float]) -> str:
     :param score: A run's score.
     :return: Its headline in a few words: simple_spread's success and coverage, or else the team return.
     """
-    if score.get("success_rate", float("nan")) == score.get("success_rate"):  # not nan: a simple_spread run
+    if not math.isnan(score.get("success_rate", math.nan)):  # a simple_spread run
         return f"success {100 * score['success_rate']:.1f}%, coverage {100 * score['coverage']:.1f}%"
     return f"team return {score['return_mean']:.1f}"
 
