@@ -18,12 +18,13 @@ critic's loss (critic i's encoders, attention and scores are its own, so critic 
 parameters), have target copies, and are saved with the model. Agents of unequal sizes are zero-padded to the
 largest ``(o_j, a_j)``.
 
-The hard choice is trained with a straight-through estimator: the forward pass uses the top-k one-hot rows exactly;
-the backward pass takes the gradient of the softmax of the scores in their place, so the scores learn from how the
-chosen agents' data changes Q. The choice is deterministic (no sampling): it changes when the scores' order does.
+The hard choice is trained with a straight-through estimator: the forward pass gathers the top-k agents' data
+exactly; the backward pass takes the gradient of the softmax of the scores in its place, so the scores learn from how
+the other agents' data would change Q. The scores are cosine similarities divided by a temperature, so they are
+bounded: an unbounded dot product lets the softmax saturate, its gradient vanish and the choice freeze. The choice is
+deterministic (no sampling): it changes when the scores' order does.
 """
 
-import math
 from typing import Any
 
 import torch as th
@@ -131,6 +132,8 @@ class _ListeningCritic(CriticFeaturesExtractor):
         Summaries of the last critic update's batch (replayed observations and actions):
 
         - ``attention_entropy``: mean entropy of the listening weights, in nats (``log(n - 1)`` is uniform);
+        - for a hard choice, ``top_choice_share``: the fraction of rows whose first choice is the agent chosen first
+          most often (1 when the choice ignores the state, ``1 / (n - 1)`` when it spreads evenly);
         - when the observations hold positions (``position_slice``), ``weight_on_nearest``: mean weight on the
           nearest other agent, and, for a hard choice, ``chose_nearest`` (fraction of rows whose chosen set is the k
           nearest agents) and ``chosen_rank`` (mean distance rank of the chosen agents, 1 = nearest).
@@ -144,16 +147,21 @@ class _ListeningCritic(CriticFeaturesExtractor):
             return {}
         observations, weights = self._last
         result = {"attention_entropy": float(-(weights * weights.clamp_min(1e-12).log()).sum(dim=1).mean())}
+        chosen = self._last_choice()
+        if chosen is not None:
+            first_choices = th.bincount(chosen[:, 0], minlength=weights.shape[1])
+            result["top_choice_share"] = float(first_choices.max()) / chosen.shape[0]
         ranks = self._distance_ranks(observations)
         if ranks is not None:
             result["weight_on_nearest"] = float((weights * (ranks == 1)).sum(dim=1).mean())
-            chosen = self._last_chosen_ranks(ranks)
             if chosen is not None:
-                result["chose_nearest"] = float((chosen <= self.selection_size).all(dim=1).float().mean())
-                result["chosen_rank"] = float(chosen.float().mean())
+                chosen_ranks = ranks.gather(1, chosen)
+                result["chose_nearest"] = float((chosen_ranks <= self.selection_size).all(dim=1).float().mean())
+                result["chosen_rank"] = float(chosen_ranks.float().mean())
         return result
 
-    def _last_chosen_ranks(self, ranks: th.Tensor) -> th.Tensor | None:
+    def _last_choice(self) -> th.Tensor | None:
+        """:return: The last recorded batch's chosen others (positions among the others, highest first), if any."""
         return None
 
     def _distance_ranks(self, observations: th.Tensor) -> th.Tensor | None:
@@ -217,8 +225,9 @@ class AttentionCriticFeatures(_ListeningCritic):
 class LearnedSelectionCriticFeatures(_ListeningCritic):
     """
     Critic i sees its own data and that of the ``k`` other agents it scores highest, highest first:
-    ``[o_i, a_i, o_s1, a_s1, .., o_sk, a_sk]`` (each selected agent's ``[o_j, a_j]`` zero-padded to the team's
-    largest). The scores are scaled dot products of a query from its own encoding and keys from the others'.
+    ``[o_i, a_i, o_s1, a_s1, .., o_sk, a_sk]`` (each chosen agent's ``o_j`` and ``a_j`` zero-padded separately to
+    the largest other agent's, so a column means the same whichever agent fills the slot). The score of agent j is
+    ``cos(W_q e_i, W_k e_j) / temperature``: a query from critic i's own encoding against a key from j's.
 
     :param layout: The team's agent layout.
     :param agent_index: The critic's agent.
@@ -226,6 +235,8 @@ class LearnedSelectionCriticFeatures(_ListeningCritic):
     :param k: The number of agents chosen, set through ``critic_sharing_kwargs={"k": ...}`` (default: 2, at most
         ``n_agents - 2``, at least 1; see :func:`default_selection_size`).
     :param embed_dim: Size of the encodings the scores are computed from.
+    :param temperature: The scores lie in ``[-1 / temperature, 1 / temperature]``. Lower makes the softmax the
+        gradient comes from closer to the hard choice, higher keeps its gradient larger.
     :param position_slice: Where each observation holds its agent's position, for the diagnostics (``None``: none).
     """
 
@@ -238,6 +249,7 @@ class LearnedSelectionCriticFeatures(_ListeningCritic):
         selection_size: int = 0,
         k: int | None = None,
         embed_dim: int = 64,
+        temperature: float = 0.5,
         position_slice: slice | None = DEFAULT_POSITION_SLICE,
     ) -> None:
         k = int(k if k is not None else (selection_size or default_selection_size(layout.n_agents)))
@@ -246,44 +258,56 @@ class LearnedSelectionCriticFeatures(_ListeningCritic):
                 f"critic_sharing='learned_selection' chooses k of the {layout.n_agents - 1} other agents, got k={k}: "
                 f"give critic_sharing_kwargs={{'k': 1}} (up to {layout.n_agents - 1})."
             )
+        if not temperature > 0:
+            raise ValueError(f"temperature must be positive, got {temperature}: the scores are divided by it.")
+        others = [j for j in range(layout.n_agents) if j != agent_index]
+        self._slot_obs_size = max(layout.obs_sizes[j] for j in others)
+        self._slot_action_size = max(layout.action_sizes[j] for j in others)
         own_size = layout.obs_sizes[agent_index] + layout.action_sizes[agent_index]
-        other_size = max(layout.obs_sizes[j] + layout.action_sizes[j] for j in range(layout.n_agents) if j != agent_index)
-        super().__init__(layout, agent_index, own_size + k * other_size, embed_dim, k, position_slice)
+        slot_size = self._slot_obs_size + self._slot_action_size
+        super().__init__(layout, agent_index, own_size + k * slot_size, embed_dim, k, position_slice)
+        self.temperature = float(temperature)
         self.query = nn.Linear(embed_dim, embed_dim, bias=False)
         self.key = nn.Linear(embed_dim, embed_dim, bias=False)
         self._last_chosen: th.Tensor | None = None
 
-    def _scores(self, observations: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
+    def _scores(self, observations: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """:return: ``[o_i, a_i]`` and the scores of the other agents, ``[batch, n - 1]`` (ascending index)."""
         own_input = self.encoder.own_input(observations, actions)
-        others_input = self.encoder.others_input(observations, actions)
-        own, others = self.encoder(own_input, others_input)
-        scores = (self.key(others) @ self.query(own).unsqueeze(-1)).squeeze(-1) / math.sqrt(self.embed_dim)
-        return own_input, others_input, scores
+        own, others = self.encoder(own_input, self.encoder.others_input(observations, actions))
+        query = nn.functional.normalize(self.query(own), dim=-1).unsqueeze(-1)
+        keys = nn.functional.normalize(self.key(others), dim=-1)
+        return own_input, (keys @ query).squeeze(-1) / self.temperature
+
+    def _slots(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        """:return: Every other agent's ``[o_j, a_j]``, each part zero-padded on its own, ``[batch, n - 1, slot]``."""
+        layout, others = self.layout, self.encoder.others
+        obs = stack_padded([observations[:, layout.obs_slices[j]] for j in others], self._slot_obs_size)
+        act = stack_padded([actions[:, layout.action_slices[j]] for j in others], self._slot_action_size)
+        return th.cat((obs, act), dim=-1).transpose(0, 1)
 
     def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
-        own_input, others_input, scores = self._scores(observations, actions)
+        own_input, scores = self._scores(observations, actions)
+        slots = self._slots(observations, actions)
         soft = th.softmax(scores, dim=1)
         top = scores.topk(self.selection_size, dim=1).indices  # highest first
-        hard = nn.functional.one_hot(top, num_classes=scores.shape[1]).to(soft.dtype)
-        # Straight-through: the value of the hard one-hot rows, the gradient of the softmax.
-        choice = hard + (soft - soft.detach()).unsqueeze(1)
-        chosen_data = choice @ others_input  # [batch, k, max size]
+        chosen = slots.gather(1, top.unsqueeze(-1).expand(-1, -1, slots.shape[-1]))  # exactly the chosen data
+        # Straight-through: adds zero to the value, and the gradient of the softmax-weighted mixture to each slot.
+        chosen = chosen + ((soft - soft.detach()).unsqueeze(1) @ slots)
         self._remember(observations, soft)
         if self.recording:
             self._last_chosen = top.detach()
-        return th.cat((own_input, chosen_data.flatten(1)), dim=1)
+        return th.cat((own_input, chosen.flatten(1)), dim=1)
 
     def listening_weights(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        return th.softmax(self._scores(observations, actions)[2], dim=1)
+        return th.softmax(self._scores(observations, actions)[1], dim=1)
 
     def chosen_agents(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        top = self._scores(observations, actions)[2].topk(self.selection_size, dim=1).indices
+        top = self._scores(observations, actions)[1].topk(self.selection_size, dim=1).indices
         return th.as_tensor(self.encoder.others, device=top.device)[top]
 
-    def _last_chosen_ranks(self, ranks: th.Tensor) -> th.Tensor | None:
-        if self._last_chosen is None or self._last_chosen.shape[0] != ranks.shape[0]:
-            return None
-        return ranks.gather(1, self._last_chosen)
+    def _last_choice(self) -> th.Tensor | None:
+        return self._last_chosen
 
 
 def default_selection_size(n_agents: int) -> int:
@@ -310,10 +334,11 @@ def critic_listening(model: Any, observations: Any, actions: Any = None) -> dict
 
     policy = model.policy
     extractors = list(policy.critic.extractors)
-    if not all(isinstance(extractor, _ListeningCritic) for extractor in extractors):
+    others = [type(extractor).__name__ for extractor in extractors if not isinstance(extractor, _ListeningCritic)]
+    if others:
         raise TypeError(
             f"critic_listening needs critics that learn whom to listen to (critic_sharing='attention' or "
-            f"'learned_selection'), got {type(extractors[0]).__name__}."
+            f"'learned_selection'), got {', '.join(others)}."
         )
     observations = np.asarray(observations, dtype=np.float32).reshape(-1, model.observation_space.shape[0])
     if actions is None:

@@ -205,7 +205,7 @@ class MultiAgentCritic(nn.Module):
         squared = self.mlp.squared_grad_norms()
         extractor_grads = [[p.grad for p in extractor.parameters() if p.grad is not None] for extractor in self.extractors]
         if any(extractor_grads):
-            extra = th.stack([sum((grad.pow(2).sum() for grad in grads), th.zeros(())) for grads in extractor_grads])
+            extra = th.stack([sum((grad.pow(2).sum() for grad in grads), squared.new_zeros(())) for grads in extractor_grads])
             squared = squared + (extra.sum(0, keepdim=True) if self.mlp.share_parameters else extra)
         coefficients = clip_coefficients(squared, max_norm)
         self.mlp.scale_grads(coefficients)

@@ -46,7 +46,7 @@ def test_names_and_feature_sizes() -> None:
     assert resolve_scheme("attention") is AttentionCriticFeatures
     assert resolve_scheme("learned_selection") is LearnedSelectionCriticFeatures
     assert AttentionCriticFeatures(LAYOUT, 0, embed_dim=8, n_heads=2).features_dim == 16  # [own, attended]
-    # Own (6 + 2) and k = 2 chosen agents, each padded to the largest other agent's 8 + 3.
+    # Own (6 + 2) and k = 2 chosen agents, each o_j and a_j padded to the largest other agent's: 8 + 3.
     assert LearnedSelectionCriticFeatures(LAYOUT, 0, k=2, embed_dim=8).features_dim == 8 + 2 * 11
     assert LearnedSelectionCriticFeatures(LAYOUT, 3, k=1, embed_dim=8).features_dim == 11 + 8  # agent 3 is the largest
     assert [default_selection_size(n) for n in (2, 3, 4, 5, 8)] == [1, 1, 2, 2, 2]
@@ -99,24 +99,63 @@ def test_learned_selection_sees_exactly_its_k_highest_scored_agents() -> None:
     extractor = make_critic("learned_selection", k=2).extractors[1]
     obs, actions = batch()
     features = extractor(obs, actions)
-    own_input, others_input, scores = extractor._scores(obs, actions)  # type: ignore[operator]
+    _, scores = extractor._scores(obs, actions)  # type: ignore[operator]
     top = scores.topk(2, dim=1).indices
-    # By hand: own [o_1, a_1], then each chosen agent's [o_j, a_j] padded to 11, highest score first.
-    expected = [own_input]
-    for rank in range(2):
-        expected.append(others_input[th.arange(BATCH), top[:, rank]])
-    th.testing.assert_close(features, th.cat(expected, dim=1))
     others = [0, 2, 3]
+
+    def slot(j: int) -> th.Tensor:  # o_j padded to 8 columns, then a_j padded to 3: agent 3 is the largest
+        o_j, a_j = obs[:, LAYOUT.obs_slices[j]], actions[:, LAYOUT.action_slices[j]]
+        return th.cat((o_j, th.zeros(BATCH, 8 - o_j.shape[1]), a_j, th.zeros(BATCH, 3 - a_j.shape[1])), dim=1)
+
+    # By hand: own [o_1, a_1], then each chosen agent's slot, highest score first.
+    expected = [th.cat((obs[:, LAYOUT.obs_slices[1]], actions[:, LAYOUT.action_slices[1]]), dim=1)]
+    for rank in range(2):
+        expected.append(th.stack([slot(others[int(j)])[row] for row, j in enumerate(top[:, rank])]))
+    assert th.equal(features, th.cat(expected, dim=1))  # exactly: the straight-through term adds zero
     chosen = extractor.chosen_agents(obs, actions)  # type: ignore[operator]
     assert chosen.tolist() == [[others[j] for j in row] for row in top.tolist()]
     assert (chosen != 1).all()
     # The rows differ: the choice depends on the data, not only on the parameters.
     assert len({tuple(row) for row in chosen.tolist()}) > 1
-    # Straight-through: the scores' parameters get a gradient from Q although the forward choice is hard.
+
+
+def test_learned_selection_gradient_is_the_softmax_mixtures() -> None:
+    """Straight-through: the scores' parameters get the gradient Q would have if each chosen slot were replaced by
+    the softmax-weighted mixture of every other agent's slot (computed here by hand)."""
     critic = make_critic("learned_selection", k=2)
-    critic(obs, actions)[:, 1].sum().backward()
-    scorer = critic.extractors[1]
-    assert scorer.query.weight.grad.abs().sum() > 0 and scorer.key.weight.grad.abs().sum() > 0  # type: ignore[union-attr]
+    extractor = critic.extractors[1]
+    obs, actions = batch()
+    upstream = th.randn(BATCH, extractor.features_dim)
+    (extractor(obs, actions) * upstream).sum().backward()  # type: ignore[operator]
+    straight_through = [p.grad.clone() for p in (extractor.query.weight, extractor.key.weight)]  # type: ignore[union-attr]
+
+    extractor.zero_grad()
+    own_input, scores = extractor._scores(obs, actions)  # type: ignore[operator]
+    slots = extractor._slots(obs, actions)  # type: ignore[operator]
+    mixture = th.softmax(scores, dim=1).unsqueeze(1) @ slots  # [batch, 1, slot]
+    surrogate = th.cat((own_input, mixture.expand(-1, 2, -1).flatten(1)), dim=1)
+    (surrogate * upstream).sum().backward()
+    for mine, by_hand in zip(straight_through, (extractor.query.weight.grad, extractor.key.weight.grad)):
+        assert mine.abs().sum() > 0
+        th.testing.assert_close(mine, by_hand)
+
+
+def test_learned_selection_scores_stay_bounded_so_their_gradient_survives() -> None:
+    """An unbounded score lets the softmax saturate and the choice freeze; these stay within 1 / temperature."""
+    critic = make_critic("learned_selection", k=1, temperature=0.5)
+    extractor = critic.extractors[0]
+    with th.no_grad():
+        for parameter in extractor.parameters():
+            parameter.mul_(100.0)  # as if training had grown the weights
+    obs, actions = batch()
+    scores = extractor._scores(obs, actions)[1]  # type: ignore[operator]
+    assert scores.abs().max() <= 2.0 + 1e-5
+    weights = th.softmax(scores, dim=1)
+    assert weights.min() > th.softmax(th.tensor([2.0, -2.0, -2.0]), dim=0).min() - 1e-6
+    critic(obs, actions)[:, 0].sum().backward()
+    assert extractor.query.weight.grad.abs().sum() > 1e-3  # type: ignore[union-attr]
+    with pytest.raises(ValueError, match="temperature must be positive"):
+        LearnedSelectionCriticFeatures(LAYOUT, 0, k=1, temperature=0.0)
 
 
 def test_learned_selection_value_ignores_unchosen_agents() -> None:
@@ -142,8 +181,9 @@ def test_learned_selection_value_ignores_unchosen_agents() -> None:
     assert checked >= BATCH // 2  # not vacuous: most nudges keep the choice
 
 
-def test_diagnostics_come_from_the_critic_update_and_match_a_hand_computation() -> None:
-    critic = make_critic("learned_selection", k=1)
+@pytest.mark.parametrize("k", [1, 2])
+def test_diagnostics_come_from_the_critic_update_and_match_a_hand_computation(k: int) -> None:
+    critic = make_critic("learned_selection", k=k)
     extractor = critic.extractors[0]
     obs, actions = batch()
     with th.no_grad():
@@ -159,13 +199,16 @@ def test_diagnostics_come_from_the_critic_update_and_match_a_hand_computation() 
     nearest = distances.argmin(dim=1)
     with th.no_grad():
         weights = extractor.listening_weights(obs, actions)
-        chosen = extractor.chosen_agents(obs, actions)[:, 0] - 1  # agents 1..3 are others 0..2
+        chosen = extractor.chosen_agents(obs, actions) - 1  # agents 1..3 are others 0..2
     assert report["weight_on_nearest"] == pytest.approx(float(weights[th.arange(BATCH), nearest].mean()), rel=1e-5)
-    assert report["chose_nearest"] == pytest.approx(float((chosen == nearest).float().mean()))
-    rank_of_chosen = (distances < distances[th.arange(BATCH), chosen].unsqueeze(1)).sum(dim=1) + 1
+    k_nearest = [set(row) for row in distances.argsort(dim=1)[:, :k].tolist()]
+    assert report["chose_nearest"] == pytest.approx(np.mean([set(c) == n for c, n in zip(chosen.tolist(), k_nearest)]))
+    rank_of_chosen = (distances.unsqueeze(1) < distances.gather(1, chosen).unsqueeze(2)).sum(dim=2) + 1
     assert report["chosen_rank"] == pytest.approx(float(rank_of_chosen.float().mean()))
     entropy = -(weights * weights.log()).sum(dim=1).mean()
     assert report["attention_entropy"] == pytest.approx(float(entropy), rel=1e-5)
+    first = chosen[:, 0].tolist()
+    assert report["top_choice_share"] == pytest.approx(max(first.count(j) for j in range(3)) / BATCH)
 
 
 @pytest.mark.parametrize("scheme", list(SCHEMES))
@@ -189,6 +232,7 @@ def test_trains_saves_loads_and_logs_what_critics_listen_to(scheme: str, tmp_pat
     if scheme == "learned_selection":
         assert 0.0 <= float(rows[-1]["train/chose_nearest"]) <= 1.0
         assert 1.0 <= float(rows[-1]["train/agent_2/chosen_rank"]) <= 2.0
+        assert 0.5 <= float(rows[-1]["train/top_choice_share"]) <= 1.0  # one of two others chosen first
 
     obs = env.reset()
     q_before = model.policy.q_values(th.as_tensor(obs), th.zeros(4, 15))

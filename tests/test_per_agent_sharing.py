@@ -63,13 +63,23 @@ def test_kwargs_are_shared_or_per_agent() -> None:
     assert per_agent == [{}, {}, {"embed_dim": 8}, {}]
 
 
-def test_a_mixed_team_trains_saves_and_loads(tmp_path: Path) -> None:
+DEVICES = ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(not th.cuda.is_available(), reason="needs CUDA"))]
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_a_mixed_team_trains_saves_and_loads(device: str, tmp_path: Path) -> None:
+    # On CUDA, the per-agent gradient clipping sums critics with and without parameters on one device.
     sharing = {"agent_0": "full", "agent_1": "independent", "agent_2": "attention"}
     kwargs = {"agent_2": {"embed_dim": 8, "n_heads": 2}}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # selection is not used here, so no selected-sharing warning either
         model = MADDPG(
-            "MlpPolicy", SimpleSpreadVecEnv(4, n_agents=3), critic_sharing=sharing, critic_sharing_kwargs=kwargs, **FAST
+            "MlpPolicy",
+            SimpleSpreadVecEnv(4, n_agents=3),
+            critic_sharing=sharing,
+            critic_sharing_kwargs=kwargs,
+            device=device,
+            **FAST,
         )
     extractors = model.critic.extractors
     assert [type(e) for e in extractors] == [FullCriticFeatures, IndependentCriticFeatures, AttentionCriticFeatures]
