@@ -359,10 +359,14 @@ class MADDPG(OffPolicyAlgorithm):
             self.action_noise = noise.base_noise
 
     def dump_logs(self) -> None:
-        """Write the logs at most once per env step: SB3 asks at finished episodes, which many envs end together."""
+        """
+        Write the logs at most once per env step (SB3 asks at finished episodes, which many envs end together), with
+        what each critic's features extractor reports.
+        """
         if self._logs_dumped_at == self.num_timesteps:
             return
         self._logs_dumped_at = self.num_timesteps
+        self._log_critic_diagnostics()
         super().dump_logs()
 
     def _create_aliases(self) -> None:
@@ -529,7 +533,13 @@ class MADDPG(OffPolicyAlgorithm):
             self.logger.record(f"train/{name}", sum(values) / len(values))
             for agent, value in zip(self.agent_layout.agent_ids, values):
                 self.logger.record(f"train/{agent}/{name}", value)
-        # What each critic's features extractor reports (e.g. whom an attention critic listens to).
+
+    def _log_critic_diagnostics(self) -> None:
+        """
+        Record each critic's extractor's diagnostics (e.g. whom an attention critic listens to), from the last critic
+        update's batch: computed only when the logs are written, not at every update.
+        """
+        assert self.agent_layout is not None
         diagnostics = self.critic.diagnostics()
         for name in sorted({key for summary in diagnostics for key in summary}):
             values = [summary[name] for summary in diagnostics if name in summary]

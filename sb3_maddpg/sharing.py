@@ -74,8 +74,8 @@ class CriticFeaturesExtractor(nn.Module):
 
     def diagnostics(self) -> dict[str, float]:
         """
-        Summaries of what this extractor did on the last training batch, logged by MADDPG after each training round
-        as ``train/<agent_id>/<key>`` (and their team mean as ``train/<key>``). None by default.
+        Summaries of what this extractor did on the last critic update's batch, recorded by MADDPG each time it writes
+        the logs, as ``train/<agent_id>/<key>`` (and their team mean as ``train/<key>``). None by default.
 
         :return: Names and values.
         """

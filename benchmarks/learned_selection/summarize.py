@@ -2,18 +2,22 @@
 Issue 12's measurement, summarised: the report of the runs (Table 2 with Mann-Whitney U against ``full``, the
 aggregate estimates, learning curves, boxplots) and what the learned critics listen to over training.
 
-Reads the runs in ``results/`` (written by ``run.sh``) and writes into ``report/``:
+Reads the runs in ``results/`` (written by ``run.sh``) and writes into ``docs/_static/learned_selection/``:
 
 - ``sb3-maddpg report``'s files for ``min_dist_sum``, ``return_mean`` and ``success_rate``;
-- ``cost.md``: per setting and scheme, the runs' mean training throughput (env steps/s, updates included) and
-  its ratio to ``full``'s, from the same sweep;
-- ``listening.md`` and ``listening.png``: for ``attention`` and ``learned_selection``, the team means of
-  ``train/weight_on_nearest``, ``train/attention_entropy`` and (learned selection) ``train/chose_nearest`` from
-  SB3's log, mean over seeds every 100k steps: whether the learned selection converges to the k nearest agents.
+- ``description.md`` (shown on the docs page after the hand-written ``README.md`` with the reading), with two
+  tables. Cost: per setting and scheme, the runs' mean training throughput (env steps/s of the whole run: env steps,
+  updates and the learning-curve evaluations, which pull the ratio towards 1; ``update_time.md`` has the updates
+  alone) and its ratio to ``full``'s, from the same sweep;
+  What the critics listen to: for ``attention`` and ``learned_selection``, the team means of
+  ``train/weight_on_nearest``, ``train/attention_entropy`` and (learned selection) ``train/chose_nearest`` and
+  ``train/top_choice_share`` from SB3's log, mean over seeds every 100k steps: whether the learned selection
+  converges to the k nearest agents, to a choice that ignores the state, or to something else;
+- ``listening.png``: the same over training, per setting.
 
 Usage::
 
-    python benchmarks/learned_selection/summarize.py [results] [report]
+    python benchmarks/learned_selection/summarize.py [results] [report]   # defaults: results/, docs/_static/...
 """
 
 import csv
@@ -24,7 +28,7 @@ from pathlib import Path
 from sb3_maddpg.experiments import make_report
 
 HERE = Path(__file__).resolve().parent
-DIAGNOSTICS = ("weight_on_nearest", "attention_entropy", "chose_nearest")
+DIAGNOSTICS = ("weight_on_nearest", "attention_entropy", "chose_nearest", "top_choice_share")
 LEARNED = ("attention", "learned_selection")
 
 
@@ -98,6 +102,7 @@ def listening_plot(results: Path, experiments: list[str], steps: list[int], path
             ("attention", "weight_on_nearest", "-"),
             ("learned_selection", "weight_on_nearest", "--"),
             ("learned_selection", "chose_nearest", ":"),
+            ("learned_selection", "top_choice_share", "-."),
         ):
             values = series(results, experiment, scheme, key, steps)
             points = [(step, value) for step, value in zip(steps, values) if value is not None]
@@ -108,25 +113,82 @@ def listening_plot(results: Path, experiments: list[str], steps: list[int], path
         axis.set_ylabel("fraction (mean over seeds)")
         axis.set_ylim(0, 1)
         axis.grid(alpha=0.3)
-        axis.legend(fontsize=8)
+        if axis.get_legend_handles_labels()[0]:
+            axis.legend(fontsize=8)
     figure.tight_layout()
     figure.savefig(path, dpi=110)
     plt.close(figure)
 
 
+def complete_seeds(results: Path, view: Path) -> list[str]:
+    """
+    Link into ``view`` the runs of the seeds every scheme of their setting has finished, so that a sweep still in
+    progress is reported like with like (the same seeds for every scheme).
+
+    :return: The finished runs left out, ``setting/scheme/seed_*``.
+    """
+    import json
+
+    left_out = []
+    for experiment in sorted(path.parent for path in results.glob("*/experiment.json")):
+        schemes = json.loads((experiment / "experiment.json").read_text())["schemes"]
+        finished = {
+            scheme: {run.name for run in (experiment / scheme).glob("seed_*") if (run / "done").exists()} for scheme in schemes
+        }
+        common = set.intersection(*finished.values())
+        (view / experiment.name).mkdir(parents=True)
+        (view / experiment.name / "experiment.json").symlink_to(experiment / "experiment.json")
+        for scheme, seeds in finished.items():
+            (view / experiment.name / scheme).mkdir()
+            for seed in sorted(seeds):
+                if seed in common:
+                    (view / experiment.name / scheme / seed).symlink_to(experiment / scheme / seed)
+                else:
+                    left_out.append(f"{experiment.name}/{scheme}/{seed}")
+    return left_out
+
+
 def main() -> None:
-    """Write the report and the listening summaries."""
-    results = Path(sys.argv[1]) if len(sys.argv) > 1 else HERE / "results"
-    out = Path(sys.argv[2]) if len(sys.argv) > 2 else HERE / "report"
+    """Write the report and the listening summaries of the seeds every scheme has finished."""
+    import tempfile
+
+    given = Path(sys.argv[1]) if len(sys.argv) > 1 else HERE / "results"
+    out = Path(sys.argv[2]) if len(sys.argv) > 2 else HERE.parents[1] / "docs" / "_static" / "learned_selection"
+    with tempfile.TemporaryDirectory() as view:
+        left_out = complete_seeds(given.resolve(), Path(view))
+        if left_out:
+            print(f"left out until every scheme has their seed: {', '.join(left_out)}")
+        write(Path(view), out)
+
+
+def write(results: Path, out: Path) -> None:
+    """Write the report and the listening summaries of ``results`` into ``out``."""
     for path in make_report(results, out, metrics=("min_dist_sum", "return_mean", "success_rate")):
         print(path)
     experiments = sorted(path.name for path in results.iterdir() if (path / "experiment.json").exists())
     total = max(int(float(row)) for row in _totals(results))
     steps = list(range(total // 10, total + 1, total // 10))
-    (out / "cost.md").write_text(cost_table(results))
-    (out / "listening.md").write_text(listening_table(results, experiments, steps))
+    description = [
+        "## What the learned critics listen to",
+        "",
+        "Team means over the critics of the last critic update before each log write, mean over the finished seeds, "
+        "at each budget. `attention_entropy` in nats (uniform: log(N-1), 0.69 at N=3, 1.39 at N=5); "
+        "`weight_on_nearest`: the weight on the nearest other agent; `chose_nearest`: fraction of states whose "
+        "chosen set is the k nearest (chance: 0.5 at N=3 with k=1, 1/6 at N=5 with k=2); `top_choice_share`: "
+        "fraction of states whose first choice is the agent chosen first most often (1: the state is ignored).",
+        "",
+        listening_table(results, experiments, steps),
+        "## Cost",
+        "",
+        "Mean training throughput of the runs (env steps/s of the whole run, evaluations included; the update "
+        "alone is in `benchmarks/learned_selection/update_time.md`), one torch thread each, two runs at a time on "
+        "a 2-core machine; higher is faster.",
+        "",
+        cost_table(results),
+    ]
+    (out / "description.md").write_text("\n".join(description))
     listening_plot(results, experiments, steps, out / "listening.png")
-    print(out / "cost.md", out / "listening.md", out / "listening.png", sep="\n")
+    print(out / "description.md", out / "listening.png", sep="\n")
 
 
 def _totals(results: Path) -> list[str]:
