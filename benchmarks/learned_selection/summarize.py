@@ -89,6 +89,20 @@ def listening_table(results: Path, experiments: list[str], steps: list[int]) -> 
     return "\n".join(lines) + "\n"
 
 
+def chance_levels(experiment: Path) -> tuple[float, float]:
+    """
+    :return: The weight on any one other agent when listening evenly, ``1 / (n - 1)``, and the chance that k others
+        drawn at random are the k nearest, ``1 / C(n - 1, k)``.
+    """
+    import json
+    import math
+
+    config = json.loads((experiment / "experiment.json").read_text())
+    n_others = config["n_agents"] - 1
+    k = config["scheme_model_kwargs"]["learned_selection"]["critic_sharing_kwargs"]["k"]
+    return 1 / n_others, 1 / math.comb(n_others, k)
+
+
 def listening_plot(results: Path, experiments: list[str], steps: list[int], path: Path) -> None:
     """Draw, per setting, the weight on the nearest agent and how often the choice is the k nearest, over training."""
     import matplotlib
@@ -108,6 +122,9 @@ def listening_plot(results: Path, experiments: list[str], steps: list[int], path
             points = [(step, value) for step, value in zip(steps, values) if value is not None]
             if points:
                 axis.plot(*zip(*points), style, label=f"{scheme}: {key}")
+        uniform, nearest_by_chance = chance_levels(results / experiment)
+        axis.axhline(uniform, color="grey", lw=0.8, ls="--", label=f"uniform weight: {uniform:.2f}")
+        axis.axhline(nearest_by_chance, color="grey", lw=0.8, ls=":", label=f"k nearest by chance: {nearest_by_chance:.2f}")
         axis.set_title(experiment)
         axis.set_xlabel("env steps")
         axis.set_ylabel("fraction (mean over seeds)")
