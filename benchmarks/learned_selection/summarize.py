@@ -30,6 +30,11 @@ from sb3_maddpg.experiments import make_report
 HERE = Path(__file__).resolve().parent
 DIAGNOSTICS = ("weight_on_nearest", "attention_entropy", "chose_nearest", "top_choice_share")
 LEARNED = ("attention", "learned_selection")
+METRICS = {
+    "min_dist_sum": "min-dist sum (lower is better)",
+    "return_mean": "team return (higher is better)",
+    "success_rate": "success rate (fraction, higher is better)",
+}
 
 
 def logged(run: Path, key: str) -> list[tuple[int, float]]:
@@ -72,6 +77,42 @@ def cost_table(results: Path) -> str:
         ratio = f"{statistics.mean(values) / statistics.mean(full):.2f}" if full else ""
         lines.append(f"| {experiment} | {scheme} | {len(values)} | {statistics.mean(values):,.0f} | {ratio} |")
     return "\n".join(lines) + "\n"
+
+
+def against_rule_table(results: Path) -> str:
+    """
+    :return: Markdown: per setting and metric, the learned critics' scores against ``selected``'s (the paper's k
+        nearest rule): mean (std) over runs and the two-sided Mann-Whitney U p-value.
+    """
+    import json
+
+    from scipy.stats import mannwhitneyu
+
+    scores: dict[tuple[str, str], list[dict[str, float]]] = {}
+    for path in sorted(results.glob("*/*/seed_*/summary.json")):
+        summary = json.loads(path.read_text())
+        scores.setdefault((summary["experiment"], summary["scheme"]), []).append(summary["score"])
+    lines = ["| setting | metric | selected | attention (p) | learned_selection (p) |", "|---|---|---|---|---|"]
+    for experiment in sorted({experiment for experiment, _ in scores}):
+        rule = scores.get((experiment, "selected"), [])
+        for metric, label in METRICS.items():
+            if len(rule) < 2:
+                continue
+            base = [score[metric] for score in rule]
+            cells = [_mean_std(base)]
+            for scheme in LEARNED:
+                runs = [score[metric] for score in scores.get((experiment, scheme), [])]
+                if len(runs) < 2:
+                    cells.append("")
+                    continue
+                p_value = mannwhitneyu(runs, base, alternative="two-sided").pvalue
+                cells.append(f"{_mean_std(runs)} (p = {p_value:.3f})")
+            lines.append(f"| {experiment} | {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _mean_std(values: list[float]) -> str:
+    return f"{statistics.mean(values):.3g} ({statistics.stdev(values):.2g})"
 
 
 def listening_table(results: Path, experiments: list[str], steps: list[int]) -> str:
@@ -186,6 +227,13 @@ def write(results: Path, out: Path) -> None:
     total = max(int(float(row)) for row in _totals(results))
     steps = list(range(total // 10, total + 1, total // 10))
     description = [
+        "## Against the k nearest rule",
+        "",
+        "The learned critics against `selected` (MADDPG-soa, the paper's k nearest rule, which sees as many agents "
+        "as `learned_selection`): mean (std) over the runs of each scheme's score, and the two-sided Mann-Whitney U "
+        "p-value against `selected`'s runs (`scipy.stats.mannwhitneyu`).",
+        "",
+        against_rule_table(results),
         "## What the learned critics listen to",
         "",
         "Team means over the critics of the last critic update before each log write, mean over the finished seeds, "
