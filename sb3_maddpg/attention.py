@@ -15,8 +15,8 @@ learned_selection   ``[o_i, a_i, o_s1, a_s1, .., o_sk, a_sk]``: its own data and
 
 Both are :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor` subclasses with parameters: they train with their
 critic's loss (critic i's encoders, attention and scores are its own, so critic i's loss moves only critic i's
-parameters), have target copies, and are saved with the model. Agents of unequal sizes are zero-padded to the
-largest ``(o_j, a_j)``.
+parameters), have target copies, and are saved with the model. Agents of unequal sizes are served: each other agent
+has its own encoder, and a learned selection pads the chosen agents' ``o_j`` and ``a_j`` separately.
 
 The hard choice is trained with a straight-through estimator: the forward pass gathers the top-k agents' data
 exactly; the backward pass takes the gradient of the softmax of the scores in its place, so the scores learn from how
@@ -149,7 +149,7 @@ class _ListeningCritic(CriticFeaturesExtractor):
         result = {"attention_entropy": float(-(weights * weights.clamp_min(1e-12).log()).sum(dim=1).mean())}
         chosen = self._last_choice()
         if chosen is not None:
-            first_choices = th.bincount(chosen[:, 0], minlength=weights.shape[1])
+            first_choices = nn.functional.one_hot(chosen[:, 0], weights.shape[1]).sum(dim=0)  # deterministic
             result["top_choice_share"] = float(first_choices.max()) / chosen.shape[0]
         ranks = self._distance_ranks(observations)
         if ranks is not None:

@@ -17,7 +17,15 @@ from sb3_maddpg.experiments import EXP1, EXP2, SCHEMES, SMOKE, ExperimentConfig,
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL
 from sb3_maddpg.experiments.report import format_markdown
-from sb3_maddpg.experiments.results import DONE_FILE, RESULT_FILES, is_finished, load_summaries, write_result_files
+from sb3_maddpg.experiments.results import (
+    DONE_FILE,
+    RESULT_FILES,
+    is_finished,
+    link_complete_seeds,
+    load_summaries,
+    write_experiment,
+    write_result_files,
+)
 from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.stats import aggregate, mann_whitney, mean_std, significance_stars
 
@@ -383,20 +391,39 @@ def test_report_regenerates_the_committed_results(results: Path, report: Path, t
     committed_tables = sorted(report.glob("table_*.md"))
     assert committed_tables, f"no committed tables in {report}"
     metrics = [path.stem.removeprefix("table_") for path in committed_tables]
-    written = make_report(results, tmp_path, metrics=metrics)
+    # Reports are made from the seeds every scheme has finished: a sweep cut short still compares like with like,
+    # and runs finished since (not yet in the report) do not change it.
+    link_complete_seeds(results, tmp_path / "view")
+    written = make_report(tmp_path / "view", tmp_path / "report", metrics=metrics)
     for path in written:
         committed = report / path.name
         assert committed.exists(), committed
         if path.suffix in (".md", ".csv"):
             assert path.read_text() == committed.read_text(), path.name
-    # Every scheme of a setting has the same seeds: a sweep cut short still compares like with like.
-    summaries = load_summaries(results)
-    for setting in {s["experiment"] for s in summaries}:
-        seeds = {}
-        for summary in summaries:
-            if summary["experiment"] == setting:
-                seeds.setdefault(summary["scheme"], []).append(summary["seed"])
-        assert len({tuple(sorted(value)) for value in seeds.values()}) == 1, setting
+
+
+def test_only_seeds_every_scheme_finished_are_linked(tmp_path: Path) -> None:
+    results = tmp_path / "results"
+    for name, schemes, finished in (
+        ("both", ["full", "selected"], {"full": [0, 1, 2], "selected": [0, 2]}),
+        ("none_common", ["full", "attention"], {"full": [0], "attention": []}),
+    ):
+        write_experiment(results, name, {"schemes": schemes})
+        for scheme, seeds in finished.items():
+            for seed in seeds:
+                (results / name / scheme / f"seed_{seed:03d}").mkdir(parents=True)
+                (results / name / scheme / f"seed_{seed:03d}" / "done").write_text("")
+        (results / name / schemes[1] / "seed_001").mkdir(parents=True, exist_ok=True)  # started, not finished
+    left_out = link_complete_seeds(results, tmp_path / "view")
+    assert left_out == ["both/full/seed_001", "none_common/full/seed_000"]
+    view = tmp_path / "view"
+    assert sorted(str(path.relative_to(view)) for path in view.glob("*/*/seed_*")) == [
+        "both/full/seed_000",
+        "both/full/seed_002",
+        "both/selected/seed_000",
+        "both/selected/seed_002",
+    ]
+    assert (view / "both" / "experiment.json").is_file() and not (view / "none_common").exists()
 
 
 def test_the_small_scale_result_is_its_config() -> None:

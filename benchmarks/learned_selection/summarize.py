@@ -25,7 +25,9 @@ import statistics
 import sys
 from pathlib import Path
 
+from sb3_maddpg.attention import default_selection_size
 from sb3_maddpg.experiments import make_report
+from sb3_maddpg.experiments.results import link_complete_seeds
 
 HERE = Path(__file__).resolve().parent
 DIAGNOSTICS = ("weight_on_nearest", "attention_entropy", "chose_nearest", "top_choice_share")
@@ -81,6 +83,7 @@ def cost_table(results: Path) -> str:
 
 def against_rule_table(results: Path) -> str:
     """
+    :param results: A results directory (or a view of its complete seeds).
     :return: Markdown: per setting and metric, the learned critics' scores against ``selected``'s (the paper's k
         nearest rule): mean (std) over runs and the two-sided Mann-Whitney U p-value.
     """
@@ -95,9 +98,9 @@ def against_rule_table(results: Path) -> str:
     lines = ["| setting | metric | selected | attention (p) | learned_selection (p) |", "|---|---|---|---|---|"]
     for experiment in sorted({experiment for experiment, _ in scores}):
         rule = scores.get((experiment, "selected"), [])
+        if len(rule) < 2:
+            continue
         for metric, label in METRICS.items():
-            if len(rule) < 2:
-                continue
             base = [score[metric] for score in rule]
             cells = [_mean_std(base)]
             for scheme in LEARNED:
@@ -112,11 +115,17 @@ def against_rule_table(results: Path) -> str:
 
 
 def _mean_std(values: list[float]) -> str:
+    """:return: ``mean (std)`` of at least two values, to three and two significant digits."""
     return f"{statistics.mean(values):.3g} ({statistics.stdev(values):.2g})"
 
 
 def listening_table(results: Path, experiments: list[str], steps: list[int]) -> str:
-    """:return: Markdown: per setting, learned scheme and summary, its mean over seeds at each step."""
+    """
+    :param results: A results directory (or a view of its complete seeds).
+    :param experiments: The settings to show.
+    :param steps: The env steps of the columns.
+    :return: Markdown: per setting, learned scheme and summary, its mean over seeds at each step.
+    """
     lines = ["| setting | scheme | summary | " + " | ".join(f"{step // 1000}k" for step in steps) + " |"]
     lines.append("|---|---|---|" + "---|" * len(steps))
     for experiment in experiments:
@@ -132,6 +141,7 @@ def listening_table(results: Path, experiments: list[str], steps: list[int]) -> 
 
 def chance_levels(experiment: Path) -> tuple[float, float]:
     """
+    :param experiment: A setting's directory, holding its ``experiment.json``.
     :return: The weight on any one other agent when listening evenly, ``1 / (n - 1)``, and the chance that k others
         drawn at random are the k nearest, ``1 / C(n - 1, k)``.
     """
@@ -140,12 +150,21 @@ def chance_levels(experiment: Path) -> tuple[float, float]:
 
     config = json.loads((experiment / "experiment.json").read_text())
     n_others = config["n_agents"] - 1
-    k = config["scheme_model_kwargs"]["learned_selection"]["critic_sharing_kwargs"]["k"]
+    kwargs = config.get("scheme_model_kwargs", {}).get("learned_selection", {}).get("critic_sharing_kwargs", {})
+    k = kwargs.get("k", default_selection_size(n_others + 1))
     return 1 / n_others, 1 / math.comb(n_others, k)
 
 
 def listening_plot(results: Path, experiments: list[str], steps: list[int], path: Path) -> None:
-    """Draw, per setting, the weight on the nearest agent and how often the choice is the k nearest, over training."""
+    """
+    Draw, per setting, the weight on the nearest agent and how often the choice is the k nearest, over training,
+    with their chance levels.
+
+    :param results: A results directory (or a view of its complete seeds).
+    :param experiments: The settings, one panel each.
+    :param steps: The env steps to draw.
+    :param path: The image file to write.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -171,39 +190,10 @@ def listening_plot(results: Path, experiments: list[str], steps: list[int], path
         axis.set_ylabel("fraction (mean over seeds)")
         axis.set_ylim(0, 1)
         axis.grid(alpha=0.3)
-        if axis.get_legend_handles_labels()[0]:
-            axis.legend(fontsize=8)
+        axis.legend(fontsize=8)
     figure.tight_layout()
     figure.savefig(path, dpi=110)
     plt.close(figure)
-
-
-def complete_seeds(results: Path, view: Path) -> list[str]:
-    """
-    Link into ``view`` the runs of the seeds every scheme of their setting has finished, so that a sweep still in
-    progress is reported like with like (the same seeds for every scheme).
-
-    :return: The finished runs left out, ``setting/scheme/seed_*``.
-    """
-    import json
-
-    left_out = []
-    for experiment in sorted(path.parent for path in results.glob("*/experiment.json")):
-        schemes = json.loads((experiment / "experiment.json").read_text())["schemes"]
-        finished = {
-            scheme: {run.name for run in (experiment / scheme).glob("seed_*") if (run / "done").exists()} for scheme in schemes
-        }
-        common = set.intersection(*finished.values())
-        (view / experiment.name).mkdir(parents=True)
-        (view / experiment.name / "experiment.json").symlink_to(experiment / "experiment.json")
-        for scheme, seeds in finished.items():
-            (view / experiment.name / scheme).mkdir()
-            for seed in sorted(seeds):
-                if seed in common:
-                    (view / experiment.name / scheme / seed).symlink_to(experiment / scheme / seed)
-                else:
-                    left_out.append(f"{experiment.name}/{scheme}/{seed}")
-    return left_out
 
 
 def main() -> None:
@@ -213,19 +203,26 @@ def main() -> None:
     given = Path(sys.argv[1]) if len(sys.argv) > 1 else HERE / "results"
     out = Path(sys.argv[2]) if len(sys.argv) > 2 else HERE.parents[1] / "docs" / "_static" / "learned_selection"
     with tempfile.TemporaryDirectory() as view:
-        left_out = complete_seeds(given.resolve(), Path(view))
+        left_out = link_complete_seeds(given, view)
         if left_out:
             print(f"left out until every scheme has their seed: {', '.join(left_out)}")
+        if not any(Path(view).iterdir()):
+            sys.exit(f"no seed of {given} is finished by every scheme of its setting yet: nothing to report.")
         write(Path(view), out)
 
 
 def write(results: Path, out: Path) -> None:
-    """Write the report and the listening summaries of ``results`` into ``out``."""
+    """
+    Write the report and the listening summaries.
+
+    :param results: A results directory (or a view of its complete seeds).
+    :param out: The report directory.
+    """
     for path in make_report(results, out, metrics=("min_dist_sum", "return_mean", "success_rate")):
         print(path)
     experiments = sorted(path.name for path in results.iterdir() if (path / "experiment.json").exists())
     total = max(int(float(row)) for row in _totals(results))
-    steps = list(range(total // 10, total + 1, total // 10))
+    steps = list(range(max(1, total // 10), total + 1, max(1, total // 10)))
     description = [
         "## Against the k nearest rule",
         "",

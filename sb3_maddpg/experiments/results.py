@@ -221,6 +221,37 @@ def load_experiments(results_dir: str | os.PathLike[str]) -> dict[str, dict[str,
     return experiments
 
 
+def link_complete_seeds(results_dir: str | os.PathLike[str], view: str | os.PathLike[str]) -> list[str]:
+    """
+    Link into ``view`` the runs of the seeds that every scheme of their experiment has finished, so that a sweep in
+    progress is reported like with like (the same seeds for every scheme). An experiment with no such seed is left
+    out whole.
+
+    :param results_dir: A results directory.
+    :param view: An empty or missing directory, filled with ``<experiment>/experiment.json`` and
+        ``<experiment>/<scheme>/seed_<seed>`` symbolic links (absolute) into ``results_dir``.
+    :return: The finished runs left out, ``<experiment>/<scheme>/seed_<seed>``.
+    """
+    results, view = Path(results_dir).resolve(), Path(view)
+    left_out = []
+    for name, experiment in load_experiments(results).items():
+        finished = {
+            scheme: {run.name for run in (results / name / scheme).glob("seed_*") if (run / DONE_FILE).exists()}
+            for scheme in experiment["schemes"]
+        }
+        common = set.intersection(*finished.values()) if finished else set()
+        left_out += [f"{name}/{scheme}/{seed}" for scheme, seeds in finished.items() for seed in sorted(seeds - common)]
+        if not common:
+            continue
+        (view / name).mkdir(parents=True)
+        (view / name / EXPERIMENT_FILE).symlink_to(results / name / EXPERIMENT_FILE)
+        for scheme in finished:
+            (view / name / scheme).mkdir()
+            for seed in sorted(common):
+                (view / name / scheme / seed).symlink_to(results / name / scheme / seed)
+    return left_out
+
+
 class ResultsDirectoryLocked(RuntimeError):
     """Another sweep is running in the results directory."""
 
