@@ -270,6 +270,12 @@ def test_a_killed_local_sweep_resumes_and_a_second_sweep_is_refused(
     check_resume(results, exp, lambda: run_sweep([exp], results, verbose=0))  # the lock died with the sweep
 
 
+def sweep_log(results: Path) -> str:
+    """The results directory's sweep log so far (empty before it exists)."""
+    path = results / SWEEP_LOG
+    return path.read_text() if path.exists() else ""
+
+
 def test_ctrl_c_stops_the_cli_cleanly_and_the_same_command_resumes(tmp_path: Path) -> None:
     trigger, results = tmp_path / "stall", tmp_path / "results"
     trigger.touch()
@@ -277,7 +283,8 @@ def test_ctrl_c_stops_the_cli_cleanly_and_the_same_command_resumes(tmp_path: Pat
     sweep = start_cli_sweep(exp, results, "--workers", "2", "--quiet")
     try:
         wait_for(lambda: stalled_pid(trigger), "a stalled run")
-        wait_for(lambda: (results / exp.runs()[0].run_id / DONE_FILE).exists(), "the other run")
+        # The other run counted by the sweep itself (its progress line), not only written by its worker.
+        wait_for(lambda: f"{exp.runs()[0].run_id} done" in sweep_log(results), "the sweep to count the other run")
         # Ctrl-C in a terminal reaches the whole foreground process group: the workers leave it to the sweep
         # (a worker that took it would fail its run, or print a traceback).
         assert ignores_sigint(stalled_pid(trigger)) and not ignores_sigint(sweep.pid)  # type: ignore[arg-type]
