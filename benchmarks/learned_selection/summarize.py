@@ -27,7 +27,7 @@ from pathlib import Path
 
 from sb3_maddpg.attention import default_selection_size
 from sb3_maddpg.experiments import make_report
-from sb3_maddpg.experiments.results import link_complete_seeds
+from sb3_maddpg.experiments.results import link_complete_seeds, load_experiments, load_summaries
 
 HERE = Path(__file__).resolve().parent
 DIAGNOSTICS = ("weight_on_nearest", "attention_entropy", "chose_nearest", "top_choice_share")
@@ -52,27 +52,20 @@ def logged(run: Path, key: str) -> list[tuple[int, float]]:
 
 def series(results: Path, experiment: str, scheme: str, key: str, steps: list[int]) -> list[float | None]:
     """The mean over finished seeds of the logged value nearest each step (``None`` where no run has it)."""
-    runs = [run for run in sorted((results / experiment / scheme).glob("seed_*")) if (run / "done").exists()]
+    runs = [Path(s["directory"]) for s in load_summaries(results) if (s["experiment"], s["scheme"]) == (experiment, scheme)]
+    logs = [points for points in (logged(run, f"train/{key}") for run in runs) if points]
     values: list[float | None] = []
     for step in steps:
-        at_step = []
-        for run in runs:
-            points = logged(run, f"train/{key}")
-            if points:
-                at_step.append(min(points, key=lambda point: abs(point[0] - step))[1])
+        at_step = [min(points, key=lambda point: abs(point[0] - step))[1] for points in logs]
         values.append(statistics.mean(at_step) if at_step else None)
     return values
 
 
 def cost_table(results: Path) -> str:
     """:return: Markdown: per setting and scheme, mean training steps/s over the finished runs and the ratio to full."""
-    import json
-
     rates: dict[tuple[str, str], list[float]] = {}
-    for path in sorted(results.glob("*/*/seed_*/summary.json")):
-        if (path.parent / "done").exists():
-            summary = json.loads(path.read_text())
-            rates.setdefault((summary["experiment"], summary["scheme"]), []).append(summary["train_steps_per_s"])
+    for summary in load_summaries(results):
+        rates.setdefault((summary["experiment"], summary["scheme"]), []).append(summary["train_steps_per_s"])
     lines = ["| setting | scheme | runs | train steps/s (mean) | vs full |", "|---|---|---|---|---|"]
     for (experiment, scheme), values in sorted(rates.items()):
         full = rates.get((experiment, "full"))
@@ -87,13 +80,10 @@ def against_rule_table(results: Path) -> str:
     :return: Markdown: per setting and metric, the learned critics' scores against ``selected``'s (the paper's k
         nearest rule): mean (std) over runs and the two-sided Mann-Whitney U p-value.
     """
-    import json
-
     from scipy.stats import mannwhitneyu
 
     scores: dict[tuple[str, str], list[dict[str, float]]] = {}
-    for path in sorted(results.glob("*/*/seed_*/summary.json")):
-        summary = json.loads(path.read_text())
+    for summary in load_summaries(results):
         scores.setdefault((summary["experiment"], summary["scheme"]), []).append(summary["score"])
     lines = ["| setting | metric | selected | attention (p) | learned_selection (p) |", "|---|---|---|---|---|"]
     for experiment in sorted({experiment for experiment, _ in scores}):
@@ -220,8 +210,8 @@ def write(results: Path, out: Path) -> None:
     """
     for path in make_report(results, out, metrics=("min_dist_sum", "return_mean", "success_rate")):
         print(path)
-    experiments = sorted(path.name for path in results.iterdir() if (path / "experiment.json").exists())
-    total = max(int(float(row)) for row in _totals(results))
+    experiments = sorted(load_experiments(results))
+    total = max(summary["total_timesteps"] for summary in load_summaries(results))
     steps = list(range(max(1, total // 10), total + 1, max(1, total // 10)))
     description = [
         "## Against the k nearest rule",
@@ -251,13 +241,6 @@ def write(results: Path, out: Path) -> None:
     (out / "description.md").write_text("\n".join(description))
     listening_plot(results, experiments, steps, out / "listening.png")
     print(out / "description.md", out / "listening.png", sep="\n")
-
-
-def _totals(results: Path) -> list[str]:
-    """Every finished run's budget, in env steps."""
-    import json
-
-    return [str(json.loads(path.read_text())["total_timesteps"]) for path in results.glob("*/*/seed_*/summary.json")]
 
 
 if __name__ == "__main__":
