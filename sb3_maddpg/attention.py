@@ -15,7 +15,8 @@ learned_selection   ``[o_i, a_i, o_s1, a_s1, .., o_sk, a_sk]``: its own data and
 
 Both are :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor` subclasses with parameters: they train with their
 critic's loss (critic i's encoders, attention and scores are its own, so critic i's loss moves only critic i's
-parameters), have target copies, and are saved with the model. Agents of unequal sizes are served: each other agent
+parameters; with ``share_parameters=True`` the Q network after them is shared, the extractors still are not), have
+target copies, and are saved with the model. Agents of unequal sizes are served: each other agent
 has its own encoder, and a learned selection pads the chosen agents' ``o_j`` and ``a_j`` separately.
 
 The hard choice is trained with a straight-through estimator: the forward pass gathers the top-k agents' data
@@ -131,7 +132,10 @@ class _ListeningCritic(CriticFeaturesExtractor):
         """
         Summaries of the last critic update's batch (replayed observations and actions):
 
-        - ``attention_entropy``: mean entropy of the listening weights, in nats (``log(n - 1)`` is uniform);
+        - ``attention_entropy``: mean entropy of the listening weights, in nats (``log(n - 1)`` is uniform); for
+          ``attention`` these are the heads' mean weights, and ``head_entropy`` is the mean entropy of each head's
+          own weights (at most ``attention_entropy``: heads that each listen sharply to different agents have a
+          low ``head_entropy`` and a high ``attention_entropy``);
         - for a hard choice, ``top_choice_share``: the fraction of rows whose first choice is the agent chosen first
           most often (1 when the choice ignores the state, ``1 / (n - 1)`` when it spreads evenly);
         - when the observations hold positions (``position_slice``), ``weight_on_nearest``: mean weight on the
@@ -146,7 +150,8 @@ class _ListeningCritic(CriticFeaturesExtractor):
         if self._last is None:
             return {}
         observations, weights = self._last
-        result = {"attention_entropy": float(-(weights * weights.clamp_min(1e-12).log()).sum(dim=1).mean())}
+        result = {"attention_entropy": float(_entropy(weights).mean())}
+        result.update(self._extra_diagnostics())
         chosen = self._last_choice()
         if chosen is not None:
             first_choices = nn.functional.one_hot(chosen[:, 0], weights.shape[1]).sum(dim=0)  # deterministic
@@ -163,6 +168,10 @@ class _ListeningCritic(CriticFeaturesExtractor):
     def _last_choice(self) -> th.Tensor | None:
         """:return: The last recorded batch's chosen others (positions among the others, highest first), if any."""
         return None
+
+    def _extra_diagnostics(self) -> dict[str, float]:
+        """:return: A scheme's own summaries of the last recorded batch."""
+        return {}
 
     def _distance_ranks(self, observations: th.Tensor) -> th.Tensor | None:
         """Each other agent's distance rank from agent i (1 = nearest), ``[batch, n - 1]``, or ``None`` without positions."""
@@ -205,21 +214,29 @@ class AttentionCriticFeatures(_ListeningCritic):
             raise ValueError(f"embed_dim ({embed_dim}) must be a positive multiple of n_heads ({n_heads}).")
         super().__init__(layout, agent_index, 2 * embed_dim, embed_dim, selection_size, position_slice)
         self.attention = nn.MultiheadAttention(embed_dim, n_heads, batch_first=True)
+        self._last_heads: th.Tensor | None = None
 
     def _attend(self, observations: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
+        """:return: The own encoding, the attended values and each head's weights, ``[batch, n_heads, n - 1]``."""
         own, others = self.encoder(
             self.encoder.own_input(observations, actions), self.encoder.others_input(observations, actions)
         )
-        attended, weights = self.attention(own.unsqueeze(1), others, others, need_weights=True, average_attn_weights=True)
-        return own, attended.squeeze(1), weights.squeeze(1)
+        attended, heads = self.attention(own.unsqueeze(1), others, others, need_weights=True, average_attn_weights=False)
+        return own, attended.squeeze(1), heads.squeeze(2)
 
     def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
-        own, attended, weights = self._attend(observations, actions)
-        self._remember(observations, weights)
+        own, attended, heads = self._attend(observations, actions)
+        self._remember(observations, heads.mean(dim=1))
+        if self.recording:
+            self._last_heads = heads.detach()
         return th.cat((own, attended), dim=1)
 
     def listening_weights(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        return self._attend(observations, actions)[2]
+        """The heads' mean attention weights (as ``torch.nn.MultiheadAttention`` averages them)."""
+        return self._attend(observations, actions)[2].mean(dim=1)
+
+    def _extra_diagnostics(self) -> dict[str, float]:
+        return {} if self._last_heads is None else {"head_entropy": float(_entropy(self._last_heads).mean())}
 
 
 class LearnedSelectionCriticFeatures(_ListeningCritic):
@@ -252,6 +269,8 @@ class LearnedSelectionCriticFeatures(_ListeningCritic):
         temperature: float = 0.5,
         position_slice: slice | None = DEFAULT_POSITION_SLICE,
     ) -> None:
+        if layout.n_agents < 2:  # before k's range, which would read "up to 0"
+            raise ValueError(f"critic_sharing={self.scheme_name!r} needs at least 2 agents, got {layout.n_agents}.")
         k = int(k if k is not None else (selection_size or default_selection_size(layout.n_agents)))
         if not 1 <= k <= layout.n_agents - 1:
             raise ValueError(
@@ -310,6 +329,11 @@ class LearnedSelectionCriticFeatures(_ListeningCritic):
         return self._last_chosen
 
 
+def _entropy(weights: th.Tensor) -> th.Tensor:
+    """:return: The entropy in nats of each distribution along the last dimension (``0 log 0 = 0``)."""
+    return -(weights * weights.clamp_min(1e-12).log()).sum(dim=-1)
+
+
 def default_selection_size(n_agents: int) -> int:
     """
     :param n_agents: Team size.
@@ -324,11 +348,12 @@ def critic_listening(model: Any, observations: Any, actions: Any = None) -> dict
     What each critic of a model with ``attention`` or ``learned_selection`` critics listens to, for a batch.
 
     :param model: A trained :class:`~sb3_maddpg.MADDPG`.
-    :param observations: Joint observations ``[batch, obs_dim]`` (numpy or torch).
-    :param actions: Joint actions in the env's units, ``[batch, action_dim]``; default: the model's deterministic actions.
+    :param observations: Joint observations ``[batch, obs_dim]`` (numpy, or torch on any device).
+    :param actions: Joint actions in the env's units, ``[batch, action_dim]`` (numpy or torch); default: the model's
+        deterministic actions.
     :return: ``weights``: ``[batch, n_agents, n_agents]`` numpy, row i the weights critic i gives the others (0 on the
-        diagonal); ``chosen``: ``[batch, n_agents, k]`` agent indices (highest score first) for a learned selection,
-        else ``None``.
+        diagonal; for ``attention``, the heads' mean); ``chosen``: ``[batch, n_agents, k]`` agent indices (highest
+        score first) for a learned selection, else ``None``.
     """
     import numpy as np
 
@@ -340,10 +365,10 @@ def critic_listening(model: Any, observations: Any, actions: Any = None) -> dict
             f"critic_listening needs critics that learn whom to listen to (critic_sharing='attention' or "
             f"'learned_selection'), got {', '.join(others)}."
         )
-    observations = np.asarray(observations, dtype=np.float32).reshape(-1, model.observation_space.shape[0])
+    observations = np.asarray(_to_numpy(observations), dtype=np.float32).reshape(-1, model.observation_space.shape[0])
     if actions is None:
         actions, _ = model.predict(observations, deterministic=True)
-    scaled = policy.scale_action(np.asarray(actions, dtype=np.float32).reshape(observations.shape[0], -1))
+    scaled = policy.scale_action(np.asarray(_to_numpy(actions), dtype=np.float32).reshape(observations.shape[0], -1))
     obs_tensor = th.as_tensor(observations, device=policy.device)
     act_tensor = th.as_tensor(scaled, dtype=th.float32, device=policy.device)
     n_agents = len(extractors)
@@ -356,3 +381,8 @@ def critic_listening(model: Any, observations: Any, actions: Any = None) -> dict
             if choice is not None:
                 chosen.append(choice.cpu().numpy())
     return {"weights": weights, "chosen": np.stack(chosen, axis=1) if chosen else None}
+
+
+def _to_numpy(array: Any) -> Any:
+    """:return: A torch tensor as a numpy array (detached, on the CPU); anything else as it is."""
+    return array.detach().cpu().numpy() if isinstance(array, th.Tensor) else array

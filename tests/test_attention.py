@@ -61,8 +61,9 @@ def test_bad_settings_say_what_to_do() -> None:
     with pytest.raises(ValueError, match="multiple of n_heads"):
         AttentionCriticFeatures(LAYOUT, 0, embed_dim=10, n_heads=4)
     solo = AgentLayout(("a",), (4,), (2,))
-    with pytest.raises(ValueError, match="needs at least 2 agents"):
-        AttentionCriticFeatures(solo, 0)
+    for scheme in SCHEMES.values():
+        with pytest.raises(ValueError, match="needs at least 2 agents, got 1"):
+            scheme(solo, 0)
 
 
 @pytest.mark.parametrize("scheme", list(SCHEMES))
@@ -93,6 +94,53 @@ def test_attention_listens_to_every_agent() -> None:
         weights = critic.extractors[i].listening_weights(obs, actions)  # type: ignore[operator]
         assert weights.shape == (BATCH, N_AGENTS - 1)
         assert th.allclose(weights.sum(dim=1), th.ones(BATCH))
+
+
+@th.no_grad()
+def test_attention_is_a_hand_computation_over_the_other_agents_only() -> None:
+    """[e_i, attended]: each head's softmax(q_h k_h / sqrt(d_h)) over the *other* agents' keys (query from e_i
+    alone), its weighted values, the output projection; the listening weights are the heads' mean."""
+    n_heads, embed_dim, i = 2, 8, 2
+    extractor = make_critic("attention", n_heads=n_heads).extractors[i]
+    obs, actions = batch()
+    encoder, attention = extractor.encoder, extractor.attention
+    others = [0, 1, 3]
+    leaky = nn.functional.leaky_relu
+    own = leaky(encoder.own(th.cat((obs[:, LAYOUT.obs_slices[i]], actions[:, LAYOUT.action_slices[i]]), dim=1)))
+    # Each other agent's own encoder layer, applied to its [o_j, a_j] zero-padded to the largest (agent 3's 8 + 3).
+    encoded = []
+    for position, j in enumerate(others):
+        data = th.cat((obs[:, LAYOUT.obs_slices[j]], actions[:, LAYOUT.action_slices[j]]), dim=1)
+        data = th.cat((data, th.zeros(BATCH, 11 - data.shape[1])), dim=1)
+        encoded.append(leaky(data @ encoder.other.weights[0][position] + encoder.other.biases[0][position]))
+    keys_in = th.stack(encoded, dim=1)  # [batch, 3, embed]
+    w_q, w_k, w_v = attention.in_proj_weight.split(embed_dim)
+    b_q, b_k, b_v = attention.in_proj_bias.split(embed_dim)
+    d_head = embed_dim // n_heads
+    q = (own @ w_q.T + b_q).view(BATCH, n_heads, d_head)
+    k = (keys_in @ w_k.T + b_k).view(BATCH, 3, n_heads, d_head)
+    v = (keys_in @ w_v.T + b_v).view(BATCH, 3, n_heads, d_head)
+    heads = th.softmax(th.einsum("bhd,bjhd->bhj", q, k) / d_head**0.5, dim=-1)  # [batch, heads, 3]
+    attended = th.einsum("bhj,bjhd->bhd", heads, v).reshape(BATCH, embed_dim) @ attention.out_proj.weight.T
+    attended = attended + attention.out_proj.bias
+    th.testing.assert_close(extractor(obs, actions), th.cat((own, attended), dim=1))  # type: ignore[operator]
+    th.testing.assert_close(extractor.listening_weights(obs, actions), heads.mean(dim=1))  # type: ignore[operator]
+    assert extractor.diagnostics() == {}  # type: ignore[operator]  # not recording: nothing kept
+    extractor.recording = True
+    extractor(obs, actions)  # type: ignore[operator]
+    extractor.recording = False
+    report = extractor.diagnostics()  # type: ignore[operator]
+
+    def entropy(weights: th.Tensor) -> float:
+        return float(-(weights * weights.log()).sum(dim=-1).mean())
+
+    assert report["attention_entropy"] == pytest.approx(entropy(heads.mean(dim=1)), rel=1e-5)
+    assert report["head_entropy"] == pytest.approx(entropy(heads), rel=1e-5)
+    assert report["head_entropy"] < report["attention_entropy"]  # the heads differ, so their mean is flatter
+    positions = th.stack([obs[:, LAYOUT.obs_slices[j]][:, 2:4] for j in others], dim=1)
+    nearest = (positions - obs[:, LAYOUT.obs_slices[i]][:, None, 2:4]).norm(dim=-1).argmin(dim=1)
+    on_nearest = heads.mean(dim=1)[th.arange(BATCH), nearest].mean()
+    assert report["weight_on_nearest"] == pytest.approx(float(on_nearest), rel=1e-5)
 
 
 def test_learned_selection_sees_exactly_its_k_highest_scored_agents() -> None:
@@ -233,13 +281,14 @@ def test_trains_saves_loads_and_logs_what_critics_listen_to(scheme: str, tmp_pat
     with open(tmp_path / "progress.csv", newline="") as file:
         rows = [row for row in csv.DictReader(file) if row.get("train/attention_entropy")]
     assert rows, "the diagnostics are logged"
-    entropy = float(rows[-1]["train/attention_entropy"])
-    assert 0.0 <= entropy <= np.log(2) + 1e-6  # two other agents
-    assert 0.0 <= float(rows[-1]["train/agent_0/weight_on_nearest"]) <= 1.0
-    if scheme == "learned_selection":
-        assert 0.0 <= float(rows[-1]["train/chose_nearest"]) <= 1.0
-        assert 1.0 <= float(rows[-1]["train/agent_2/chosen_rank"]) <= 2.0
-        assert 0.5 <= float(rows[-1]["train/top_choice_share"]) <= 1.0  # logged; with two others, at least 0.5
+    last = rows[-1]
+    keys = ["attention_entropy", "weight_on_nearest"]
+    keys += ["chose_nearest", "chosen_rank", "top_choice_share"] if scheme == "learned_selection" else ["head_entropy"]
+    for key in keys:  # per critic, and the team's mean of them
+        per_agent = [float(last[f"train/agent_{i}/{key}"]) for i in range(3)]
+        assert float(last[f"train/{key}"]) == pytest.approx(np.mean(per_agent), rel=1e-5), key
+    if scheme == "attention":
+        assert float(last["train/head_entropy"]) <= float(last["train/attention_entropy"]) + 1e-6
 
     obs = env.reset()
     q_before = model.policy.q_values(th.as_tensor(obs), th.zeros(4, 15))
@@ -252,7 +301,15 @@ def test_trains_saves_loads_and_logs_what_critics_listen_to(scheme: str, tmp_pat
     listening = critic_listening(loaded, obs)
     assert listening["weights"].shape == (4, 3, 3)
     np.testing.assert_allclose(listening["weights"].sum(axis=2), 1.0, rtol=1e-5)
-    assert np.all(np.diagonal(listening["weights"], axis1=1, axis2=2) == 0)
+    # Row i is critic i's own weights on the others, for the model's deterministic actions.
+    actions = th.as_tensor(loaded.policy.scale_action(loaded.predict(obs, deterministic=True)[0]), dtype=th.float32)
+    for i, extractor in enumerate(loaded.critic.extractors):
+        with th.no_grad():
+            expected = extractor.listening_weights(th.as_tensor(obs), actions)  # type: ignore[operator]
+        np.testing.assert_allclose(listening["weights"][:, i, extractor.encoder.others], expected.numpy(), rtol=1e-5)
+    # Torch input, even one that requires grad, gives the same answer.
+    as_tensor = critic_listening(loaded, th.as_tensor(obs).requires_grad_(True))
+    np.testing.assert_array_equal(as_tensor["weights"], listening["weights"])
     if scheme == "learned_selection":
         assert listening["chosen"].shape == (4, 3, 1)
         assert all(listening["chosen"][:, i, 0].tolist().count(i) == 0 for i in range(3))

@@ -121,12 +121,18 @@ def test_actor_loss_takes_other_agents_actions_from_the_sample() -> None:
     assert model._actor_losses(data._replace(actions=actions))[0] != after[0]
 
 
-def test_one_update_moves_targets_by_polyak_average() -> None:
-    model = make_model()
+@pytest.mark.parametrize("scheme", ["full", "attention", "learned_selection"])
+def test_one_update_moves_targets_by_polyak_average(scheme: str) -> None:
+    model = make_model(scheme)
     old_actor_target = copy.deepcopy(model.actor_target.state_dict())
     old_critic_target = copy.deepcopy(model.critic_target.state_dict())
     old_actor = copy.deepcopy(model.actor.state_dict())
+    old_critic = copy.deepcopy(model.critic.state_dict())
     model.train(gradient_steps=1, batch_size=BATCH)
+    # A learned extractor's weights (encoders, attention, scores) are in the critic's state and move with it.
+    extractor_weights = [name for name in old_critic if name.startswith("extractors.")]
+    assert bool(extractor_weights) == (scheme != "full")
+    assert all(not th.equal(model.critic.state_dict()[name], old_critic[name]) for name in extractor_weights)
     for online, target, old_target, old_online in (
         (model.actor, model.actor_target, old_actor_target, old_actor),
         (model.critic, model.critic_target, old_critic_target, None),
