@@ -27,11 +27,13 @@ from pathlib import Path
 
 from sb3_maddpg.attention import default_selection_size
 from sb3_maddpg.experiments import make_report
-from sb3_maddpg.experiments.results import link_complete_seeds, load_experiments, load_summaries
+from sb3_maddpg.experiments.results import link_complete_seeds, load_experiments, load_summaries, read_curve
 
 HERE = Path(__file__).resolve().parent
-DIAGNOSTICS = ("weight_on_nearest", "attention_entropy", "chose_nearest", "top_choice_share")
+DIAGNOSTICS = ("weight_on_nearest", "attention_entropy", "head_entropy", "chose_nearest", "top_choice_share")
+CURVE_METRICS = {"min_dist_sum": "min-dist sum", "return_mean": "team return"}
 LEARNED = ("attention", "learned_selection")
+SCHEMES = ("full", "selected", *LEARNED)
 METRICS = {
     "min_dist_sum": "min-dist sum (lower is better)",
     "return_mean": "team return (higher is better)",
@@ -129,6 +131,32 @@ def listening_table(results: Path, experiments: list[str], steps: list[int]) -> 
     return "\n".join(lines) + "\n"
 
 
+def curve_table(results: Path, experiments: list[str], steps: list[int]) -> str:
+    """
+    :param results: A results directory (or a view of its complete seeds).
+    :param experiments: The settings to show.
+    :param steps: The env steps of the columns (learning-curve evaluations at other steps are not shown).
+    :return: Markdown: per setting, metric and scheme, the learning curve's mean over the runs at each step.
+    """
+    curves: dict[tuple[str, str], list[dict[int, dict[str, float]]]] = {}
+    for summary in load_summaries(results):
+        rows = {int(row["timesteps"]): row for row in read_curve(summary["directory"])}
+        curves.setdefault((summary["experiment"], summary["scheme"]), []).append(rows)
+    lines = ["| setting | metric | scheme | runs | " + " | ".join(f"{step // 1000}k" for step in steps) + " |"]
+    lines.append("|---|---|---|---|" + "---|" * len(steps))
+    for experiment in experiments:
+        for metric, label in CURVE_METRICS.items():
+            for scheme in SCHEMES:
+                runs = curves.get((experiment, scheme), [])
+                cells = []
+                for step in steps:
+                    values = [run[step][metric] for run in runs if step in run]
+                    cells.append(f"{statistics.mean(values):.3g}" if values else "")
+                if runs:
+                    lines.append(f"| {experiment} | {label} | {scheme} | {len(runs)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def chance_levels(experiment: Path) -> tuple[float, float]:
     """
     :param experiment: A setting's directory, holding its ``experiment.json``.
@@ -221,13 +249,24 @@ def write(results: Path, out: Path) -> None:
         "p-value against `selected`'s runs (`scipy.stats.mannwhitneyu`).",
         "",
         against_rule_table(results),
+        "## Learning curves in numbers",
+        "",
+        "The learning curves' evaluations (deterministic policy, `curve_eval_episodes` episodes each: 20 here, so a "
+        "single point is noisy), mean over the runs, every tenth of the budget. Min-dist sum: lower is better; team "
+        "return: higher is better.",
+        "",
+        curve_table(results, experiments, steps),
         "## What the learned critics listen to",
         "",
         "Team means over the critics of the last critic update before each log write, mean over the finished seeds, "
         "at each budget. `attention_entropy` in nats (uniform: log(N-1), 0.69 at N=3, 1.39 at N=5); "
         "`weight_on_nearest`: the weight on the nearest other agent; `chose_nearest`: fraction of states whose "
         "chosen set is the k nearest (chance: 0.5 at N=3 with k=1, 1/6 at N=5 with k=2); `top_choice_share`: "
-        "fraction of states whose first choice is the agent chosen first most often (1: the state is ignored).",
+        "fraction of states whose first choice is the agent chosen first most often (1: the state is ignored). "
+        "Each value is one replayed batch (1024 rows) per critic and seed, so the second decimal is noise. For "
+        "`attention`, the weights are the mean of its 4 heads': heads that each listen sharply to different agents "
+        "would look uniform here. `head_entropy`, each head's own entropy, was added after these runs: where its "
+        "row is missing, the runs did not log it.",
         "",
         listening_table(results, experiments, steps),
         "## Cost",
