@@ -94,8 +94,6 @@ class _ListeningCritic(CriticFeaturesExtractor):
         selection_size: int = 0,
         position_slice: slice | None = DEFAULT_POSITION_SLICE,
     ) -> None:
-        if layout.n_agents < 2:
-            raise ValueError(f"critic_sharing={self.scheme_name!r} needs at least 2 agents, got {layout.n_agents}.")
         if embed_dim < 1:
             raise ValueError(f"embed_dim must be positive, got {embed_dim}.")
         super().__init__(layout, agent_index, features_dim, selection_size)
@@ -210,6 +208,7 @@ class AttentionCriticFeatures(_ListeningCritic):
         n_heads: int = 4,
         position_slice: slice | None = DEFAULT_POSITION_SLICE,
     ) -> None:
+        _require_other_agents(self.scheme_name, layout)
         if n_heads < 1 or embed_dim % n_heads:
             raise ValueError(f"embed_dim ({embed_dim}) must be a positive multiple of n_heads ({n_heads}).")
         super().__init__(layout, agent_index, 2 * embed_dim, embed_dim, selection_size, position_slice)
@@ -226,8 +225,8 @@ class AttentionCriticFeatures(_ListeningCritic):
 
     def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
         own, attended, heads = self._attend(observations, actions)
-        self._remember(observations, heads.mean(dim=1))
-        if self.recording:
+        if self.recording:  # the mean only for a recorded batch, not in every forward pass
+            self._remember(observations, heads.mean(dim=1))
             self._last_heads = heads.detach()
         return th.cat((own, attended), dim=1)
 
@@ -269,8 +268,7 @@ class LearnedSelectionCriticFeatures(_ListeningCritic):
         temperature: float = 0.5,
         position_slice: slice | None = DEFAULT_POSITION_SLICE,
     ) -> None:
-        if layout.n_agents < 2:  # before k's range, which would read "up to 0"
-            raise ValueError(f"critic_sharing={self.scheme_name!r} needs at least 2 agents, got {layout.n_agents}.")
+        _require_other_agents(self.scheme_name, layout)  # first: k's range would read "up to 0"
         k = int(k if k is not None else (selection_size or default_selection_size(layout.n_agents)))
         if not 1 <= k <= layout.n_agents - 1:
             raise ValueError(
@@ -327,6 +325,12 @@ class LearnedSelectionCriticFeatures(_ListeningCritic):
 
     def _last_choice(self) -> th.Tensor | None:
         return self._last_chosen
+
+
+def _require_other_agents(scheme_name: str, layout: AgentLayout) -> None:
+    """Refuse a team with no other agent to listen to."""
+    if layout.n_agents < 2:
+        raise ValueError(f"critic_sharing={scheme_name!r} needs at least 2 agents, got {layout.n_agents}.")
 
 
 def _entropy(weights: th.Tensor) -> th.Tensor:
