@@ -93,6 +93,24 @@ class AgentLayout:
         """Whether every agent has the same observation size and the same action size."""
         return len(set(self.obs_sizes)) == 1 and len(set(self.action_sizes)) == 1
 
+    def describe(self) -> str:
+        """
+        :return: The team in words, e.g. ``"3 agents (agent_0, agent_1, agent_2) with observations of 18 and actions
+            of 5 each"``.
+        """
+
+        def sizes(values: tuple[int, ...]) -> str:
+            return f"{values[0]} each" if len(set(values)) == 1 else ", ".join(map(str, values))
+
+        kinds = ""
+        if self.has_discrete_actions:
+            kinds = f"; discrete: {', '.join(a for a, flag in zip(self.agent_ids, self.discrete_actions) if flag)}"
+        agents = "agent" if self.n_agents == 1 else "agents"
+        return (
+            f"{self.n_agents} {agents} ({', '.join(self.agent_ids)}) with observations of {sizes(self.obs_sizes)} and "
+            f"actions of {sizes(self.action_sizes)}{kinds}"
+        )
+
     def index_of(self, agent_id: str) -> int:
         """
         The position of an agent in the layout.

@@ -21,18 +21,18 @@ from stable_baselines3.common.vec_env import VecEnv
 from torch.nn import functional as F
 
 from sb3_maddpg.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
+from sb3_maddpg.env_checks import (
+    check_same_layout,
+    layout_of,
+    refuse_env_of_another_team,
+    refuse_reward_normalization,
+    refuse_unsupported_env,
+)
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.selection import Selector
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent, validate_critic_sharing
-from sb3_maddpg.team_setup import (
-    check_same_layout,
-    draw_noise,
-    layout_of,
-    refuse_reward_normalization,
-    resolve_selection,
-    warn_if_selecting_everyone,
-)
+from sb3_maddpg.team_setup import draw_noise, resolve_selection, warn_if_selecting_everyone
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
 
@@ -174,11 +174,8 @@ class MADDPG(OffPolicyAlgorithm):
                 f"transitions_per_update must be a positive integer (transitions per gradient step), got "
                 f"{transitions_per_update!r}: the paper's is 100."
             )
-        if env is not None and not isinstance(env, str) and not isinstance(env.action_space, spaces.Box):
-            raise TypeError(
-                f"MADDPG supports continuous (Box) actions only, the env has {type(env.action_space).__name__} actions: "
-                "build the env with continuous actions (mpe2: continuous_actions=True)."
-            )
+        if env is not None and not isinstance(env, str):
+            refuse_unsupported_env(env)
         super().__init__(
             policy,
             env,  # type: ignore[arg-type]  # None when loading
@@ -610,6 +607,33 @@ class MADDPG(OffPolicyAlgorithm):
         check_same_layout(layout_of(wrapped), self.agent_layout)
         refuse_reward_normalization(wrapped)
         super().set_env(wrapped, force_reset)
+
+    @classmethod
+    def load(  # type: ignore[override]  # the same signature as SB3's, typed for MADDPG
+        cls: type[SelfMADDPG],
+        path: str | pathlib.Path | io.BufferedIOBase,
+        env: GymEnv | None = None,
+        device: th.device | str = "auto",
+        custom_objects: dict[str, Any] | None = None,
+        print_system_info: bool = False,
+        force_reset: bool = True,
+        **kwargs: Any,
+    ) -> SelfMADDPG:
+        """
+        Load a saved model (SB3's ``load``); an ``env`` must be of the model's team (the same agents, order and sizes).
+
+        :param path: The saved model (``.zip`` optional) or an open file.
+        :param env: The env to train or evaluate on, or ``None`` (``predict`` needs none).
+        :param device: Device to load the model on.
+        :param custom_objects: Objects to replace on load (SB3's argument).
+        :param print_system_info: Print the system the model was saved on and this one.
+        :param force_reset: Reset the env before the next ``learn``.
+        :param kwargs: Attributes to set on the model over the saved ones.
+        :return: The model.
+        """
+        if env is not None:
+            refuse_env_of_another_team(path, env, custom_objects)
+        return super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
 
     def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
         """

@@ -1,59 +1,13 @@
-"""Checks and small helpers of MADDPG's set-up: the team's layout from the env, the refusals that name their cause, the
-selection, and the exploration noise's draw."""
+"""Small helpers of MADDPG's set-up: the selection and the exploration noise's draw (the env's checks are in
+:mod:`sb3_maddpg.env_checks`)."""
 
 import warnings
 
 import numpy as np
 from stable_baselines3.common.noise import ActionNoise
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize, unwrap_vec_normalize
 
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.selection import NearestAgents, Selector
-
-
-def layout_of(env: VecEnv) -> AgentLayout:
-    """
-    :param env: The training env.
-    :return: Its team's agent layout (every env of a VecEnv must have the same).
-    """
-    try:
-        layouts = env.get_attr("agent_layout")
-    except AttributeError:
-        raise ValueError(
-            "The env has no agent_layout: MADDPG needs to know which part of the joint observation and action belongs "
-            "to which agent. Wrap your PettingZoo ParallelEnv in sb3_maddpg.envs.PettingZooToGym (or use "
-            "sb3_maddpg.envs.make_simple_spread)."
-        ) from None
-    if any(layout != layouts[0] for layout in layouts):
-        raise ValueError(f"All envs of the VecEnv must have the same agent layout, got {set(layouts)}.")
-    if not isinstance(layouts[0], AgentLayout):
-        raise TypeError(f"env.agent_layout must be an sb3_maddpg.AgentLayout, got {type(layouts[0]).__name__}.")
-    return layouts[0]
-
-
-def check_same_layout(env_layout: AgentLayout, model_layout: AgentLayout | None) -> None:
-    """
-    :param env_layout: The layout of an env given to a model (``set_env``, ``load(env=...)``).
-    :param model_layout: The model's layout.
-    """
-    if env_layout != model_layout:
-        raise ValueError(
-            f"The env's agent layout {env_layout} differs from the model's agent layout {model_layout}: "
-            "use an env with the same agents, in the same order, with the same observation and action sizes."
-        )
-
-
-def refuse_reward_normalization(env: VecEnv) -> None:
-    """
-    :param env: The training env; a ``VecNormalize`` that normalises rewards is refused (the critics learn from the
-        per-agent rewards in ``info``, which it would leave as they are).
-    """
-    vec_normalize = unwrap_vec_normalize(env)
-    if isinstance(vec_normalize, VecNormalize) and vec_normalize.norm_reward:
-        raise ValueError(
-            "VecNormalize(norm_reward=True) would normalise only the team's scalar reward, not the per-agent rewards "
-            "the critics learn from: use VecNormalize(env, norm_reward=False) (observation normalisation is fine)."
-        )
 
 
 def draw_noise(action_noise: ActionNoise, action_shape: tuple[int, ...]) -> np.ndarray:

@@ -30,6 +30,7 @@ from sb3_maddpg.experiments.results import (
     write_json_atomic,
 )
 from sb3_maddpg.experiments.tasks import describe, make_task_vec_env, task_metrics
+from sb3_maddpg.progress import ProgressLogCallback, format_seconds
 
 
 def load_algorithm(path: str) -> type[BaseAlgorithm]:
@@ -62,21 +63,6 @@ def make_eval_env(config: RunConfig, n_episodes: int) -> VecEnv:
     return make_env(config, n_episodes if batched else 1)
 
 
-def log_line(line: str, log_path: str | None, echo: bool) -> None:
-    """
-    Print a progress line and append it, time-stamped, to a log file.
-
-    :param line: The line.
-    :param log_path: A text file the line is appended to, or ``None``.
-    :param echo: Print the line too.
-    """
-    if echo:
-        print(line, flush=True)
-    if log_path is not None:
-        with open(log_path, "a") as file:
-            file.write(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {line}\n")
-
-
 class CheckpointAtSteps(BaseCallback):
     """
     Save the model when training reaches given env steps (``<save_dir>/model_<steps>_steps.zip``).
@@ -99,71 +85,6 @@ class CheckpointAtSteps(BaseCallback):
             self.model.save(path)
             self.saved.append((self.num_timesteps, path))
         return True
-
-
-class ProgressLogCallback(BaseCallback):
-    """
-    Report a run's progress (steps, throughput, recent team return, time left) to stdout and a log file,
-    every ``every`` of training or every ``every_seconds`` seconds, whichever comes first.
-
-    :param run_id: The name printed with each line.
-    :param total_timesteps: The run's budget.
-    :param log_path: A text file the lines are appended to, or ``None``.
-    :param every: The fraction of training between two lines.
-    :param echo: Print the lines too.
-    :param every_seconds: Also report when this many seconds have passed since the last line (``None``: never).
-    """
-
-    def __init__(
-        self,
-        run_id: str,
-        total_timesteps: int,
-        log_path: str | None = None,
-        every: float = 0.1,
-        echo: bool = True,
-        every_seconds: float | None = None,
-    ) -> None:
-        super().__init__()
-        self.run_id = run_id
-        self.total_timesteps = total_timesteps
-        self.log_path = log_path
-        self.interval = max(1, int(total_timesteps * every))
-        self.echo = echo
-        self.every_seconds = every_seconds
-        self._next = self.interval
-        self._start = self._last_line = time.perf_counter()
-
-    def _on_training_start(self) -> None:
-        self._start = self._last_line = time.perf_counter()
-
-    def _on_step(self) -> bool:
-        now = time.perf_counter()
-        due_by_time = self.every_seconds is not None and now - self._last_line >= self.every_seconds
-        if self.num_timesteps >= self._next or due_by_time:
-            while self._next <= self.num_timesteps:
-                self._next += self.interval
-            self._last_line = now
-            elapsed = now - self._start
-            rate = self.num_timesteps / max(elapsed, 1e-9)
-            left = (self.total_timesteps - self.num_timesteps) / max(rate, 1e-9)
-            self.log(
-                f"{self.run_id}: {self.num_timesteps:,}/{self.total_timesteps:,} steps "
-                f"({self.num_timesteps / self.total_timesteps:.0%}), {rate:,.0f} steps/s, "
-                f"{_format_seconds(elapsed)} elapsed, {_format_seconds(left)} left{self._recent_return()}"
-            )
-        return True
-
-    def _recent_return(self) -> str:
-        episodes = getattr(self.model, "ep_info_buffer", None)  # filled by a Monitor or VecMonitor
-        if not episodes:
-            return ""
-        return f", team return {sum(episode['r'] for episode in episodes) / len(episodes):.1f} (last {len(episodes)} episodes)"
-
-    def log(self, line: str) -> None:
-        """
-        :param line: A line for stdout and the log file.
-        """
-        log_line(line, self.log_path, self.echo)
 
 
 def execute_run(
@@ -279,7 +200,7 @@ def execute_run(
     }
     write_json_atomic(directory / SUMMARY_FILE, summary)
     progress.log(
-        f"{config.run_id}: done in {_format_seconds(summary['wall_time_s'])} "
+        f"{config.run_id}: done in {format_seconds(summary['wall_time_s'])} "
         f"({summary['train_steps_per_s']:,.0f} steps/s), score: {score_line(score)}"
     )
     mark_done(directory)
@@ -294,10 +215,3 @@ def score_line(score: dict[str, float]) -> str:
     if not math.isnan(score.get("success_rate", math.nan)):  # a simple_spread run
         return f"success {100 * score['success_rate']:.1f}%, coverage {100 * score['coverage']:.1f}%"
     return f"team return {score['return_mean']:.1f}"
-
-
-def _format_seconds(seconds: float) -> str:
-    seconds = round(seconds)
-    hours, rest = divmod(seconds, 3600)
-    minutes, secs = divmod(rest, 60)
-    return f"{hours}h{minutes:02d}m{secs:02d}s" if hours else f"{minutes}m{secs:02d}s"

@@ -10,7 +10,8 @@ from typing import Any
 from sb3_maddpg.experiments.backends import BACKENDS, LOST_RUN, run_local, run_ray
 from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
 from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, lock_results, write_experiment
-from sb3_maddpg.experiments.runner import _format_seconds, log_line, score_line
+from sb3_maddpg.experiments.runner import score_line
+from sb3_maddpg.progress import format_seconds, log_line
 
 
 @dataclass
@@ -99,10 +100,10 @@ class SweepProgress:
         if self.durations and remaining:
             # The runs left (some already started) share the parallel slots: mean run time x runs left / slots.
             mean_duration = sum(self.durations) / len(self.durations)
-            left = f"left ~{_format_seconds(mean_duration * remaining / min(self.parallel, remaining))}"
+            left = f"left ~{format_seconds(mean_duration * remaining / min(self.parallel, remaining))}"
         else:
             left = "left ~0m00s" if not remaining else "left: unknown"
-        self.log(f"[{self.done}/{self.total}] {run_id} {message} | elapsed {_format_seconds(elapsed)}, {left}")
+        self.log(f"[{self.done}/{self.total}] {run_id} {message} | elapsed {format_seconds(elapsed)}, {left}")
 
 
 def plan_sweep(experiments: Sequence[ExperimentConfig], results_dir: str | os.PathLike[str]) -> tuple[list[RunConfig], int]:
@@ -190,7 +191,7 @@ def _run_locked_sweep(
             score = summary["score"]
             progress.update(
                 config.run_id,
-                f"done in {_format_seconds(summary['wall_time_s'])} ({summary['train_steps_per_s']:,.0f} steps/s, "
+                f"done in {format_seconds(summary['wall_time_s'])} ({summary['train_steps_per_s']:,.0f} steps/s, "
                 f"{score_line(score)})",
                 duration=summary["wall_time_s"],
             )
@@ -233,7 +234,7 @@ def _run_locked_sweep(
     else:
         throughput = ""
     progress.log(
-        f"sweep finished: {len(result.completed)} run(s) in {_format_seconds(result.wall_time_s)} "
+        f"sweep finished: {len(result.completed)} run(s) in {format_seconds(result.wall_time_s)} "
         f"({result.wall_time_s:.0f} s wall){throughput}, {skipped} skipped, {len(result.failed)} failed"
         + (f" ({len(result.lost)} lost with a worker process that died)" if result.lost else "")
         + ("; run the same command again to retry the failed runs" if result.failed else "")
