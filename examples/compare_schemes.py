@@ -23,6 +23,8 @@ from stable_baselines3.common.vec_env import VecEnv
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread_vec_env
 from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.progress import ctrl_c_ends_quietly
+from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 # critic_sharing value -> the paper's name
 SCHEMES = {
@@ -50,7 +52,9 @@ def main() -> None:
     parser.add_argument("--n-envs", type=int, default=100, help="worlds stepped together in training")
     parser.add_argument("--mpe2", action="store_true", help="step mpe2 itself instead of the batched env")
     parser.add_argument("--plot", default=None, help="save a bar chart of the success rates to this file (needs matplotlib)")
+    add_threads_argument(parser)
     args = parser.parse_args()
+    use_torch_threads(args.threads)
 
     overrides: dict = {}
     if args.fast:
@@ -65,7 +69,8 @@ def main() -> None:
             start = time.time()
             env = make_env(args.n_envs, args.n_agents, args.neighbors, args.mpe2)
             model = MADDPG("MlpPolicy", env, critic_sharing=scheme, seed=seed, **overrides)
-            model.learn(total_timesteps=args.steps)
+            with ctrl_c_ends_quietly(model):
+                model.learn(total_timesteps=args.steps)
             # The same evaluation episodes (seed) for every scheme and training seed.
             result = evaluate_team(model, eval_env, n_episodes=args.eval_episodes, seed=10_000)
             results[scheme].append(result)
@@ -106,4 +111,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with ctrl_c_ends_quietly():  # Ctrl-C: one line, no traceback
+        main()

@@ -23,7 +23,9 @@ from stable_baselines3.common.vec_env import VecEnv
 from sb3_maddpg import MADDPG, AgentLayout
 from sb3_maddpg.envs import make_simple_spread_vec_env
 from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.progress import ctrl_c_ends_quietly
 from sb3_maddpg.sharing import CriticFeaturesExtractor
+from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 
 class DistanceMaskedCriticFeatures(CriticFeaturesExtractor):
@@ -76,7 +78,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=1_000_000, help="training steps (all worlds counted)")
     parser.add_argument("--n-envs", type=int, default=100, help="worlds stepped together in training")
     parser.add_argument("--mpe2", action="store_true", help="step mpe2 itself instead of the batched env")
+    add_threads_argument(parser)
     args = parser.parse_args()
+    use_torch_threads(args.threads)
 
     eval_episodes, overrides = 100, {}
     if args.fast:
@@ -105,7 +109,8 @@ def main() -> None:
     own = layout.action_slices[0]
     assert actions.grad is not None and actions.grad[0, own].abs().sum() > 0, "the critic must pass gradients to a_0"
 
-    model.learn(total_timesteps=args.steps)
+    with ctrl_c_ends_quietly(model):
+        model.learn(total_timesteps=args.steps)
     # One world per evaluation episode: they run side by side (mpe2: one env, episode after episode).
     eval_env = make_env(1 if args.mpe2 else eval_episodes, 3, args.mpe2)
     result = evaluate_team(model, eval_env, n_episodes=eval_episodes, seed=10_000)
@@ -119,4 +124,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with ctrl_c_ends_quietly():  # Ctrl-C: one line, no traceback
+        main()

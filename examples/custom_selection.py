@@ -23,7 +23,9 @@ from stable_baselines3.common.vec_env import VecEnv
 from sb3_maddpg import MADDPG, AgentLayout
 from sb3_maddpg.envs import make_simple_spread_vec_env
 from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.progress import ctrl_c_ends_quietly
 from sb3_maddpg.selection import CallableSelector, FixedGraph
+from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 K = 2
 
@@ -62,7 +64,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=1_000_000, help="training steps (all worlds counted)")
     parser.add_argument("--n-envs", type=int, default=100, help="worlds stepped together in training")
     parser.add_argument("--mpe2", action="store_true", help="step mpe2 itself instead of the batched env")
+    add_threads_argument(parser)
     args = parser.parse_args()
+    use_torch_threads(args.threads)
 
     n_agents, eval_episodes, overrides = 4, 100, {}
     if args.fast:
@@ -79,7 +83,8 @@ def main() -> None:
     print("selection at reset in world 0 (row i: the agents critic i sees):\n", selector.select(obs, layout)[0])
 
     model = MADDPG("MlpPolicy", env, critic_sharing="selected", selection=selector, seed=0, **overrides)
-    model.learn(total_timesteps=args.steps)
+    with ctrl_c_ends_quietly(model):
+        model.learn(total_timesteps=args.steps)
 
     # The stored selections: one [n_agents, k] row per transition, [buffer rows, n_envs, n_agents, k] in all.
     buffer = model.replay_buffer
@@ -103,4 +108,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with ctrl_c_ends_quietly():  # Ctrl-C: one line, no traceback
+        main()

@@ -20,7 +20,9 @@ from stable_baselines3.common.vec_env import VecEnv
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread_vec_env
 from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.progress import ctrl_c_ends_quietly
 from sb3_maddpg.selection import NearestAgents
+from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 
 def make_env(n_envs: int, n_agents: int, neighbors: int | None, mpe2: bool) -> VecEnv:
@@ -35,7 +37,9 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--n-envs", type=int, default=100, help="worlds stepped together in training")
     parser.add_argument("--mpe2", action="store_true", help="step mpe2 itself instead of the batched env")
+    add_threads_argument(parser)
     args = parser.parse_args()
+    use_torch_threads(args.threads)
 
     n_agents, eval_episodes, overrides = 5, 100, {}
     if args.fast:
@@ -61,7 +65,8 @@ def main() -> None:
     for scheme, selection in (("selected", NearestAgents(k=2)), ("full", None)):
         env = make_partial_env(args.n_envs)
         model = MADDPG("MlpPolicy", env, critic_sharing=scheme, selection=selection, seed=args.seed, **overrides)
-        model.learn(total_timesteps=args.steps)
+        with ctrl_c_ends_quietly(model):
+            model.learn(total_timesteps=args.steps)
         result = evaluate_team(model, eval_env, n_episodes=eval_episodes, seed=10_000)
         print(
             f"{scheme:>9}: success {100 * result['success_rate']:5.1f}%, coverage {100 * result['coverage']:5.1f}%, "
@@ -70,4 +75,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with ctrl_c_ends_quietly():  # Ctrl-C: one line, no traceback
+        main()

@@ -19,6 +19,8 @@ from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread_vec_env
 from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.progress import ctrl_c_ends_quietly
+from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 
 def make_env(n_envs: int, n_agents: int, mpe2: bool) -> VecEnv:
@@ -32,7 +34,9 @@ def main() -> None:
     parser.add_argument("--n-envs", type=int, default=100, help="worlds stepped together in training")
     parser.add_argument("--mpe2", action="store_true", help="step mpe2 itself instead of the batched env")
     parser.add_argument("--save-path", default=None, help="where to save the model (default: a temporary directory)")
+    add_threads_argument(parser)
     args = parser.parse_args()
+    use_torch_threads(args.threads)
 
     # 1. The environment: MPE cooperative navigation with 3 agents and 3 landmarks, 25 steps per episode.
     #    SimpleSpreadVecEnv steps many worlds at once as arrays (an SB3 VecEnv, the same MDP as mpe2's);
@@ -56,7 +60,8 @@ def main() -> None:
 
     # 3. Train, as with any SB3 algorithm (callbacks, progress_bar and tensorboard_log work as usual).
     #    log_interval counts episodes, of every world: 2,000 episodes are 50k steps.
-    model.learn(total_timesteps=total_timesteps, log_interval=4 if args.fast else 2_000)
+    with ctrl_c_ends_quietly(model):
+        model.learn(total_timesteps=total_timesteps, log_interval=4 if args.fast else 2_000)
 
     # 4. Evaluate the team on the task: success rate (every landmark covered at the last step),
     #    landmark coverage, collisions per episode and the team return. One world per episode: the
@@ -94,4 +99,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with ctrl_c_ends_quietly():  # Ctrl-C: one line, no traceback
+        main()

@@ -35,6 +35,8 @@ except ModuleNotFoundError as error:
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread_vec_env
 from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.progress import ctrl_c_ends_quietly
+from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 EPISODE_STEPS = 25
 """simple_spread's episode length (``max_cycles``)."""
@@ -66,7 +68,9 @@ def main() -> None:
     parser.add_argument("--scale", type=float, default=1.0, help="resize the frames (0.5: half size, a smaller file)")
     parser.add_argument("--n-envs", type=int, default=100, help="worlds stepped together to train the tiny team")
     parser.add_argument("--mpe2", action="store_true", help="step mpe2 itself instead of the batched env")
+    add_threads_argument(parser)
     args = parser.parse_args()
+    use_torch_threads(args.threads)
 
     if args.model is not None:
         model = MADDPG.load(args.model)
@@ -74,7 +78,8 @@ def main() -> None:
         print("no --model given: training a tiny team (use examples/quickstart.py --save-path for a real one)")
         env = make_env(4 if args.fast else args.n_envs, args.mpe2, n_agents=3)
         model = MADDPG("MlpPolicy", env, learning_starts=200, batch_size=32, transitions_per_update=50, buffer_size=5_000)
-        model.learn(total_timesteps=400 if args.fast else 20_000)
+        with ctrl_c_ends_quietly(model):
+            model.learn(total_timesteps=400 if args.fast else 20_000)
     if args.fast:
         args.episodes, args.eval_episodes = 1, 3
     output = Path(args.output or (Path(tempfile.mkdtemp()) / "team.gif" if args.fast else "team.gif"))
@@ -116,4 +121,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with ctrl_c_ends_quietly():  # Ctrl-C: one line, no traceback
+        main()

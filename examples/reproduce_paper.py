@@ -25,6 +25,7 @@ import tempfile
 from pathlib import Path
 
 from sb3_maddpg.experiments.cli import main as sb3_maddpg_cli
+from sb3_maddpg.progress import ctrl_c_ends_quietly
 
 SCALES: dict[str, str] = {
     # The pipeline only: 3 agents, 40 episodes, tiny networks, one seed per scheme.
@@ -84,4 +85,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with ctrl_c_ends_quietly():  # Ctrl-C: one line, no traceback
+        main()

@@ -20,6 +20,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASKS, PettingZooToGym, make_mpe_env
 from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.progress import ctrl_c_ends_quietly
+from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 
 def main() -> None:
@@ -32,7 +34,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=200_000)
     parser.add_argument("--n-envs", type=int, default=8, help="envs stepped together (mpe2 itself, one world each)")
     parser.add_argument("--seed", type=int, default=0)
+    add_threads_argument(parser)
     args = parser.parse_args()
+    use_torch_threads(args.threads)
 
     episodes, overrides = 100, {}
     if args.fast:
@@ -56,7 +60,8 @@ def main() -> None:
         return {key: result[key] for key in dict.fromkeys(keys)}
 
     before = measure()
-    model.learn(args.steps)
+    with ctrl_c_ends_quietly(model):
+        model.learn(args.steps)
     after = measure()
     print(f"{'metric':<24} {'untrained':>10} {'trained':>10}  (better)")
     directions = {metric.key: f"{metric.better}, for {metric.team}" for metric in metrics}
@@ -67,4 +72,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with ctrl_c_ends_quietly():  # Ctrl-C: one line, no traceback
+        main()

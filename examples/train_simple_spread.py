@@ -16,13 +16,13 @@ import argparse
 import os
 import time
 
-import torch as th
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread_vec_env
 from sb3_maddpg.evaluation import evaluate_team
-from sb3_maddpg.experiments.runner import ProgressLogCallback
+from sb3_maddpg.progress import ProgressLogCallback, ctrl_c_ends_quietly
+from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 MEANING = (
     "Higher is better for success, coverage and return; lower for collisions and min-dist sum. Return: the team's "
@@ -54,10 +54,10 @@ def main() -> None:
     parser.add_argument("--n-envs", type=int, default=100, help="worlds stepped together")
     parser.add_argument("--mpe2", action="store_true", help="step mpe2 itself instead of the batched env")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--threads", type=int, default=2, help="torch threads")
     parser.add_argument("--fast", action="store_true", default=os.environ.get("SB3_MADDPG_FAST", "0") != "0")
+    add_threads_argument(parser)
     args = parser.parse_args()
-    th.set_num_threads(args.threads)
+    use_torch_threads(args.threads)
 
     steps, n_eval, n_envs, overrides = args.steps, 100, args.n_envs, {}
     if args.fast:
@@ -75,7 +75,8 @@ def main() -> None:
     before = evaluate_team(model, eval_env, n_episodes=n_eval, seed=1000)
     progress = ProgressLogCallback("training", steps, every=1.0, every_seconds=5.0)
     start = time.perf_counter()
-    model.learn(total_timesteps=steps, callback=progress)
+    with ctrl_c_ends_quietly(model):
+        model.learn(total_timesteps=steps, callback=progress)
     elapsed = time.perf_counter() - start
     after = evaluate_team(model, eval_env, n_episodes=n_eval, seed=1000)
 
@@ -86,4 +87,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with ctrl_c_ends_quietly():  # Ctrl-C: one line, no traceback
+        main()

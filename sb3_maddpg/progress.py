@@ -86,17 +86,18 @@ class ProgressLogCallback(BaseCallback):
         self._marks.clear()
         self._marks.append((self._start, self.num_timesteps))
 
-    def recent_rate(self, now: float, steps: int) -> float:
+    def recent_rate(self, now: float, steps: int) -> tuple[float, float]:
         """
         :param now: The time (``time.perf_counter()``).
         :param steps: The env steps trained by then.
-        :return: Env steps per second over the last ``window_seconds``: from the newest line at least that old (the
-            start, if none is), so the window spans at least one line's interval.
+        :return: Env steps per second over the last ``window_seconds``, measured from the newest line at least that
+            old (from the start, if none is), and the span it was measured over, in seconds.
         """
         while len(self._marks) > 1 and now - self._marks[1][0] >= self.window_seconds:
             self._marks.popleft()
         since, steps_then = self._marks[0] if self._marks else (self._start, 0)
-        return (steps - steps_then) / max(now - since, 1e-9)
+        span = now - since
+        return (steps - steps_then) / max(span, 1e-9), span
 
     def _on_step(self) -> bool:
         now = time.perf_counter()
@@ -105,13 +106,12 @@ class ProgressLogCallback(BaseCallback):
             while self._next <= self.num_timesteps:
                 self._next += self.interval
             self._last_line = now
-            rate = self.recent_rate(now, self.num_timesteps)
+            rate, span = self.recent_rate(now, self.num_timesteps)
             self._marks.append((now, self.num_timesteps))
             left = (self.total_timesteps - self.num_timesteps) / max(rate, 1e-9)
             self.log(
                 f"{self.run_id}: {self.num_timesteps:,}/{self.total_timesteps:,} steps "
-                f"({self.num_timesteps / self.total_timesteps:.0%}), {rate:,.0f} steps/s (last "
-                f"{format_seconds(min(now - self._start, max(self.window_seconds, now - self._marks[-2][0])))}), "
+                f"({self.num_timesteps / self.total_timesteps:.0%}), {rate:,.0f} steps/s (last {format_seconds(span)}), "
                 f"{format_seconds(now - self._start)} elapsed, {format_seconds(left)} left{self._recent_return()}"
             )
         return True

@@ -7,6 +7,7 @@ examples, the main job, ``sb3-maddpg run``/``tune``) use one thread unless told 
 changes torch's global setting.
 """
 
+import argparse
 import os
 
 import torch as th
@@ -52,3 +53,17 @@ def use_torch_threads(threads: int | None = None) -> int:
         th.set_num_threads(1)
     _expected_threads[0] = th.get_num_threads()
     return _expected_threads[0]
+
+
+def add_threads_argument(parser: argparse.ArgumentParser) -> None:
+    """
+    Give a command line the package's ``--threads`` option, for :func:`use_torch_threads`.
+
+    :param parser: The command line's parser.
+    """
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="torch CPU threads (default: 1, or OMP_NUM_THREADS where set; one is fastest on a shared CPU)",
+    )

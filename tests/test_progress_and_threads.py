@@ -1,0 +1,135 @@
+"""The entry points' torch threads (one unless the user asked), progress lines over a recent window, and Ctrl-C
+ending in one line with exit status 130."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch as th
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.progress import INTERRUPTED_EXIT_CODE, ProgressLogCallback, ctrl_c_ends_quietly, interrupted_line
+from sb3_maddpg.torch_threads import THREAD_VARIABLES, threads_set_by_user, use_torch_threads
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture
+def restore_threads(monkeypatch: pytest.MonkeyPatch):
+    for variable in THREAD_VARIABLES:
+        monkeypatch.delenv(variable, raising=False)
+    before = th.get_num_threads()
+    use_torch_threads(before)  # the package's record starts from the count in force
+    yield
+    th.set_num_threads(before)
+    use_torch_threads(before)
+
+
+def test_one_thread_by_default(restore_threads) -> None:
+    th.set_num_threads(2)
+    use_torch_threads(2)  # as if torch had started with 2
+    assert use_torch_threads() == 1
+    assert th.get_num_threads() == 1
+
+
+def test_an_explicit_count_wins(restore_threads) -> None:
+    assert use_torch_threads(2) == 2
+    assert th.get_num_threads() == 2
+
+
+@pytest.mark.parametrize("variable", THREAD_VARIABLES)
+def test_thread_variables_are_honoured(restore_threads, monkeypatch: pytest.MonkeyPatch, variable: str) -> None:
+    th.set_num_threads(2)
+    use_torch_threads(2)
+    monkeypatch.setenv(variable, "2")
+    assert threads_set_by_user() == f"{variable}=2"
+    assert use_torch_threads() == 2  # left as torch set it from the variable
+
+
+def test_a_users_set_num_threads_is_honoured(restore_threads) -> None:
+    use_torch_threads(1)
+    th.set_num_threads(2)  # the user's call, after the package's
+    assert threads_set_by_user() == "torch.set_num_threads(2)"
+    assert use_torch_threads() == 2
+
+
+@pytest.mark.parametrize("threads", [0, -1, 1.5, True])
+def test_bad_thread_counts_say_what_to_do(threads) -> None:
+    with pytest.raises(ValueError, match=r"threads must be a positive integer.*use 1"):
+        use_torch_threads(threads)
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_progress_rate_is_over_the_recent_window(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
+    clock = _Clock()
+    monkeypatch.setattr("sb3_maddpg.progress.time.perf_counter", clock)
+    progress = ProgressLogCallback("run", total_timesteps=1_000_000, every=1.0, every_seconds=10.0, window_seconds=30.0)
+    progress.model, progress.num_timesteps = None, 0  # no model: no team return in the lines
+    progress._on_training_start()
+    # 60 s at 1,000 steps/s, then the machine gets busy: 100 steps/s.
+    for second in range(1, 121):
+        clock.now = float(second)
+        progress.num_timesteps += 1_000 if second <= 60 else 100
+        progress._on_step()
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 12
+    assert "1,000 steps/s" in lines[5]  # at 60 s
+    # 60 s into the slow phase the window holds only slow steps: 100 steps/s, where the average since the start
+    # (66,000 steps in 120 s) would say 550.
+    assert "100 steps/s (last 0m30s)" in lines[-1], lines[-1]
+    assert "2h35m40s left" in lines[-1]  # at the recent rate: 934,000 steps at 100 steps/s
+
+
+def test_ctrl_c_in_learn_is_one_line_and_status_130(capsys: pytest.CaptureFixture) -> None:
+    model = MADDPG("MlpPolicy", make_simple_spread(n_agents=2), learning_starts=0, batch_size=8)
+
+    class CtrlCAt(ProgressLogCallback):
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= 30:
+                raise KeyboardInterrupt
+            return True
+
+    with pytest.raises(SystemExit) as stopped, ctrl_c_ends_quietly(model):
+        model.learn(total_timesteps=1_000, callback=CtrlCAt("run", 1_000))
+    assert stopped.value.code == INTERRUPTED_EXIT_CODE
+    out = capsys.readouterr().out
+    assert out == "Stopped by Ctrl-C at 30 of 1,000 training steps (3%). " + out.split("(3%). ", 1)[1]
+    assert "the model trained so far is usable" in out and out.count("\n") == 1
+    model.predict(model.env.reset(), deterministic=True)  # and it is
+
+
+def test_ctrl_c_outside_training_says_so() -> None:
+    assert interrupted_line() == "Stopped by Ctrl-C."
+
+
+def test_the_main_job_ends_on_ctrl_c_with_one_line() -> None:
+    env = {**os.environ, "SDL_VIDEODRIVER": "dummy", "PYTHONUNBUFFERED": "1"}
+    env.pop("SB3_MADDPG_FAST", None)
+    args = [sys.executable, str(ROOT / "examples" / "train_simple_spread.py"), "--agents", "2", "--n-envs", "8"]
+    process = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert process.stdout is not None
+    deadline = time.monotonic() + 240
+    seen = []
+    for line in process.stdout:  # the first progress line comes 5 s into training
+        seen.append(line)
+        if line.startswith("training:") or time.monotonic() > deadline:
+            break
+    process.send_signal(signal.SIGINT)
+    out, err = process.communicate(timeout=60)
+    assert seen and seen[-1].startswith("training:"), "".join(seen) + err
+    assert process.returncode == INTERRUPTED_EXIT_CODE, err
+    assert out.strip().splitlines()[-1].startswith("Stopped by Ctrl-C at "), out
+    assert "of 2,000,000 training steps" in out
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
