@@ -23,13 +23,15 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # before pygame (imported by 
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 
+from sb3_maddpg.install_hint import extra_install_command
+
 try:  # the experiments extra's; the package itself does not need them
     import imageio.v3 as iio
     from PIL import Image
 except ModuleNotFoundError as error:
     raise SystemExit(
         f"render_team.py needs {(error.name or 'imageio').split('.')[0]}, which is not installed: "
-        'pip install "sb3-maddpg[experiments]"'
+        f"{extra_install_command('experiments')}"
     ) from error
 
 from sb3_maddpg import MADDPG

@@ -42,6 +42,13 @@ def test_a_run_on_simple_tag_is_scored_by_catches_and_the_adversaries_return(tmp
     written = make_report(tmp_path, tmp_path / "report", metrics=("group_return", "collisions"), plots=False)
     table = (tmp_path / "report" / "table_group_return.md").read_text()
     assert "smoke (simple_tag, 30 ep.)" in table and len(written) == 8  # tables and aggregates, md and csv
+    # By default a task without simple_spread's success reports the team return.
+    assert {path.name for path in make_report(tmp_path, tmp_path / "default", plots=False)} == {
+        "table_return_mean.md",
+        "table_return_mean.csv",
+        "aggregates_return_mean.md",
+        "aggregates_return_mean.csv",
+    }
 
 
 def test_group_return_is_the_sum_of_the_groups_returns() -> None:

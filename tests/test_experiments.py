@@ -299,8 +299,17 @@ def test_ray_backend_runs_the_smoke_sweep(tmp_path: Path, local_results: Path) -
         assert score == pytest.approx(local_scores[run_id]), run_id
 
 
-def test_report_writes_table_and_plots(local_results: Path, tmp_path: Path) -> None:
-    written = make_report(local_results, tmp_path, metrics=("success_rate", "min_dist_sum"))
+def test_report_writes_table_and_plots(local_results: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from sb3_maddpg.experiments import plots
+
+    y_limits: dict[str, tuple[float, float]] = {}
+    save = plots._save
+    monkeypatch.setattr(
+        plots,
+        "_save",
+        lambda figure, path: (y_limits.__setitem__(Path(path).stem, figure.axes[0].get_ylim()), save(figure, path)),
+    )
+    written = make_report(local_results, tmp_path)  # the default metrics: success and min-dist sum
     names = sorted(path.name for path in written)
     assert names == sorted(
         f"{kind}_{metric}.{ext}"
@@ -318,6 +327,11 @@ def test_report_writes_table_and_plots(local_results: Path, tmp_path: Path) -> N
         assert path.stat().st_size > 0
         if path.suffix == ".png":
             assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # Rates and distances cannot be negative: their axes start at 0 (the smoke runs' success is all zeros).
+    assert set(y_limits) == {
+        f"{kind}_{metric}" for kind in ("learning_curves", "boxplot") for metric in ("success_rate", "min_dist_sum")
+    }
+    assert all(bottom == 0.0 < top for bottom, top in y_limits.values()), y_limits
     rows = read_rows(tmp_path / "table_min_dist_sum.csv")
     assert [row["method"] for row in rows] == ["MADDPG", "IDDPG", "MADDPG-fo", "MADDPG-fa", "MADDPG-soa"]
     summaries = load_summaries(local_results)

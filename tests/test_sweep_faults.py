@@ -8,6 +8,7 @@ writes its process id, and the test kills that process, or the sweep around it.
 import contextlib
 import json
 import os
+import re
 import runpy
 import signal
 import subprocess
@@ -35,6 +36,7 @@ from sb3_maddpg.experiments.results import (
 )
 from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.sweep import SweepProgress, SweepResult, plan_sweep
+from sb3_maddpg.install_hint import extra_install_command
 from tests.fault_helpers import stalled_pid
 
 REPO = Path(__file__).resolve().parents[1]
@@ -360,13 +362,15 @@ def test_report_and_render_team_without_the_experiments_extra(
     assert main(["report", str(results), "--out", str(tmp_path / "report")]) == 1
     error = capsys.readouterr().err
     assert error.startswith("sb3-maddpg report: the figures need matplotlib, which is not installed")
-    assert 'pip install "sb3-maddpg[experiments]"' in error and "--no-plots" in error
+    assert extra_install_command("experiments") in error and "--no-plots" in error
     assert not (tmp_path / "report").exists()  # said before anything is written
     assert main(["report", str(results), "--out", str(tmp_path / "report"), "--no-plots"]) == 0  # tables need no extra
 
     monkeypatch.setitem(sys.modules, "imageio", None)
     monkeypatch.setitem(sys.modules, "imageio.v3", None)
-    with pytest.raises(SystemExit, match=r'needs imageio, which is not installed: pip install "sb3-maddpg\[experiments\]"'):
+    with pytest.raises(
+        SystemExit, match=r"needs imageio, which is not installed: " + re.escape(extra_install_command("experiments"))
+    ):
         runpy.run_path(str(REPO / "examples" / "render_team.py"))
 
 

@@ -22,6 +22,7 @@ from typing import Any
 from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.results import write_result_files
 from sb3_maddpg.experiments.runner import execute_run
+from sb3_maddpg.install_hint import extra_install_command
 
 BACKENDS = ("local", "ray")
 
@@ -207,7 +208,10 @@ def run_ray(
     try:
         import ray
     except ImportError as error:
-        raise ImportError("The Ray backend needs Ray: pip install 'ray[default]' (or sb3-maddpg[distributed]).") from error
+        raise ImportError(
+            f"The Ray backend needs Ray, which is not installed: {extra_install_command('distributed')} (or pip install "
+            "'ray[default]')."
+        ) from error
 
     started_here = not ray.is_initialized()
     if started_here:

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 
 from sb3_maddpg.experiments.config import DEFAULT_N_ENVS, EXPERIMENTS, VEC_ENVS, ExperimentConfig, load_experiment
 from sb3_maddpg.experiments.stats import METRICS
+from sb3_maddpg.install_hint import extra_install_command
 
 DEFAULT_RESULTS = "runs/experiments"
 
@@ -102,7 +103,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--metric",
         action="append",
         choices=sorted(METRICS),
-        help="score(s) to tabulate and plot; repeat for several (default: success_rate)",
+        help="score(s) to tabulate and plot, repeat for several (default: success_rate and min_dist_sum; other tasks: return)",
     )
     report.add_argument("--no-plots", action="store_true", help="tables only")
     return parser
@@ -222,10 +223,12 @@ def run_command(args: argparse.Namespace) -> int:
     return 0 if result.ok else 1
 
 
-NO_MATPLOTLIB = (
-    "sb3-maddpg report: the figures need matplotlib, which is not installed. Install the experiments extra, "
-    'pip install "sb3-maddpg[experiments]", or add --no-plots for the tables only.'
-)
+def no_matplotlib_message() -> str:
+    """:return: What ``report`` says without matplotlib: the install command for this install, or ``--no-plots``."""
+    return (
+        "sb3-maddpg report: the figures need matplotlib, which is not installed. Install the experiments extra, "
+        f"{extra_install_command('experiments')}, or add --no-plots for the tables only."
+    )
 
 
 def report_command(args: argparse.Namespace) -> int:
@@ -237,16 +240,16 @@ def report_command(args: argparse.Namespace) -> int:
 
     plots = not args.no_plots
     if plots and importlib.util.find_spec("matplotlib") is None:  # said before any table is written
-        print(NO_MATPLOTLIB, file=sys.stderr)
+        print(no_matplotlib_message(), file=sys.stderr)
         return 1
     out = args.out or f"{args.results.rstrip('/')}/report"
     try:
-        for path in make_report(args.results, out, metrics=args.metric or ["success_rate"], plots=plots):
+        for path in make_report(args.results, out, metrics=args.metric, plots=plots):
             print(path)
     except ModuleNotFoundError as error:  # a part of matplotlib missing: the same advice
         if error.name is None or error.name.split(".")[0] != "matplotlib":
             raise
-        print(NO_MATPLOTLIB, file=sys.stderr)
+        print(no_matplotlib_message(), file=sys.stderr)
         return 1
     except (FileNotFoundError, ValueError) as error:  # no finished runs, or a metric the runs do not have
         print(f"sb3-maddpg report: {error}", file=sys.stderr)

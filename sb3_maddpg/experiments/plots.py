@@ -116,6 +116,8 @@ def plot_learning_curves(
         axis.grid(alpha=0.3)
         if curves.get(setting):
             axis.legend(fontsize=8)
+            if min(float(np.min(curve[2])) for curve in curves[setting].values()) >= 0:
+                axis.set_ylim(bottom=0.0)  # a score that cannot be negative: its axis starts at 0
     figure.tight_layout()
     _save(figure, path)
     plt.close(figure)
@@ -165,7 +167,8 @@ def plot_boxplots(
             axis.scatter(position + offsets, cell.scores, s=12, color=COLORS.get(cell.scheme, "tab:gray"), zorder=3)
             if cell.stars:
                 axis.text(position, top + 0.04 * span, cell.stars, ha="center", va="bottom", fontsize=12)
-        axis.set_ylim(bottom - 0.08 * span, top + 0.16 * span)
+        # A score that cannot be negative (a rate, a distance) gets an axis from 0, so all-zero scores sit on it.
+        axis.set_ylim(0.0 if bottom >= 0 else bottom - 0.08 * span, top + 0.16 * span)
         axis.set_xticks(positions)
         axis.set_xticklabels([cell.method for cell in row], fontsize=8)
         axis.set_title(_title(setting, experiments), fontsize=10)

@@ -224,10 +224,24 @@ def write_aggregates_csv(rows: Sequence[dict[str, Any]], metric: str, path: str 
             )
 
 
+DEFAULT_REPORT_METRICS = ("success_rate", "min_dist_sum")
+"""What a report shows unless told: simple_spread's success (higher is better; near 0 early in training) and its
+min-dist sum (lower is better; informative at every scale). Other tasks: the team return."""
+
+
+def default_metrics(score: dict[str, float]) -> list[str]:
+    """
+    :param score: One run's score.
+    :return: The metrics of :data:`DEFAULT_REPORT_METRICS` the run has (not NaN), or ``["return_mean"]``.
+    """
+    present = [metric for metric in DEFAULT_REPORT_METRICS if not math.isnan(score.get(metric, math.nan))]
+    return present or ["return_mean"]
+
+
 def make_report(
     results_dir: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
-    metrics: Sequence[str] = ("success_rate",),
+    metrics: Sequence[str] | None = None,
     plots: bool = True,
     baseline: str = BASELINE_SCHEME,
 ) -> list[Path]:
@@ -239,7 +253,8 @@ def make_report(
 
     :param results_dir: The results directory of a sweep.
     :param out_dir: Where to write the report.
-    :param metrics: The scores to report (see :data:`~sb3_maddpg.experiments.stats.METRICS`).
+    :param metrics: The scores to report (see :data:`~sb3_maddpg.experiments.stats.METRICS`); ``None``: those of
+        :func:`default_metrics`.
     :param plots: Also draw the figures (needs matplotlib).
     :param baseline: The scheme the others are tested against.
     :return: The files written.
@@ -247,6 +262,8 @@ def make_report(
     summaries = load_summaries(results_dir)
     if not summaries:
         raise FileNotFoundError(f"No finished runs under {results_dir} (expected <experiment>/<scheme>/seed_*/summary.json).")
+    if metrics is None:
+        metrics = default_metrics(summaries[0]["score"])
     unknown = [metric for metric in metrics if metric not in summaries[0]["score"]]
     if unknown:
         raise ValueError(
