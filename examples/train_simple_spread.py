@@ -20,7 +20,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread_vec_env
-from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.evaluation import describe_result, evaluate_team
 from sb3_maddpg.progress import ProgressLogCallback, ctrl_c_ends_quietly
 from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
@@ -39,11 +39,7 @@ def make_env(n_envs: int, n_agents: int, mpe2: bool) -> VecEnv:
 
 
 def report(label: str, result: dict) -> None:
-    print(
-        f"{label:>9}: success {100 * result['success_rate']:5.1f}%  coverage {100 * result['coverage']:5.1f}%  "
-        f"collisions/episode {result['collisions']:5.2f}  min-dist sum {result['min_dist_sum']:5.2f}  "
-        f"return {result['return_mean']:7.2f} (std {result['return_std']:.2f})"
-    )
+    print(f"{label:>9}: {describe_result(result)}")
 
 
 def main() -> None:

@@ -48,6 +48,26 @@ EVAL_KEYS = (
 """The scalar results of :func:`evaluate_team`, in the order they are logged and written."""
 
 
+def describe_result(result: dict[str, float]) -> str:
+    """
+    :param result: What :func:`evaluate_team` returned.
+    :return: Its headline numbers on one line, each with its direction, e.g. ``"success 12.0% (higher is better),
+        coverage 55.3% (higher), collisions/episode 1.25 (lower), min-dist sum 0.38 (lower), return -30.73
+        (std 5.21, higher)"``; task metrics that do not apply (NaN) are left out.
+    """
+    parts = []
+    if not np.isnan(result.get("success_rate", np.nan)):
+        parts.append(f"success {100 * result['success_rate']:.1f}% (higher is better)")
+    if not np.isnan(result.get("coverage", np.nan)):
+        parts.append(f"coverage {100 * result['coverage']:.1f}% (higher)")
+    if not np.isnan(result.get("collisions", np.nan)):
+        parts.append(f"collisions/episode {result['collisions']:.2f} (lower)")
+    if not np.isnan(result.get("min_dist_sum", np.nan)):
+        parts.append(f"min-dist sum {result['min_dist_sum']:.2f} (lower)")
+    parts.append(f"return {result['return_mean']:.2f} (std {result['return_std']:.2f}, higher)")
+    return ", ".join(parts)
+
+
 def eval_keys(task_metrics: Sequence["DeclaredMetric"] = (), score_agents: Sequence[str] = ()) -> tuple[str, ...]:
     """
     :param task_metrics: Task metrics scored besides simple_spread's.

@@ -391,6 +391,7 @@ SMOKE = ExperimentConfig(
     curve_eval_episodes=2,
     keep_checkpoints=False,
     model_kwargs=TINY_MODEL_KWARGS,
+    scheme_model_kwargs=SELECT_NEAREST_AT_N3,  # k=2 of 3 would select everyone, as "full" does
     description="Smoke test: N=3, 2 seeds, 40 episodes, tiny networks (tests the pipeline, not the methods)",
 )
 """A pipeline check that runs every scheme in seconds (for CI)."""
