@@ -4,6 +4,7 @@ from sb3_maddpg.envs.adapter import MetricsFn, PettingZooToGym
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_METRICS, MPE_TASKS, TaskMetric, make_mpe_env
 from sb3_maddpg.envs.registration import SIMPLE_SPREAD_ID, register_envs
 from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS, SimpleSpreadMetrics, make_simple_spread
+from sb3_maddpg.envs.simple_spread_reference import RandomTeamPolicy, ScriptedSpreadPolicy
 from sb3_maddpg.envs.simple_spread_vec_env import SimpleSpreadVecEnv, make_simple_spread_vec_env
 
 __all__ = [
@@ -13,6 +14,8 @@ __all__ = [
     "SIMPLE_SPREAD_ID",
     "MetricsFn",
     "PettingZooToGym",
+    "RandomTeamPolicy",
+    "ScriptedSpreadPolicy",
     "SimpleSpreadMetrics",
     "SimpleSpreadVecEnv",
     "TaskMetric",
