@@ -21,6 +21,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread_vec_env
 from sb3_maddpg.evaluation import describe_result, evaluate_team
+from sb3_maddpg.normalised_score import describe_normalised, reference_scores
 from sb3_maddpg.progress import ProgressLogCallback, ctrl_c_ends_quietly
 from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
@@ -29,7 +30,9 @@ MEANING = (
     "reward summed over an episode (25 steps); coverage: landmarks with an agent within 0.1 at the last step; "
     "success: all of them covered (the hardest: about 1 episode in 10 after the default 2M steps); "
     "collisions: agent pairs in contact, summed over the episode; "
-    "min-dist sum: each landmark's distance to its nearest agent at the last step, summed."
+    "min-dist sum: each landmark's distance to its nearest agent at the last step, summed; normalised score: 0 for "
+    "uniformly random actions, 1 for a scripted controller that assigns agents to landmarks and steers them there "
+    "(at N=3 the default 2M steps reach about 0.8 in min-dist sum)."
 )
 
 
@@ -79,6 +82,8 @@ def main() -> None:
     print(f"{steps:,} steps in {elapsed:.0f} s ({steps / elapsed:,.0f} steps/s); {n_eval} evaluation episodes:")
     report("untrained", before)
     report("trained", after)
+    references = reference_scores(args.agents)  # the task's random team and scripted controller, 300 episodes each
+    print(f"  trained: {describe_normalised(after, references)}")
     print(MEANING)
 
 

@@ -15,7 +15,7 @@ from scipy.stats import mannwhitneyu
 
 from sb3_maddpg.experiments import EXP1, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
-from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL
+from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL, PAPER_NAMES
 from sb3_maddpg.experiments.report import format_markdown
 from sb3_maddpg.experiments.results import (
     DONE_FILE,
@@ -28,6 +28,7 @@ from sb3_maddpg.experiments.results import (
 )
 from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.stats import aggregate, mann_whitney, mean_std, significance_stars
+from sb3_maddpg.normalised_score import reference_scores
 
 # ---------------------------------------------------------------------------------------------------------------
 # Configs
@@ -312,17 +313,31 @@ def test_report_writes_table_and_plots(local_results: Path, tmp_path: Path, monk
     written = make_report(local_results, tmp_path)  # the default metrics: success and min-dist sum
     names = sorted(path.name for path in written)
     assert names == sorted(
-        f"{kind}_{metric}.{ext}"
-        for metric in ("success_rate", "min_dist_sum")
-        for kind, ext in (
-            ("table", "md"),
-            ("table", "csv"),
-            ("aggregates", "md"),
-            ("aggregates", "csv"),
-            ("learning_curves", "png"),
-            ("boxplot", "png"),
-        )
+        ["normalised.md"]
+        + [
+            f"{kind}_{metric}.{ext}"
+            for metric in ("success_rate", "min_dist_sum")
+            for kind, ext in (
+                ("table", "md"),
+                ("table", "csv"),
+                ("aggregates", "md"),
+                ("aggregates", "csv"),
+                ("learning_curves", "png"),
+                ("boxplot", "png"),
+            )
+        ]
     )
+    # The normalised scores by hand: each scheme's mean between the task's random team and the controller.
+    references = reference_scores(3)
+    normalised_rows = [line for line in (tmp_path / "normalised.md").read_text().splitlines() if line.startswith("| smoke")]
+    assert len(normalised_rows) == len(SCHEMES) + 1  # a row per method, and the references
+    for line in normalised_rows[: len(SCHEMES)]:
+        method, runs, min_dist, min_dist_score = line.split(" | ")[1:5]
+        scheme = next(scheme for scheme, name in PAPER_NAMES.items() if name == method)
+        values = [s["score"]["min_dist_sum"] for s in load_summaries(local_results) if s["scheme"] == scheme]
+        random, scripted = references["random"]["min_dist_sum"], references["scripted"]["min_dist_sum"]
+        assert float(min_dist) == pytest.approx(np.mean(values), abs=5e-4) and int(runs) == 2
+        assert float(min_dist_score) == pytest.approx((np.mean(values) - random) / (scripted - random), abs=5e-3)
     for path in written:
         assert path.stat().st_size > 0
         if path.suffix == ".png":

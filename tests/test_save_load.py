@@ -198,10 +198,11 @@ def test_load_with_another_number_of_envs_rebuilds_the_noise(tmp_path, n_envs):
 def test_load_with_other_layout(tmp_path):
     model = MADDPG("MlpPolicy", make_team(), **FAST)
     model.save(tmp_path / "model.zip")
-    with pytest.raises(ValueError, match="(?i)spaces do not match|agent layout"):
+    # Said before SB3's space check, whose message names neither the agents nor what to do.
+    with pytest.raises(ValueError, match=r"team differs from the model's \(the model has 3 agents, the env 4\)"):
         MADDPG.load(tmp_path / "model.zip", env=make_team(n_agents=4))
     loaded = MADDPG.load(tmp_path / "model.zip")
-    with pytest.raises(ValueError, match="(?i)spaces do not match|agent layout"):
+    with pytest.raises(ValueError, match=r"team differs from the model's \(the model has 3 agents, the env 4\)"):
         loaded.set_env(make_team(n_agents=4))
 
 
@@ -211,7 +212,7 @@ def test_load_with_same_spaces_other_layout(tmp_path):
     other = make_team()
     layout = other.agent_layout
     other.agent_layout = AgentLayout(("a", "b", "c"), layout.obs_sizes, layout.action_sizes)
-    with pytest.raises(ValueError, match="agent layout"):
+    with pytest.raises(ValueError, match=r"team differs from the model's \(other agent ids\)"):
         MADDPG.load(tmp_path / "model.zip", env=other)
 
 

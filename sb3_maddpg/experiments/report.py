@@ -11,6 +11,7 @@ import numpy as np
 
 from sb3_maddpg.experiments.aggregates import improvement_interval, iqm_interval
 from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, ordered_schemes, setting_label
+from sb3_maddpg.experiments.normalised_table import format_normalised_markdown
 from sb3_maddpg.experiments.results import load_experiments, load_summaries
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, aggregate
 
@@ -248,8 +249,10 @@ def make_report(
     """
     Write, for each metric, ``table_<metric>.md`` and ``table_<metric>.csv`` (Table 2: mean (std), Mann-Whitney U),
     ``aggregates_<metric>.md`` and ``aggregates_<metric>.csv`` (IQM and probability of improvement with 95%
-    bootstrap intervals) and, with ``plots``, ``learning_curves_<metric>.png`` (IQM over runs with a 95% bootstrap
-    band, vs env steps) and ``boxplot_<metric>.png`` (per-run scores, like the paper's Figures 7 and 8).
+    bootstrap intervals), ``normalised.md`` for simple_spread settings (min-dist sum and team return between the
+    random team, 0, and the scripted controller, 1) and, with ``plots``, ``learning_curves_<metric>.png`` (IQM over
+    runs with a 95% bootstrap band, vs env steps) and ``boxplot_<metric>.png`` (per-run scores, like the paper's
+    Figures 7 and 8).
 
     :param results_dir: The results directory of a sweep.
     :param out_dir: Where to write the report.
@@ -291,4 +294,8 @@ def make_report(
             plot_learning_curves(summaries, metric, curve_path, experiments)
             plot_boxplots(cells, metric, box_path, experiments)
             written += [curve_path, box_path]
+    normalised = format_normalised_markdown(summaries, experiments)
+    if normalised is not None:
+        (out / "normalised.md").write_text(normalised)
+        written.append(out / "normalised.md")
     return written
