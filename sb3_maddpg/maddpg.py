@@ -15,7 +15,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.noise import ActionNoise, NormalActionNoise, VectorizedActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq
 from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.common.vec_env import VecEnv
 from torch.nn import functional as F
@@ -33,6 +33,7 @@ from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiA
 from sb3_maddpg.selection import Selector
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent, validate_critic_sharing
 from sb3_maddpg.team_setup import draw_noise, resolve_selection, warn_if_selecting_everyone
+from sb3_maddpg.update_schedule import UpdateSchedule, pop_0_2_dev_schedule
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
 
@@ -165,15 +166,7 @@ class MADDPG(OffPolicyAlgorithm):
                 f"actor_reg_coef must be a finite number >= 0, got {actor_reg_coef}: use 1e-3 (Lowe et al.'s value) "
                 "or 0 to turn the actor regulariser off."
             )
-        if (
-            isinstance(transitions_per_update, bool)
-            or not isinstance(transitions_per_update, int)
-            or transitions_per_update < 1
-        ):
-            raise ValueError(
-                f"transitions_per_update must be a positive integer (transitions per gradient step), got "
-                f"{transitions_per_update!r}: the paper's is 100."
-            )
+        update_rule = UpdateSchedule.from_arguments(transitions_per_update, train_freq, gradient_steps)
         if env is not None and not isinstance(env, str):
             refuse_unsupported_env(env)
         super().__init__(
@@ -204,18 +197,14 @@ class MADDPG(OffPolicyAlgorithm):
         self.critic_sharing_kwargs = dict(critic_sharing_kwargs or {})
         self.max_grad_norm = max_grad_norm
         self.actor_reg_coef = float(actor_reg_coef)
-        self.transitions_per_update = transitions_per_update
-        self._train_freq_from_ratio = train_freq is None
-        # SB3's meaning as soon as either is given; the per-transition rule only when neither is.
-        self._earn_gradient_steps = gradient_steps is None and train_freq is None
-        self._update_credit = 0  # transitions past learning_starts not yet spent on a gradient step
-        self._credited_timesteps = 0  # num_timesteps when the credit was last counted
+        self.update_rule = update_rule
+        """When the model takes gradient steps (see :attr:`update_schedule`)."""
         self._logs_dumped_at = -1
         self._warned_never_updated = False  # not saved: a loaded model may warn once more
         if not _init_setup_model:
             # SB3's load() builds the model this way and then sets the saved attributes over these: a model saved
             # by 0.1, which has none of them, keeps training as it did (SB3's train_freq, no regulariser).
-            self._train_freq_from_ratio = self._earn_gradient_steps = False
+            self.update_rule = UpdateSchedule.sb3_semantics()
             self.actor_reg_coef = 0.0
         self.noise_std = noise_std
         self.agent_layout: AgentLayout | None = None
@@ -267,8 +256,8 @@ class MADDPG(OffPolicyAlgorithm):
             critic_sharing_kwargs=self.critic_sharing_kwargs,
             selection_size=selection_size,
         )
-        if self._train_freq_from_ratio:
-            self._derive_train_freq()
+        self.update_rule = pop_0_2_dev_schedule(self.__dict__) or self.update_rule
+        self.train_freq = self.update_rule.train_freq(self.n_envs) or self.train_freq  # type: ignore[assignment]
         super()._setup_model()
         self._create_aliases()
         # own_action_mask[i, 0, d]: action dimension d belongs to agent i (for the actor update).
@@ -286,23 +275,18 @@ class MADDPG(OffPolicyAlgorithm):
         self._discrete_components = discrete
         self._continuous_components = th.as_tensor(~discrete, device=self.device)
 
-    def _derive_train_freq(self) -> None:
-        """Update every ``transitions_per_update // n_envs`` vectorised steps (at least every step)."""
-        self.train_freq = TrainFreq(max(1, self.transitions_per_update // self.n_envs), TrainFrequencyUnit.STEP)  # type: ignore[assignment]
+    @property
+    def transitions_per_update(self) -> int:
+        """Transitions (all envs counted) per gradient step of the per-transition rule."""
+        return self.update_rule.transitions_per_update
 
     @property
     def update_schedule(self) -> str:
         """When the model updates, in words (e.g. for a log line)."""
-        freq = self.train_freq
-        assert isinstance(freq, TrainFreq), "_setup_model() converts train_freq"
-        every = f"every {freq.frequency} {freq.unit.value}(s) of {self.n_envs} env(s)"
-        if self._earn_gradient_steps:
-            return (
-                f"one gradient step (batch {self.batch_size}) per {self.transitions_per_update} transitions after "
-                f"step {self.learning_starts:,}, taken {every}"
-            )
-        steps = f"{self.gradient_steps} gradient step(s)" if self.gradient_steps >= 0 else "a gradient step per transition"
-        return f"{steps} (batch {self.batch_size}) {every}, after step {self.learning_starts:,} (SB3's train_freq semantics)"
+        assert isinstance(self.train_freq, TrainFreq), "_setup_model() converts train_freq"
+        return self.update_rule.describe(
+            self.train_freq, self.n_envs, self.gradient_steps, self.batch_size, self.learning_starts
+        )
 
     def collect_rollouts(
         self,
@@ -317,18 +301,10 @@ class MADDPG(OffPolicyAlgorithm):
         rollout = super().collect_rollouts(
             env, callback, train_freq, replay_buffer, action_noise, learning_starts, log_interval
         )
-        if self._earn_gradient_steps:
+        if self.update_rule.earns_gradient_steps:
             # SB3's learn() reads self.gradient_steps right after this call: the steps this rollout earned.
-            self.gradient_steps = self._earned_gradient_steps()
+            self.gradient_steps = self.update_rule.earned(self.num_timesteps, self.learning_starts)
         return rollout
-
-    def _earned_gradient_steps(self) -> int:
-        """Gradient steps earned since the last call: one per ``transitions_per_update`` transitions past learning_starts."""
-        counted_from = max(self._credited_timesteps, self.learning_starts)
-        self._update_credit += max(0, self.num_timesteps - counted_from)
-        self._credited_timesteps = self.num_timesteps
-        steps, self._update_credit = divmod(self._update_credit, self.transitions_per_update)
-        return steps
 
     def _setup_learn(
         self,
@@ -341,8 +317,7 @@ class MADDPG(OffPolicyAlgorithm):
         self._fit_noise_to_env()
         result = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
         if reset_num_timesteps:  # timesteps count from 0 again, and so do the credit and the last log step
-            self._update_credit = 0
-            self._credited_timesteps = 0
+            self.update_rule.reset()
             self._logs_dumped_at = -1
         return result
 
@@ -582,7 +557,7 @@ class MADDPG(OffPolicyAlgorithm):
 
     def _warn_if_never_updated(self) -> None:
         """Say once, naming learning_starts, that the model has not been trained at all: a short run is otherwise silent."""
-        explicitly_no_updates = not self._earn_gradient_steps and self.gradient_steps == 0
+        explicitly_no_updates = not self.update_rule.earns_gradient_steps and self.gradient_steps == 0
         if self._n_updates > 0 or self._warned_never_updated or explicitly_no_updates:
             return
         self._warned_never_updated = True
