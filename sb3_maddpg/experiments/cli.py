@@ -6,7 +6,14 @@ import json
 import sys
 from collections.abc import Sequence
 
-from sb3_maddpg.experiments.config import DEFAULT_N_ENVS, EXPERIMENTS, VEC_ENVS, ExperimentConfig, load_experiment
+from sb3_maddpg.experiments.config import (
+    DEFAULT_N_ENVS,
+    EXPERIMENTS,
+    TUNE_OBJECTIVES,
+    VEC_ENVS,
+    ExperimentConfig,
+    load_experiment,
+)
 from sb3_maddpg.experiments.stats import METRICS
 from sb3_maddpg.install_hint import extra_install_command
 
@@ -93,6 +100,33 @@ def build_parser() -> argparse.ArgumentParser:
     )
     execution.add_argument("--dry-run", action="store_true", help="list the runs and exit")
     execution.add_argument("--quiet", action="store_true", help="print only the sweep's progress, not each run's")
+
+    tune = commands.add_parser(
+        "tune",
+        help="search MADDPG's hyperparameters on Optuna (a study in SQLite: the same command resumes it)",
+        description="Train trials of one setting with sampled hyperparameters, prune the poor ones, print the best as a "
+        "preset. Several processes (--workers, or the same command in another shell) share the study.",
+    )
+    tune.add_argument("--config", default="exp1", help="the setting: a preset or an experiment JSON file (default: exp1)")
+    tune.add_argument("--n-agents", type=int, help="agents (and landmarks)")
+    tune.add_argument("--neighbors", help="nearest other agents observed: an integer, or 'all'")
+    tune.add_argument("--scheme", help="the critic_sharing scheme (default: the setting's first)")
+    tune.add_argument("--env-kwargs", type=json.loads, help="JSON of the task constructor's keyword arguments")
+    tune.add_argument("--study-name", help="the study's name (default: <setting>_<objective>)")
+    tune.add_argument("--storage", default="sqlite:///tune.db", help="Optuna storage URL (default: sqlite:///tune.db)")
+    tune.add_argument("--trials", type=int, default=50, help="finished trials at which the study stops (default 50)")
+    tune.add_argument("--steps", type=int, default=1_000_000, help="env steps per trial (default 1,000,000)")
+    tune.add_argument("--evaluations", type=int, default=10, help="evaluations per trial, reported to the pruner")
+    tune.add_argument("--eval-episodes", type=int, default=100, help="episodes per evaluation (default 100)")
+    tune.add_argument("--last-evaluations", type=int, default=3, help="a trial scores its mean over these last ones")
+    tune.add_argument("--objective", choices=sorted(TUNE_OBJECTIVES), default="min_dist_sum", help="what to optimise")
+    tune.add_argument("--seed", type=int, default=0, help="seed of the sampler and of every trial's run")
+    tune.add_argument("--workers", type=int, default=1, help="parallel worker processes sharing the study")
+    tune.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes or Ray tasks")
+    tune.add_argument("--address", default=None, help="Ray cluster address (with --backend ray)")
+    tune.add_argument("--threads", type=int, default=1, help="torch threads per worker (default: 1)")
+    tune.add_argument("--heartbeat", type=int, default=60, help="seconds between a trial's heartbeats (default 60)")
+    tune.add_argument("--preset-out", help="also write the best trial's preset (experiment JSON) to this file")
 
     report = commands.add_parser(
         "report", help="Table 2 (Markdown, CSV), learning curves and boxplots from a results directory"
@@ -183,7 +217,62 @@ def main(argv: Sequence[str] | None = None) -> int:
         except KeyboardInterrupt:  # Ctrl-C before the sweep began (run_command handles it during the sweep)
             print("sb3-maddpg run: interrupted before the sweep started; nothing was run.", file=sys.stderr)
             return 130
+    if args.command == "tune":
+        try:
+            return tune_command(args)
+        except KeyboardInterrupt:
+            print("sb3-maddpg tune: interrupted; the same command resumes the study.", file=sys.stderr)
+            return 130
     return report_command(args)
+
+
+def tune_command(args: argparse.Namespace) -> int:
+    """
+    :param args: Parsed ``tune`` arguments.
+    :return: The exit status.
+    """
+    from sb3_maddpg.experiments.tune import TuneSettings, best_preset, describe_best, finished_trials, run_study
+
+    experiment = load_experiment(args.config).replace(
+        n_agents=args.n_agents, schemes=(args.scheme,) if args.scheme else None, env_kwargs=args.env_kwargs
+    )
+    if args.neighbors is not None:
+        neighbors = None if args.neighbors == "all" else int(args.neighbors)
+        experiment = ExperimentConfig.from_dict({**experiment.to_dict(), "num_agent_neighbors": neighbors})
+    try:
+        settings = TuneSettings(
+            experiment=experiment,
+            study_name=args.study_name or f"{experiment.name}_{args.objective}",
+            storage=args.storage,
+            n_trials=args.trials,
+            budget=args.steps,
+            n_evaluations=args.evaluations,
+            eval_episodes=args.eval_episodes,
+            last_evaluations=args.last_evaluations,
+            objective=args.objective,
+            seed=args.seed,
+            heartbeat_seconds=args.heartbeat,
+        )
+        print(
+            f"study {settings.study_name!r} in {settings.storage}: {settings.n_trials} trials of {settings.budget:,} steps "
+            f"on {experiment.name} (N={experiment.n_agents}, scheme {experiment.schemes[0]}), {args.workers} worker(s)",
+            flush=True,
+        )
+        study = run_study(settings, workers=args.workers, backend=args.backend, threads=args.threads, address=args.address)
+    except (ModuleNotFoundError, ValueError) as error:
+        print(f"sb3-maddpg tune: {error}", file=sys.stderr)
+        return 2
+    if not any(trial.value is not None and trial.state.name == "COMPLETE" for trial in study.trials):
+        print(f"sb3-maddpg tune: no trial completed ({finished_trials(study)} pruned).", file=sys.stderr)
+        return 1
+    for line in describe_best(study, settings):
+        print(line)
+    if args.preset_out:
+        with open(args.preset_out, "w") as file:
+            json.dump(best_preset(study, settings), file, indent=2)
+            file.write("\n")
+        print(f"preset written to {args.preset_out}: sb3-maddpg run --config {args.preset_out}")
+    return 0
 
 
 def run_command(args: argparse.Namespace) -> int:

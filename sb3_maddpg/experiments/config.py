@@ -52,6 +52,11 @@ def setting_label(name: str, experiment: dict[str, Any] | None) -> str:
     return f"{name} (N={experiment['n_agents']}, {observability}, {experiment['episodes']:,} ep.)"
 
 
+TUNE_OBJECTIVES = {"min_dist_sum": "minimize", "normalised": "maximize"}
+"""What ``sb3-maddpg tune`` optimises, and in which direction: simple_spread's min-dist sum at the last step (lower is
+better), or the normalised score (the mean of the min-dist sum's and the team return's, 0 = random, 1 = the scripted
+controller; higher is better)."""
+
 BASELINE_SCHEME = "full"
 """The scheme every other one is tested against (MADDPG)."""
 

@@ -1,0 +1,347 @@
+"""Hyperparameter search on Optuna, as rl-zoo3 does for SB3: a sampler of MADDPG's hyperparameters, evaluations during
+training reported to a pruner, and a study in SQLite that resumes and that several workers share.
+
+Each trial trains one run of an experiment's setting (its task, N, observability; the first scheme) for
+``budget`` env steps with sampled ``model_kwargs`` over the experiment's own, evaluates the team
+``n_evaluations`` times on the same seeded episodes, reports each evaluation's objective to the pruner, and
+scores the mean objective over the last ``last_evaluations`` evaluations. Stale trials of a killed worker are
+retried (Optuna's heartbeat), and the study stops at ``n_trials`` finished trials, however many workers share it.
+"""
+
+import copy
+import dataclasses
+import json
+import math
+import multiprocessing
+import os
+import warnings
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+from stable_baselines3.common.vec_env import VecMonitor
+
+from sb3_maddpg.evaluation import TeamEvalCallback
+from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
+from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
+from sb3_maddpg.experiments.runner import load_algorithm, make_env, make_eval_env
+from sb3_maddpg.install_hint import extra_install_command
+from sb3_maddpg.torch_threads import use_torch_threads
+
+HEARTBEAT_SECONDS = 60
+"""How often a running trial tells the study it is alive; a trial silent for twice as long is failed and retried."""
+
+
+def import_optuna() -> Any:
+    """:return: The ``optuna`` module, or a clear error naming the install command."""
+    try:
+        import optuna
+    except ModuleNotFoundError as error:
+        raise ModuleNotFoundError(
+            f"sb3-maddpg tune needs Optuna, which is not installed: {extra_install_command('tune')}."
+        ) from error
+    return optuna
+
+
+def sample_maddpg_params(trial: Any) -> dict[str, Any]:
+    """
+    A sample of MADDPG's hyperparameters around the paper's (Lowe et al.'s), rl-zoo3 style.
+
+    :param trial: An Optuna trial.
+    :return: ``MADDPG`` keyword arguments: the learning rate (actors and critics), the exploration noise (in mpe2's
+        units), the batch size, the network width (actors of 2 and critics of 3 hidden layers), the update ratio
+        (transitions per gradient step), tau, gamma and the actor regulariser.
+    """
+    width = trial.suggest_categorical("width", [64, 128, 256])
+    return {
+        "learning_rate": trial.suggest_float("learning_rate", 1e-4, 2e-2, log=True),
+        "noise_std": trial.suggest_float("noise_std", 0.02, 0.5, log=True),
+        "batch_size": trial.suggest_categorical("batch_size", [256, 512, 1024, 2048]),
+        "policy_kwargs": {"net_arch": {"pi": [width, width], "qf": [width, width, width]}},
+        "transitions_per_update": trial.suggest_categorical("transitions_per_update", [10, 25, 50, 100, 200, 400]),
+        "tau": trial.suggest_categorical("tau", [0.005, 0.01, 0.02, 0.05]),
+        "gamma": trial.suggest_categorical("gamma", [0.9, 0.95, 0.97, 0.99]),
+        "actor_reg_coef": trial.suggest_categorical("actor_reg_coef", [0.0, 1e-4, 1e-3, 1e-2]),
+    }
+
+
+@dataclasses.dataclass(frozen=True)
+class TuneSettings:
+    """
+    One study.
+
+    :param experiment: The setting the trials train in (its first scheme; its ``model_kwargs`` under the samples).
+    :param study_name: The study's name in the storage.
+    :param storage: An Optuna storage URL, e.g. ``"sqlite:///tune.db"`` (shared by every worker; resumes).
+    :param n_trials: Finished trials (complete or pruned) at which the study stops.
+    :param budget: Env steps per trial.
+    :param n_evaluations: Evaluations per trial (evenly spaced; each reported to the pruner).
+    :param eval_episodes: Episodes per evaluation.
+    :param last_evaluations: The trial's value is its objective's mean over this many last evaluations.
+    :param objective: A key of :data:`OBJECTIVES`.
+    :param seed: Seed of the sampler and of every trial's run.
+    :param heartbeat_seconds: See :data:`HEARTBEAT_SECONDS`.
+    :param pruner: An Optuna pruner; ``None``: a median pruner (after 5 trials, from the second evaluation).
+    """
+
+    experiment: ExperimentConfig
+    study_name: str
+    storage: str
+    n_trials: int = 50
+    budget: int = 1_000_000
+    n_evaluations: int = 10
+    eval_episodes: int = 100
+    last_evaluations: int = 3
+    objective: str = "min_dist_sum"
+    seed: int = 0
+    heartbeat_seconds: int = HEARTBEAT_SECONDS
+    pruner: Any = None
+
+    def __post_init__(self) -> None:
+        if self.objective not in OBJECTIVES:
+            raise ValueError(f"objective must be one of {sorted(OBJECTIVES)}, got {self.objective!r}.")
+        if self.experiment.env != "simple_spread":
+            raise ValueError(
+                f"sb3-maddpg tune scores simple_spread's min-dist sum, but the experiment's task is "
+                f"{self.experiment.env!r}: tune on a simple_spread setting (e.g. --config exp1)."
+            )
+        for name in ("n_trials", "budget", "n_evaluations", "eval_episodes", "last_evaluations", "heartbeat_seconds"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}.")
+        if self.last_evaluations > self.n_evaluations:
+            raise ValueError(f"last_evaluations ({self.last_evaluations}) cannot exceed n_evaluations ({self.n_evaluations}).")
+
+    def run_config(self, model_kwargs: dict[str, Any]) -> RunConfig:
+        """
+        :param model_kwargs: The trial's sampled keyword arguments.
+        :return: The trial's run: the experiment's first run with the trial's budget, seed and kwargs over its own.
+        """
+        base = self.experiment.replace(seeds=(self.seed,)).runs()[0]
+        episodes = max(1, math.ceil(self.budget / base.episode_length))
+        merged = {**copy.deepcopy(base.model_kwargs), **model_kwargs}
+        return dataclasses.replace(base, episodes=episodes, model_kwargs=merged, curve_points=0)
+
+
+def objective_value(row: dict[str, float], objective: str, references: dict[str, dict[str, float]] | None) -> float:
+    """
+    :param row: One evaluation (:class:`~sb3_maddpg.evaluation.TeamEvalCallback`'s history row).
+    :param objective: A key of :data:`OBJECTIVES`.
+    :param references: The task's references, for ``"normalised"``.
+    :return: The evaluation's objective.
+    """
+    if objective == "min_dist_sum":
+        return float(row["min_dist_sum"])
+    from sb3_maddpg.normalised_score import normalised_scores
+
+    assert references is not None
+    scores = normalised_scores(row, references)
+    return (scores["min_dist_sum"] + scores["return_mean"]) / 2
+
+
+class TrialEvalCallback(TeamEvalCallback):
+    """
+    :class:`~sb3_maddpg.evaluation.TeamEvalCallback` that reports each evaluation's objective to an Optuna trial and
+    stops training when the pruner says so.
+
+    :param trial: The trial.
+    :param objective: A key of :data:`OBJECTIVES`.
+    :param references: The task's references, for ``"normalised"``.
+    :param kwargs: For :class:`~sb3_maddpg.evaluation.TeamEvalCallback`.
+    """
+
+    def __init__(self, trial: Any, objective: str, references: dict[str, dict[str, float]] | None, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.trial = trial
+        self.objective = objective
+        self.references = references
+        self.values: list[float] = []
+        self.pruned = False
+
+    def _on_step(self) -> bool:
+        evaluated = len(self.history)
+        super()._on_step()
+        if len(self.history) == evaluated:
+            return True
+        value = objective_value(self.history[-1], self.objective, self.references)
+        self.values.append(value)
+        self.trial.report(value, step=self.num_timesteps)
+        if self.trial.should_prune():
+            self.pruned = True
+            return False  # SB3 stops learn()
+        return True
+
+
+def run_trial(trial: Any, settings: TuneSettings) -> float:
+    """
+    Train and score one trial (the study's objective function).
+
+    :param trial: The Optuna trial.
+    :param settings: The study.
+    :return: The objective's mean over the last evaluations; ``optuna.TrialPruned`` is raised when pruned.
+    """
+    optuna = import_optuna()
+    model_kwargs = sample_maddpg_params(trial)
+    config = settings.run_config(model_kwargs)
+    trial.set_user_attr("model_kwargs", json.loads(json.dumps(model_kwargs)))
+    references = None
+    if settings.objective == "normalised":
+        from sb3_maddpg.experiments.normalised_table import setting_references
+
+        references = setting_references(settings.experiment.to_dict())
+    env = VecMonitor(make_env(config))
+    algorithm: Any = load_algorithm(config.algorithm)
+    model = algorithm("MlpPolicy", env, critic_sharing=config.scheme, seed=config.seed, **copy.deepcopy(config.model_kwargs))
+    interval = max(1, settings.budget // settings.n_evaluations)
+    callback = TrialEvalCallback(
+        trial,
+        settings.objective,
+        references,
+        eval_env=make_eval_env(config, settings.eval_episodes),
+        eval_freq=max(1, interval // env.num_envs),
+        n_eval_episodes=settings.eval_episodes,
+        seed=config.eval_seed,
+    )
+    model.learn(settings.budget, callback=callback)
+    env.close()
+    if callback.pruned:
+        raise optuna.TrialPruned()
+    if not callback.values:
+        raise RuntimeError(f"trial {trial.number} made no evaluation: raise the budget or lower n_evaluations.")
+    last = callback.values[-settings.last_evaluations :]
+    return float(sum(last) / len(last))
+
+
+def load_study(settings: TuneSettings) -> Any:
+    """
+    :param settings: The study.
+    :return: The Optuna study, created or resumed: TPE sampler seeded by ``settings.seed``, the settings' pruner,
+        heartbeats so that a killed worker's trial is failed and retried (once).
+    """
+    optuna = import_optuna()
+    storage = settings.storage
+    if storage.startswith(("sqlite:", "postgresql:", "mysql:")):
+        with warnings.catch_warnings():  # heartbeats are "experimental" in Optuna since 2.8: said on every start
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            retry: dict[str, Any]
+            if hasattr(optuna.storages, "RetryHeartbeatStaleTrialCallback"):  # Optuna >= 4.9
+                retry = {"heartbeat_stale_trial_callback": optuna.storages.RetryHeartbeatStaleTrialCallback(max_retry=1)}
+            else:
+                retry = {"failed_trial_callback": optuna.storages.RetryFailedTrialCallback(max_retry=1)}
+            storage = optuna.storages.RDBStorage(
+                storage, heartbeat_interval=settings.heartbeat_seconds, grace_period=2 * settings.heartbeat_seconds, **retry
+            )
+    interval = max(1, settings.budget // settings.n_evaluations)
+    return optuna.create_study(
+        study_name=settings.study_name,
+        storage=storage,
+        direction=OBJECTIVES[settings.objective],
+        sampler=optuna.samplers.TPESampler(seed=settings.seed, n_startup_trials=5),
+        pruner=settings.pruner or optuna.pruners.MedianPruner(n_startup_trials=5, n_warmup_steps=interval),
+        load_if_exists=True,
+    )
+
+
+def finished_trials(study: Any) -> int:
+    """:return: The study's complete and pruned trials."""
+    optuna = import_optuna()
+    states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
+    return len(study.get_trials(deepcopy=False, states=states))
+
+
+def optimize(settings: TuneSettings, threads: int | None = 1, log: Callable[[str], None] = print) -> Any:
+    """
+    Run trials in this process until the study has ``n_trials`` finished ones.
+
+    :param settings: The study.
+    :param threads: Torch threads (see :func:`~sb3_maddpg.torch_threads.use_torch_threads`).
+    :param log: Where each finished trial's line goes.
+    :return: The study.
+    """
+    optuna = import_optuna()
+    use_torch_threads(threads)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = load_study(settings)
+
+    def report(study: Any, trial: Any) -> None:
+        value = "pruned" if trial.value is None else f"{settings.objective} {trial.value:.4f}"
+        log(f"trial {trial.number}: {trial.state.name.lower()}, {value} ({finished_trials(study)}/{settings.n_trials})")
+
+    stop = optuna.study.MaxTrialsCallback(
+        settings.n_trials, states=(optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
+    )
+    if finished_trials(study) < settings.n_trials:
+        study.optimize(lambda trial: run_trial(trial, settings), callbacks=[stop, report], gc_after_trial=True)
+    return study
+
+
+def _worker(settings: TuneSettings, threads: int | None) -> None:
+    optimize(settings, threads, log=lambda line: print(f"[worker {os.getpid()}] {line}", flush=True))
+
+
+def run_study(
+    settings: TuneSettings,
+    workers: int = 1,
+    backend: str = "local",
+    threads: int | None = 1,
+    address: str | None = None,
+) -> Any:
+    """
+    Run the study with ``workers`` processes sharing its storage: this one, a local pool, or Ray tasks.
+
+    :param settings: The study (its storage must be shared by the workers: SQLite for one machine).
+    :param workers: Parallel workers.
+    :param backend: ``"local"`` or ``"ray"``.
+    :param threads: Torch threads per worker.
+    :param address: The Ray cluster's address (``None``: a local Ray instance).
+    :return: The study, reloaded after the workers finished.
+    """
+    if workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}.")
+    if backend == "ray":
+        try:
+            import ray
+        except ModuleNotFoundError as error:
+            raise ModuleNotFoundError(
+                f"--backend ray needs Ray, which is not installed: {extra_install_command('distributed')}."
+            ) from error
+        ray.init(address=address, ignore_reinit_error=True, include_dashboard=False, log_to_driver=True)
+        remote = ray.remote(num_cpus=threads or 1)(_worker)
+        ray.get([remote.remote(settings, threads) for _ in range(workers)])
+    elif workers == 1:
+        optimize(settings, threads)
+    else:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+            for future in [pool.submit(_worker, settings, threads) for _ in range(workers)]:
+                future.result()
+    return load_study(settings)
+
+
+def best_preset(study: Any, settings: TuneSettings) -> dict[str, Any]:
+    """
+    :param study: A study with a complete trial.
+    :param settings: The study's settings.
+    :return: The best trial as an experiment config (JSON-ready, for ``sb3-maddpg run --config``): the experiment
+        with the trial's ``model_kwargs`` over its own, named ``<experiment>_tuned``.
+    """
+    best = study.best_trial
+    model_kwargs = {**settings.experiment.model_kwargs, **best.user_attrs["model_kwargs"]}
+    description = (
+        f"{settings.experiment.name} with the best of {finished_trials(study)} trials of study "
+        f"{settings.study_name!r} ({settings.objective} {best.value:.4f} over the last {settings.last_evaluations} of "
+        f"{settings.n_evaluations} evaluations, {settings.budget:,} steps)"
+    )
+    tuned = settings.experiment.replace(name=f"{settings.experiment.name}_tuned", model_kwargs=model_kwargs)
+    return {**tuned.to_dict(), "description": description}
+
+
+def describe_best(study: Any, settings: TuneSettings) -> Sequence[str]:
+    """:return: Lines saying the best trial's value, its parameters, and the preset."""
+    best = study.best_trial
+    direction = "lower" if OBJECTIVES[settings.objective] == "minimize" else "higher"
+    return [
+        f"best trial {best.number}: {settings.objective} {best.value:.4f} ({direction} is better) of "
+        f"{finished_trials(study)} finished trials",
+        "parameters: " + ", ".join(f"{key}={value}" for key, value in best.params.items()),
+        "preset:",
+        json.dumps(best_preset(study, settings), indent=2),
+    ]

@@ -1,0 +1,144 @@
+"""sb3-maddpg tune: the sampler gives MADDPG's arguments, a tiny study runs, is killed mid-trial, resumes (the killed
+trial failed and retried), prunes, and prints the best trial as a preset that `sb3-maddpg run` takes."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import optuna
+import pytest
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.experiments import SMOKE
+from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.experiments.config import ExperimentConfig
+from sb3_maddpg.experiments.tune import (
+    TrialEvalCallback,
+    TuneSettings,
+    finished_trials,
+    load_study,
+    run_study,
+    sample_maddpg_params,
+)
+
+TINY = SMOKE.replace(schemes=("full",))
+
+
+def settings(tmp_path: Path, **changes) -> TuneSettings:
+    values = dict(
+        experiment=TINY,
+        study_name="tiny",
+        storage=f"sqlite:///{tmp_path / 'tune.db'}",
+        n_trials=2,
+        budget=800,
+        n_evaluations=2,
+        eval_episodes=2,
+        last_evaluations=1,
+        heartbeat_seconds=1,
+    )
+    return TuneSettings(**{**values, **changes})
+
+
+def test_the_sampler_gives_arguments_maddpg_takes() -> None:
+    study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
+    for _ in range(5):
+        kwargs = sample_maddpg_params(study.ask())
+        assert 1e-4 <= kwargs["learning_rate"] <= 2e-2 and 0.02 <= kwargs["noise_std"] <= 0.5
+        width = kwargs["policy_kwargs"]["net_arch"]["pi"][0]
+        assert kwargs["policy_kwargs"]["net_arch"] == {"pi": [width] * 2, "qf": [width] * 3}
+        model = MADDPG("MlpPolicy", make_simple_spread(n_agents=2), **kwargs)
+        assert model.transitions_per_update == kwargs["transitions_per_update"] and model.gamma == kwargs["gamma"]
+
+
+def test_a_tiny_study_runs_and_gives_a_preset_run_takes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    preset = tmp_path / "best.json"
+    argv = ["tune", "--config", "smoke", "--scheme", "full", "--trials", "2", "--steps", "800", "--evaluations", "2"]
+    argv += ["--eval-episodes", "2", "--last-evaluations", "1", "--storage", f"sqlite:///{tmp_path / 'tune.db'}"]
+    assert main([*argv, "--preset-out", str(preset)]) == 0
+    out = capsys.readouterr().out
+    assert "best trial" in out and "(lower is better) of 2 finished trials" in out
+    config = ExperimentConfig.from_dict(json.loads(preset.read_text()))
+    study = load_study(settings(tmp_path, study_name="smoke_min_dist_sum"))
+    assert config.name == "smoke_tuned" and config.model_kwargs["learning_rate"] == study.best_params["learning_rate"]
+    assert config.model_kwargs["learning_starts"] == SMOKE.model_kwargs["learning_starts"]  # the setting's own stay
+    # The trial's value is its last evaluation's min-dist sum (last_evaluations=1): a real evaluation, not a constant.
+    assert 0.0 < study.best_value < 10.0 and len({trial.value for trial in study.trials}) == 2
+    # And the preset runs.
+    assert main(["run", "--config", str(preset), "--seeds", "1", "--episodes", "20", "--results", str(tmp_path / "r")]) == 0
+
+
+def test_every_trial_is_pruned_by_a_pruner_that_always_prunes(tmp_path: Path) -> None:
+    # min-dist sums are positive: a threshold of 0 prunes at the first report after warm-up (step 0 here).
+    study = run_study(settings(tmp_path, pruner=optuna.pruners.ThresholdPruner(upper=0.0)))
+    states = [trial.state for trial in study.trials]
+    assert states == [optuna.trial.TrialState.PRUNED] * 2 and finished_trials(study) == 2
+    # Pruned after its first evaluation: one intermediate value, at the step of the first evaluation.
+    assert all(len(trial.intermediate_values) == 1 for trial in study.trials)
+
+
+def test_the_callback_stops_training_when_the_pruner_says_so() -> None:
+    reports = []
+
+    class Trial:
+        def report(self, value: float, step: int) -> None:
+            reports.append((step, value))
+
+        def should_prune(self) -> bool:
+            return len(reports) >= 2
+
+    env = make_simple_spread(n_agents=2)
+    model = MADDPG("MlpPolicy", env, learning_starts=50, batch_size=16, policy_kwargs={"net_arch": [8]})
+    callback = TrialEvalCallback(
+        Trial(), "min_dist_sum", None, eval_env=make_simple_spread(n_agents=2), eval_freq=50, n_eval_episodes=1
+    )
+    model.learn(1_000, callback=callback)
+    assert callback.pruned and model.num_timesteps == 100  # stopped at the second evaluation, not at 1,000 steps
+    assert [step for step, _ in reports] == [50, 100] and reports[0][1] == callback.history[0]["min_dist_sum"]
+
+
+def test_a_killed_study_resumes_and_retries_the_killed_trial(tmp_path: Path) -> None:
+    db = tmp_path / "tune.db"
+    argv = [sys.executable, "-m", "sb3_maddpg.experiments", "tune", "--config", "smoke", "--scheme", "full"]
+    argv += ["--trials", "2", "--steps", "3000", "--evaluations", "3", "--eval-episodes", "2", "--last-evaluations", "1"]
+    argv += ["--storage", f"sqlite:///{db}", "--heartbeat", "1", "--study-name", "killed"]
+    env = {**os.environ, "SDL_VIDEODRIVER": "dummy"}
+    process = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    study_settings = settings(tmp_path, study_name="killed", n_trials=2, budget=3000, n_evaluations=3)
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline:  # kill it inside its first trial, once that trial has reported
+        time.sleep(0.5)
+        if db.exists():
+            trials = load_study(study_settings).trials
+            if trials and trials[0].intermediate_values:
+                break
+    process.send_signal(signal.SIGKILL)
+    process.wait(timeout=30)
+    assert load_study(study_settings).trials[0].state == optuna.trial.TrialState.RUNNING  # left as it was
+    time.sleep(3)  # past the grace period of two heartbeats
+    resumed = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=600, check=False)
+    assert resumed.returncode == 0, resumed.stdout + resumed.stderr
+    states = [trial.state for trial in load_study(study_settings).trials]
+    # The killed trial failed; its retry and one more completed: 2 finished, as asked.
+    assert states[0] == optuna.trial.TrialState.FAIL, states
+    assert states.count(optuna.trial.TrialState.COMPLETE) == 2, states
+    killed, retried = load_study(study_settings).trials[:2]
+    assert retried.system_attrs["failed_trial"] == 0 and retried.params == killed.params  # the same sample, again
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"objective": "speed"}, r"objective must be one of"),
+        ({"last_evaluations": 3}, r"last_evaluations \(3\) cannot exceed n_evaluations \(2\)"),
+        ({"budget": 0}, r"budget must be at least 1"),
+        ({"experiment": TINY.replace(env="simple_tag")}, r"tune on a simple_spread setting"),
+    ],
+)
+def test_bad_settings_say_what_to_do(tmp_path: Path, changes: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        settings(tmp_path, **changes)
