@@ -1,0 +1,137 @@
+"""
+The N=5 diagnosis, summarised: each factor against the paper's configuration, same sweep, same seeds.
+
+Reads the finished runs in ``results/`` (written by ``benchmarks/n5_diagnosis/run.sh``) and writes ``summary.md``
+beside this file:
+
+- per factor: the seeds finished; the score over the last 20% of training (mean of 20 checkpoint evaluations of 100
+  episodes each, then mean and std over seeds) of the min-dist sum (lower is better), success and coverage within
+  0.3, the team return, and the normalised scores (0 = random, 1 = the scripted controller); the gradient steps a run
+  takes; the measured training throughput and wall time per run;
+- per factor, learning curves in numbers: the mean over seeds of the min-dist sum at 200k, 400k, 600k, 800k and 1M env
+  steps, and at equal gradient steps (2,500, 5,000 and 10,000 after the 25,600 random steps: where a run with more
+  updates per transition gets there first).
+
+Only seeds the paper's configuration has finished too are compared (like with like). Usage::
+
+    python benchmarks/n5_diagnosis/summarize.py [results] [summary.md]
+"""
+
+import csv
+import json
+import statistics
+import sys
+from pathlib import Path
+from typing import Any
+
+from sb3_maddpg.experiments.results import load_summaries
+from sb3_maddpg.normalised_score import normalised_scores, reference_scores
+
+HERE = Path(__file__).resolve().parent
+BASELINE = "n5_paper"
+CURVE_STEPS = (200_000, 400_000, 600_000, 800_000, 1_000_000)
+GRADIENT_STEPS = (2_500, 5_000, 10_000)
+PAPER_TRANSITIONS_PER_UPDATE = 100
+PAPER_LEARNING_STARTS = 25_600
+
+
+def transitions_per_update(experiment: dict[str, Any]) -> int:
+    """:return: The run's transitions per gradient step (the paper's 100 unless its model_kwargs say otherwise)."""
+    return int(experiment.get("model_kwargs", {}).get("transitions_per_update", PAPER_TRANSITIONS_PER_UPDATE))
+
+
+def learning_starts(experiment: dict[str, Any]) -> int:
+    """:return: The env steps of random actions before the first gradient step (the paper's 25,600 by default)."""
+    return int(experiment.get("model_kwargs", {}).get("learning_starts", PAPER_LEARNING_STARTS))
+
+
+def curve(directory: Path) -> list[tuple[float, float]]:
+    """:return: ``(env steps, min-dist sum)`` of a run's learning curve."""
+    with open(directory / "learning_curve.csv", newline="") as file:
+        return [(float(row["timesteps"]), float(row["min_dist_sum"])) for row in csv.DictReader(file)]
+
+
+def at(points: list[tuple[float, float]], step: float) -> float | None:
+    """:return: The curve's value at the evaluation nearest ``step`` (within 5% of it), else ``None``."""
+    nearest = min(points, key=lambda point: abs(point[0] - step))
+    return nearest[1] if abs(nearest[0] - step) <= 0.05 * step else None
+
+
+def mean_std(values: list[float]) -> str:
+    """``mean (std)`` of the values, or the one value."""
+    if len(values) == 1:
+        return f"{values[0]:.3f}"
+    return f"{statistics.mean(values):.3f} ({statistics.stdev(values):.3f})"
+
+
+def summarise(results: Path) -> str:
+    """:return: The Markdown of ``summary.md``."""
+    summaries = load_summaries(results)
+    experiments = {path.parent.name: json.loads(path.read_text()) for path in results.glob("*/experiment.json")}
+    references = reference_scores(5)
+    baseline_seeds = {summary["seed"] for summary in summaries if summary["experiment"] == BASELINE}
+    order = [BASELINE, *sorted({summary["experiment"] for summary in summaries} - {BASELINE})]
+    lines = [
+        "# N=5 diagnosis: each factor against the paper's configuration",
+        "",
+        "Setting: simple_spread N=5, full observability, `full` sharing, batched env of 100 worlds, 1M env steps per run "
+        "(40,000 episodes); score: mean of 20 checkpoint evaluations (100 episodes each) over the last 20% of training, "
+        f"then mean (std) over the seeds listed (seeds the paper's configuration finished: {sorted(baseline_seeds)}). "
+        "Min-dist sum: lower is better; success and coverage within 0.3, return and normalised scores: higher is "
+        "better (normalised: 0 = uniformly random actions, 1 = the scripted controller; random min-dist sum "
+        f"{references['random']['min_dist_sum']:.2f}, controller {references['scripted']['min_dist_sum']:.2f}).",
+        "",
+        "| factor | seeds | gradient steps | min-dist sum | normalised | success within 0.3 | coverage within 0.3 "
+        "| team return | normalised | steps/s | wall time per run |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    curve_lines = [
+        "",
+        "## Learning curves in numbers: min-dist sum (mean over the same seeds; lower is better)",
+        "",
+        "| factor | "
+        + " | ".join(f"{step // 1000}k steps" for step in CURVE_STEPS)
+        + " | "
+        + " | ".join(f"{steps:,} gradient steps" for steps in GRADIENT_STEPS)
+        + " |",
+        "|---|" + "---|" * (len(CURVE_STEPS) + len(GRADIENT_STEPS)),
+    ]
+    for name in order:
+        runs = [s for s in summaries if s["experiment"] == name and s["seed"] in baseline_seeds]
+        if not runs:
+            continue
+        experiment = experiments.get(name, {})
+        ratio, warm_up = transitions_per_update(experiment), learning_starts(experiment)
+        scores = [run["score"] for run in runs]
+        normalised = [normalised_scores(score, references) for score in scores]
+        label = experiment.get("description", name).removeprefix("N=5 diagnosis: ").split(";")[0]
+        lines.append(
+            f"| {label} | {', '.join(str(run['seed']) for run in runs)} | {(1_000_000 - warm_up) // ratio:,} | "
+            f"{mean_std([s['min_dist_sum'] for s in scores])} | {mean_std([n['min_dist_sum'] for n in normalised])} | "
+            f"{mean_std([s['success_rate_r0.3'] for s in scores])} | {mean_std([s['coverage_r0.3'] for s in scores])} | "
+            f"{statistics.mean(s['return_mean'] for s in scores):.1f} | "
+            f"{mean_std([n['return_mean'] for n in normalised])} | "
+            f"{statistics.mean(run['train_steps_per_s'] for run in runs):,.0f} | "
+            f"{statistics.mean(run['wall_time_s'] for run in runs) / 60:.0f} min |"
+        )
+        curves = [curve(Path(run["directory"])) for run in runs]
+        cells = []
+        for step in [*CURVE_STEPS, *(warm_up + steps * ratio for steps in GRADIENT_STEPS)]:
+            values = [value for value in (at(points, step) for points in curves) if value is not None]
+            cells.append(f"{statistics.mean(values):.2f}" if len(values) == len(curves) else "")
+        curve_lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    notes = [
+        "",
+        "Throughput and wall time were measured with two runs at a time on a 2-core machine that was also running other "
+        "work (tests and development): read them as ratios between factors, not as this machine's rate.",
+        "",
+        "Made by `bash benchmarks/n5_diagnosis/run.sh` (resumable), then `python benchmarks/n5_diagnosis/summarize.py`.",
+    ]
+    return "\n".join(lines + curve_lines + notes) + "\n"
+
+
+if __name__ == "__main__":
+    results_dir = Path(sys.argv[1]) if len(sys.argv) > 1 else HERE / "results"
+    out = Path(sys.argv[2]) if len(sys.argv) > 2 else HERE / "summary.md"
+    out.write_text(summarise(results_dir))
+    print(out.read_text())
