@@ -14,6 +14,9 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.noise import VectorizedActionNoise
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, unwrap_vec_normalize
 
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.noise import add_noise, discrete_components, noise_copy_for_envs
+
 TASK_METRICS = ("success", "coverage", "collisions", "min_dist_sum")
 """The task metrics read from ``info`` (see :class:`~sb3_maddpg.envs.SimpleSpreadMetrics`)."""
 
@@ -133,8 +136,8 @@ def evaluate_team(
     :param deterministic: ``True``: the team acts without exploration. ``False``: it acts as in training: ``predict``
         samples (for stochastic policies), and a model with ``action_noise`` (MADDPG, SB3's TD3 and DDPG) gets a copy
         of that noise added in the [-1, 1] action space and clipped there, as in the model's data collection (the
-        model's own noise process is not advanced). MADDPG's default noise is zero on discrete agents' one-hots, so
-        their actions stay the most likely ones here (in training they are sampled).
+        model's own noise process is not advanced). As in a MADDPG model's training, no noise is added to discrete
+        agents' one-hots, so their actions stay the most likely ones here (in training they are sampled).
     :param task_metrics: Other task metrics to score from ``info``, e.g. ``MPE_TASK_METRICS["simple_tag"]`` for an
         env of :func:`~sb3_maddpg.envs.make_mpe_env`: each is returned under its key, the mean over episodes of its
         last-step value or of its sum over the episode. When given, only their absence is warned about.
@@ -170,11 +173,13 @@ def evaluate_team(
     states = None
     episode_starts = np.ones(n_envs, dtype=bool)
     exploration = None if deterministic else _exploration_noise(model, n_envs)
+    layout = getattr(model, "agent_layout", None)  # a MADDPG model's: no noise on its discrete agents' one-hots
+    discrete = discrete_components(layout) if isinstance(layout, AgentLayout) else None
 
     while (counts < targets).any():
         actions, states = model.predict(observations, state=states, episode_start=episode_starts, deterministic=deterministic)
         if exploration is not None:
-            actions = _add_noise(actions, exploration, vec_env.action_space)
+            actions = _add_noise(actions, exploration, vec_env.action_space, discrete)
         observations, rewards, dones, infos = vec_env.step(actions)
         team_returns += rewards
         lengths += 1
@@ -255,18 +260,16 @@ def _group_return(vec_env: VecEnv, per_agent: list[np.ndarray], group: Sequence[
 def _exploration_noise(model: PredictsActions, n_envs: int) -> VectorizedActionNoise | None:
     """A copy of the model's exploration noise for ``n_envs`` eval envs, or ``None`` when it has none."""
     noise = getattr(model, "action_noise", None)
-    if noise is None:
-        return None
-    base = noise.base_noise if isinstance(noise, VectorizedActionNoise) else noise
-    return VectorizedActionNoise(copy.deepcopy(base), n_envs)
+    return None if noise is None else noise_copy_for_envs(noise, n_envs)
 
 
-def _add_noise(actions: np.ndarray, noise: VectorizedActionNoise, action_space: gym.Space) -> np.ndarray:
-    """Add noise in the [-1, 1] space and clip there, as SB3's off-policy collection does (``_sample_action``)."""
+def _add_noise(
+    actions: np.ndarray, noise: VectorizedActionNoise, action_space: gym.Space, discrete: np.ndarray | None
+) -> np.ndarray:
+    """The env's actions explored as in training: :func:`~sb3_maddpg.noise.add_noise` in the [-1, 1] space."""
     assert isinstance(action_space, spaces.Box), "exploration noise needs continuous (Box) actions"
     low, high = action_space.low, action_space.high
-    scaled = 2.0 * (actions - low) / (high - low) - 1.0
-    scaled = np.clip(scaled + noise(), -1.0, 1.0)
+    scaled = add_noise(2.0 * (actions - low) / (high - low) - 1.0, noise, discrete)
     return (low + 0.5 * (scaled + 1.0) * (high - low)).astype(actions.dtype)
 
 

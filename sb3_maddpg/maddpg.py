@@ -12,7 +12,7 @@ import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.noise import ActionNoise, NormalActionNoise, VectorizedActionNoise
+from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq
@@ -29,10 +29,11 @@ from sb3_maddpg.env_checks import (
     refuse_unsupported_env,
 )
 from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.noise import add_noise, default_noise, discrete_components, fit_noise_to_envs
 from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.selection import Selector
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent, validate_critic_sharing
-from sb3_maddpg.team_setup import draw_noise, resolve_selection, warn_if_selecting_everyone
+from sb3_maddpg.team_setup import resolve_selection, warn_if_selecting_everyone
 from sb3_maddpg.update_schedule import UpdateSchedule, pop_0_2_dev_schedule
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
@@ -166,6 +167,11 @@ class MADDPG(OffPolicyAlgorithm):
                 f"actor_reg_coef must be a finite number >= 0, got {actor_reg_coef}: use 1e-3 (Lowe et al.'s value) "
                 "or 0 to turn the actor regulariser off."
             )
+        if max_grad_norm is not None and not max_grad_norm > 0:
+            raise ValueError(
+                f"max_grad_norm must be > 0 (the largest norm each agent's gradient is clipped to), got {max_grad_norm}: "
+                "use 0.5 (Lowe et al.'s value), or None to turn gradient clipping off."
+            )
         update_rule = UpdateSchedule.from_arguments(transitions_per_update, train_freq, gradient_steps)
         if env is not None and not isinstance(env, str):
             refuse_unsupported_env(env)
@@ -225,20 +231,11 @@ class MADDPG(OffPolicyAlgorithm):
                     f"selection is used only by schemes that read one (critic_sharing='selected'), got "
                     f"critic_sharing={critic_sharing!r}: drop selection or use critic_sharing='selected'."
                 )
-            if self.action_noise is None and np.any(np.asarray(noise_std) > 0):
-                self.action_noise = self._default_noise(self.agent_layout, noise_std)
+            if self.action_noise is None:
+                assert isinstance(self.action_space, spaces.Box)
+                self.action_noise = default_noise(self.agent_layout, noise_std, self.action_space)
         if _init_setup_model:
             self._setup_model()
-
-    def _default_noise(self, layout: AgentLayout, noise_std: float | Sequence[float]) -> NormalActionNoise:
-        """Gaussian noise with each agent's std given in its own action units, converted to the [-1, 1] space."""
-        per_agent = np.broadcast_to(np.asarray(noise_std, dtype=np.float64), (layout.n_agents,))
-        # A discrete agent explores by sampling its action (Gumbel-max), not by noise on its one-hot.
-        per_agent = np.where([layout.is_discrete(i) for i in range(layout.n_agents)], 0.0, per_agent)
-        assert isinstance(self.action_space, spaces.Box)
-        half_range = (self.action_space.high - self.action_space.low) / 2.0
-        sigma = np.concatenate([np.full(size, std) for std, size in zip(per_agent, layout.action_sizes)]) / half_range
-        return NormalActionNoise(mean=np.zeros(layout.action_dim), sigma=sigma)
 
     def _setup_model(self) -> None:
         if self.agent_layout is None:
@@ -269,11 +266,8 @@ class MADDPG(OffPolicyAlgorithm):
         sizes = th.tensor(self.agent_layout.action_sizes, dtype=th.float32).unsqueeze(1)
         self._own_action_mean = (mask[:, 0].float() / sizes).to(self.device)
         # Action components of discrete agents: their one-hots take no noise and are never "saturated".
-        discrete = np.zeros(self.agent_layout.action_dim, dtype=bool)
-        for i, action_slice in enumerate(self.agent_layout.action_slices):
-            discrete[action_slice] = self.agent_layout.is_discrete(i)
-        self._discrete_components = discrete
-        self._continuous_components = th.as_tensor(~discrete, device=self.device)
+        self._discrete_components = discrete_components(self.agent_layout)
+        self._continuous_components = th.as_tensor(~self._discrete_components, device=self.device)
 
     @property
     def transitions_per_update(self) -> int:
@@ -314,21 +308,13 @@ class MADDPG(OffPolicyAlgorithm):
         tb_log_name: str = "run",
         progress_bar: bool = False,
     ) -> tuple[int, BaseCallback]:
-        self._fit_noise_to_env()
+        if self.env is not None:  # a noise vectorised for another number of envs: SB3 vectorises it again
+            self.action_noise = fit_noise_to_envs(self.action_noise, self.env.num_envs)
         result = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
         if reset_num_timesteps:  # timesteps count from 0 again, and so do the credit and the last log step
             self.update_rule.reset()
             self._logs_dumped_at = -1
         return result
-
-    def _fit_noise_to_env(self) -> None:
-        """
-        A noise vectorised for another number of envs (a model saved with 2 envs, loaded with 4) goes back to its
-        per-env base noise, which SB3's ``_setup_learn`` vectorises again for this env.
-        """
-        noise = self.action_noise
-        if isinstance(noise, VectorizedActionNoise) and self.env is not None and noise.n_envs != self.env.num_envs:
-            self.action_noise = noise.base_noise
 
     def dump_logs(self) -> None:
         """
@@ -371,10 +357,7 @@ class MADDPG(OffPolicyAlgorithm):
                 observations = th.as_tensor(self._last_obs, dtype=th.float32, device=self.device)
                 buffer_action = self.actor.sample(observations.reshape(n_envs, -1)).cpu().numpy()
         if action_noise is not None:
-            noise = draw_noise(action_noise, buffer_action.shape)
-            if self._discrete_components.any():
-                noise = np.where(self._discrete_components, 0.0, noise)
-            buffer_action = np.clip(buffer_action + noise, -1.0, 1.0)
+            buffer_action = add_noise(buffer_action, action_noise, self._discrete_components)
         return self.policy.unscale_action(buffer_action), buffer_action
 
     def _one_hot_discrete(self, actions: np.ndarray) -> np.ndarray:

@@ -1,33 +1,10 @@
-"""Small helpers of MADDPG's set-up: the selection and the exploration noise's draw (the env's checks are in
-:mod:`sb3_maddpg.env_checks`)."""
+"""Small helpers of MADDPG's set-up: the selection (the env's checks are in :mod:`sb3_maddpg.env_checks`, the
+exploration noise in :mod:`sb3_maddpg.noise`)."""
 
 import warnings
 
-import numpy as np
-from stable_baselines3.common.noise import ActionNoise
-
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.selection import NearestAgents, Selector
-
-
-def draw_noise(action_noise: ActionNoise, action_shape: tuple[int, ...]) -> np.ndarray:
-    """
-    One draw of the exploration noise, refused with the cause when it does not fit the joint actions.
-
-    :param action_noise: The noise.
-    :param action_shape: The joint actions' shape, ``[n_envs, action_dim]``.
-    :return: Noise of shape ``[n_envs, action_dim]`` or ``[action_dim]``.
-    """
-    noise = action_noise()
-    if np.shape(noise) != action_shape and np.shape(noise) != action_shape[1:]:
-        n_envs, action_dim = action_shape
-        raise ValueError(
-            f"action_noise gives noise of shape {np.shape(noise)}, but the joint actions have shape {action_shape} "
-            f"({n_envs} env(s), {action_dim} action components over all agents): give a noise over the joint action, "
-            f"e.g. NormalActionNoise(mean=np.zeros({action_dim}), sigma=...) (SB3 vectorises it over the envs), or "
-            "leave action_noise=None for the default noise of noise_std."
-        )
-    return noise
 
 
 def resolve_selection(selection: Selector | int | None) -> Selector:
