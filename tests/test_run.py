@@ -338,7 +338,8 @@ def test_vec_normalize():
 
 
 def test_discrete_actions():
-    with pytest.raises(TypeError, match="continuous"):
+    # A gymnasium env with a Discrete joint action space (the adapter makes discrete agents one-hot slots of a Box).
+    with pytest.raises(TypeError, match=r"one joint Box action space, but the env's action space is Discrete\(2\)"):
         MADDPG("MlpPolicy", gym.make("CartPole-v1"), **FAST)
 
 
