@@ -12,16 +12,11 @@ from stable_baselines3.common.logger import configure
 from torch import nn
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.attention import (
-    AttentionCriticFeatures,
-    LearnedSelectionCriticFeatures,
-    critic_listening,
-    default_selection_size,
-)
 from sb3_maddpg.envs import SimpleSpreadVecEnv
+from sb3_maddpg.inspection import critic_listening
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.policies import MultiAgentCritic
-from sb3_maddpg.sharing import resolve_scheme
+from sb3_maddpg.sharing import AttentionCriticFeatures, LearnedSelectionCriticFeatures, default_selection_size, resolve_scheme
 
 N_AGENTS, BATCH = 4, 32
 # MPE-like observations: [velocity (2), position (2), rest]; agent 3 is larger, so the team is heterogeneous.

@@ -8,11 +8,11 @@ import torch as th
 from torch import nn
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.attention import AttentionCriticFeatures
 from sb3_maddpg.envs import SimpleSpreadVecEnv
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.policies import MultiAgentCritic
 from sb3_maddpg.sharing import (
+    AttentionCriticFeatures,
     FullCriticFeatures,
     IndependentCriticFeatures,
     SelectedCriticFeatures,

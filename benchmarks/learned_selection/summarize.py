@@ -25,9 +25,9 @@ import statistics
 import sys
 from pathlib import Path
 
-from sb3_maddpg.attention import default_selection_size
 from sb3_maddpg.experiments import make_report
 from sb3_maddpg.experiments.results import link_complete_seeds, load_experiments, load_summaries, read_curve
+from sb3_maddpg.sharing import default_selection_size
 
 HERE = Path(__file__).resolve().parent
 DIAGNOSTICS = ("weight_on_nearest", "attention_entropy", "head_entropy", "chose_nearest", "top_choice_share")

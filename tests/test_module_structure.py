@@ -1,0 +1,90 @@
+"""No module of the package imports one that imports it back (directly or through others), counting imports made
+inside functions too: a cycle means two modules that cannot be understood, tested or moved apart."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "sb3_maddpg"
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def package_imports() -> dict[str, set[str]]:
+    """:return: Each module of the package and the package modules it imports anywhere in its code."""
+    modules = {module_name(path): path for path in PACKAGE.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                targets |= {alias.name for alias in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                # `from a.b import c`: the module a.b.c if there is one, else a.b.
+                targets |= {
+                    f"{node.module}.{alias.name}" if f"{node.module}.{alias.name}" in modules else node.module
+                    for alias in node.names
+                }
+        graph[name] = {target for target in targets if target in modules and target != name}
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """:return: The strongly connected components of more than one module (Tarjan's algorithm)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        for target in sorted(graph[node]):
+            if target not in index:
+                visit(target)
+                low[node] = min(low[node], low[target])
+            elif target in stack:
+                low[node] = min(low[node], index[target])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return found
+
+
+def test_the_package_has_no_import_cycle() -> None:
+    graph = package_imports()
+    assert {"sb3_maddpg.maddpg", "sb3_maddpg.sharing.base", "sb3_maddpg.experiments.cli"} <= set(graph)
+    assert "sb3_maddpg.sharing.base" in graph["sb3_maddpg.sharing.learned"]  # the walk sees imports
+    assert cycles(graph) == []
+
+
+def test_a_planted_cycle_is_found() -> None:
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
+    assert cycles(graph) == [["a", "b", "c"]]
+
+
+@pytest.mark.parametrize(
+    ("module", "names"),
+    [
+        ("sb3_maddpg.sharing", ["CriticFeaturesExtractor", "FullCriticFeatures", "SelectedCriticFeatures", "resolve_scheme"]),
+        ("sb3_maddpg.sharing", ["AttentionCriticFeatures", "LearnedSelectionCriticFeatures", "learned_schemes"]),
+        ("sb3_maddpg.attention", ["AttentionCriticFeatures", "LearnedSelectionCriticFeatures", "critic_listening"]),
+    ],
+)
+def test_the_import_paths_of_0_2_keep_working(module: str, names: list[str]) -> None:
+    imported = __import__(module, fromlist=names)
+    assert all(hasattr(imported, name) for name in names)
