@@ -134,3 +134,39 @@ def test_true_termination_stops_bootstrapping() -> None:
     targets = model._critic_targets(data)
     assert th.equal(targets[:2], data.rewards[:2])  # terminal rows: y = r
     assert not th.equal(targets[2], data.rewards[2])  # a non-terminal row bootstraps
+
+
+def test_sampling_after_the_buffer_wrapped_reads_only_the_newest_rows_whole() -> None:
+    # Every 2.5M-step run with a 1e6 buffer wraps around: the oldest rows are overwritten, and every sampled row's
+    # observation, action, reward, next observation and done are still one transition's.
+    # 10 transitions of 2 envs: 5 rows (SB3 counts buffer_size over all envs).
+    buffer = MultiAgentReplayBuffer(10, OBS_SPACE, ACTION_SPACE, "cpu", n_envs=2, layout=LAYOUT)
+    for step in range(8):  # 8 adds into 5 rows: steps 3..7 remain, 5..7 in rows 0..2
+        obs = np.full((2, 12), step, dtype=np.float32) + np.array([[0.0], [0.5]], dtype=np.float32)
+        infos = [info([step, step, step], terminated=step % 2 == 1) for _ in range(2)]
+        buffer.add(obs, obs + 100, np.full((2, 6), step / 10), np.zeros(2), np.array([step % 2 == 1] * 2), infos)
+    assert buffer.full and buffer.pos == 3
+    np.random.seed(0)
+    batch = buffer.sample(2_000)
+    steps = np.floor(batch.observations[:, 0].numpy())
+    assert set(steps.tolist()) == {3.0, 4.0, 5.0, 6.0, 7.0}  # the newest five, each of them
+    np.testing.assert_allclose(batch.next_observations[:, 0].numpy(), batch.observations[:, 0].numpy() + 100)
+    np.testing.assert_allclose(batch.actions[:, 0].numpy(), steps / 10, rtol=1e-6)
+    np.testing.assert_allclose(batch.rewards.numpy(), np.repeat(steps[:, None], 3, axis=1))
+    np.testing.assert_allclose(batch.dones.numpy(), np.repeat((steps % 2 == 1)[:, None], 3, axis=1).astype(np.float32))
+
+
+@pytest.mark.parametrize(
+    ("done", "truncated", "expected_done", "expected_timeout"),
+    [(True, True, 0.0, 1.0), (True, False, 1.0, 0.0), (False, False, 0.0, 0.0)],
+)
+def test_without_agent_terminations_a_truncation_is_not_terminal(
+    done: bool, truncated: bool, expected_done: float, expected_timeout: float
+) -> None:
+    # An env whose info has no per-agent terminations: the episode's end counts for every agent, unless it was a
+    # truncation (then the target bootstraps). A wrong sign here would store done = 2.0.
+    buffer = make_buffer(n_envs=1)
+    row = {"agent_rewards": np.zeros(3, dtype=np.float32), "TimeLimit.truncated": truncated}
+    buffer.add(np.zeros((1, 12)), np.zeros((1, 12)), np.zeros((1, 6)), np.zeros(1), np.array([done]), [row])
+    assert buffer.dones[0, 0].tolist() == [expected_done] * 3
+    assert buffer.timeouts[0, 0] == expected_timeout

@@ -127,3 +127,19 @@ def test_selected_sharing_pads_unequal_agents_into_equal_slots() -> None:
             dim=1,
         )
         th.testing.assert_close(extractor(obs, actions, selection)[rows], expected)
+
+
+def test_kwargs_that_name_every_agent_go_to_each_one() -> None:
+    # Every key an agent id, every value a dict: each critic gets its own, even when they name the whole team.
+    every = {agent: {"embed_dim": 4 * (index + 1)} for index, agent in enumerate(LAYOUT.agent_ids)}
+    assert kwargs_per_agent(every, LAYOUT.agent_ids) == [{"embed_dim": 4 * (i + 1)} for i in range(N_AGENTS)]
+    model = MADDPG(
+        "MlpPolicy",
+        SimpleSpreadVecEnv(2, n_agents=3),
+        critic_sharing="learned_selection",
+        critic_sharing_kwargs={"agent_0": {"k": 1}, "agent_1": {"k": 2}, "agent_2": {"k": 1, "embed_dim": 8}},
+        **FAST,
+    )
+    extractors = model.critic.extractors
+    assert [extractor.selection_size for extractor in extractors] == [1, 2, 1]
+    assert [extractor.embed_dim for extractor in extractors] == [64, 64, 8]

@@ -214,3 +214,10 @@ def test_user_scheme_subclass_works_and_trains_its_parameters() -> None:
     assert critic.extractors[1].scale.grad is None or critic.extractors[1].scale.grad.abs() == 0
     # Its parameters are part of the critic (so the optimiser and the targets include them).
     assert any(param is critic.extractors[0].scale for param in critic.parameters())
+
+
+def test_features_dim_must_be_positive() -> None:
+    layout = AgentLayout(("a", "b"), (3, 3), (2, 2))
+    with pytest.raises(ValueError, match="features_dim must be positive, got 0"):
+        CriticFeaturesExtractor(layout, 0, features_dim=0)
+    assert CriticFeaturesExtractor(layout, 1, features_dim=1).features_dim == 1  # the smallest that is allowed
