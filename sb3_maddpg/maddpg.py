@@ -5,7 +5,7 @@ import math
 import pathlib
 import warnings
 from collections.abc import Sequence
-from typing import Any, ClassVar, NamedTuple, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 import torch as th
@@ -18,7 +18,6 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq
 from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.common.vec_env import VecEnv
-from torch.nn import functional as F
 
 from sb3_maddpg.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.env_checks import (
@@ -29,6 +28,9 @@ from sb3_maddpg.env_checks import (
     refuse_unsupported_env,
 )
 from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.losses import SATURATION_THRESHOLD as SATURATION_THRESHOLD  # import paths of 0.2.0.dev
+from sb3_maddpg.losses import ActionParts, TeamNetworks, actor_loss_terms, critic_losses, critic_targets, one_member
+from sb3_maddpg.losses import ActorLossTerms as ActorLossTerms
 from sb3_maddpg.noise import add_noise, default_noise, discrete_components, fit_noise_to_envs
 from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.selection import Selector
@@ -40,20 +42,6 @@ SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
 
 LOG_INTERVAL = 1000
 """Default ``log_interval`` of :meth:`MADDPG.learn`, in finished episodes: 40 log tables per 1M steps of 25-step episodes."""
-
-SATURATION_THRESHOLD = 0.99
-"""An action component with ``|a| >`` this, in the policy's [-1, 1] space, counts as saturated in the logs."""
-
-
-class ActorLossTerms(NamedTuple):
-    """The parts of the agents' actor losses on one batch, ``[n_agents]`` each."""
-
-    policy_loss: th.Tensor
-    """-Q_i: the policy-gradient part."""
-    reg_loss: th.Tensor
-    """``actor_reg_coef`` times the mean squared pre-``tanh`` output of actor i (zeros when the coefficient is 0)."""
-    saturation: th.Tensor
-    """Fraction of agent i's action components with ``|a| > SATURATION_THRESHOLD`` (no gradient)."""
 
 
 class MADDPG(OffPolicyAlgorithm):
@@ -257,17 +245,8 @@ class MADDPG(OffPolicyAlgorithm):
         self.train_freq = self.update_rule.train_freq(self.n_envs) or self.train_freq  # type: ignore[assignment]
         super()._setup_model()
         self._create_aliases()
-        # own_action_mask[i, 0, d]: action dimension d belongs to agent i (for the actor update).
-        mask = th.zeros(self.agent_layout.n_agents, 1, self.agent_layout.action_dim, dtype=th.bool)
-        for i, action_slice in enumerate(self.agent_layout.action_slices):
-            mask[i, 0, action_slice] = True
-        self._own_action_mask = mask.to(self.device)
-        # Row i averages over agent i's own action components: [n_agents, action_dim] @ [action_dim] -> per agent.
-        sizes = th.tensor(self.agent_layout.action_sizes, dtype=th.float32).unsqueeze(1)
-        self._own_action_mean = (mask[:, 0].float() / sizes).to(self.device)
-        # Action components of discrete agents: their one-hots take no noise and are never "saturated".
-        self._discrete_components = discrete_components(self.agent_layout)
-        self._continuous_components = th.as_tensor(~self._discrete_components, device=self.device)
+        self._action_parts = ActionParts.of(self.agent_layout, self.device)  # whose each action component is
+        self._discrete_components = discrete_components(self.agent_layout)  # one-hots: no exploration noise
 
     @property
     def transitions_per_update(self) -> int:
@@ -332,6 +311,7 @@ class MADDPG(OffPolicyAlgorithm):
         self.actor_target = self.policy.actor_target
         self.critic = self.policy.critic
         self.critic_target = self.policy.critic_target
+        self._team = TeamNetworks(self.actor, self.critic, self.actor_target, self.critic_target)  # for the losses
 
     def _sample_action(
         self, learning_starts: int, action_noise: ActionNoise | None = None, n_envs: int = 1
@@ -372,102 +352,51 @@ class MADDPG(OffPolicyAlgorithm):
         return actions
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
+        # Switch to train mode (this affects batch norm / dropout)
         self.policy.set_training_mode(True)
+        # Update learning rate according to lr schedule
         self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
-        critic_losses, actor_losses, actor_reg_losses, saturations = [], [], [], []
+        team = self._team  # the losses' view of the networks: a member dimension of 1 in front
+        critic_log, actor_log, reg_log, saturation_log = [], [], [], []
         actor_params = list(self.actor.parameters())
         for _ in range(gradient_steps):
             self._n_updates += 1
-            data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
-
-            critic_loss = self._critic_losses(data)
+            # Sample replay buffer: one joint batch, the same rows for every agent
+            replay_data = one_member(self.replay_buffer.sample(batch_size, env=self._vec_normalize_env))
+            # Critic targets: every target actor on its next observation, then every target critic (no gradient)
+            target_q = critic_targets(team.target_actions, team.target_q, replay_data, self.gamma)
+            # Critic losses, while the critics' extractors record their diagnostics (this batch, as replayed)
+            with self.critic.recording_diagnostics():
+                critic_loss = critic_losses(team.q, replay_data, target_q)
+            # Optimize the critics: agents' parameters are disjoint, each gets its own loss's gradient
             self.critic.optimizer.zero_grad()
-            critic_loss.sum().backward()  # agents' parameters are disjoint: each gets its own loss's gradient
+            critic_loss.sum().backward()
             if self.max_grad_norm is not None:
                 self.critic.clip_grad_norm_per_agent(self.max_grad_norm)
             self.critic.optimizer.step()
-
-            actor_terms = self._actor_loss_terms(data)
-            actor_loss = actor_terms.policy_loss + actor_terms.reg_loss
+            # Actor losses: -Q_i with only a_i replaced by mu_i(o_i), plus the regulariser
+            actor_terms = actor_loss_terms(team.policy, team.q, replay_data, self._action_parts, self.actor_reg_coef)
+            # Optimize the actors, computing only the actors' gradients (the critics' are not needed here)
             self.actor.optimizer.zero_grad()
-            # Only the actors' gradients: the critics' are not needed here.
-            for param, grad in zip(actor_params, th.autograd.grad(actor_loss.sum(), actor_params)):
+            for param, grad in zip(actor_params, th.autograd.grad(actor_terms.total.sum(), actor_params)):
                 param.grad = grad
             if self.max_grad_norm is not None:
                 self.actor.clip_grad_norm_per_agent(self.max_grad_norm)
             self.actor.optimizer.step()
-
+            # Update the target networks (Polyak averaging)
             polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
             polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
             # Kept on the device: one transfer per train() call, not one per gradient step.
-            critic_losses.append(critic_loss.detach())
-            actor_losses.append(actor_terms.policy_loss.detach())
-            actor_reg_losses.append(actor_terms.reg_loss.detach())
-            saturations.append(actor_terms.saturation)
+            critic_log.append(critic_loss[0].detach())
+            actor_log.append(actor_terms.policy_loss[0].detach())
+            reg_log.append(actor_terms.reg_loss[0].detach())
+            saturation_log.append(actor_terms.saturation[0])
 
-        self._log_losses(
-            th.stack(critic_losses).mean(0),
-            th.stack(actor_losses).mean(0),
-            th.stack(actor_reg_losses).mean(0),
-            th.stack(saturations).mean(0),
-        )
+        self._log_losses(*(th.stack(log).mean(0) for log in (critic_log, actor_log, reg_log, saturation_log)))
 
     def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
-        """
-        y_i = r_i + gamma * (1 - done_i) * Q_i'(x_i'), with x_i' built from the next observations and every
-        agent's target action mu_j'(o_j'); done_i is a true termination (truncation bootstraps).
-
-        :param data: A replay batch.
-        :return: ``[batch, n_agents]``.
-        """
-        with th.no_grad():
-            next_actions = self.actor_target.sample(data.next_observations)  # continuous: mu'(o'); discrete: a sample
-            next_q = self.critic_target(data.next_observations, next_actions, data.selections)
-            return data.rewards + (1.0 - data.dones) * self.gamma * next_q
-
-    def _critic_losses(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
-        """
-        Each critic's mean squared TD error on the batch.
-
-        :param data: A replay batch.
-        :return: One loss per agent, ``[n_agents]``.
-        """
-        with self.critic.recording_diagnostics():  # what the extractors report: this batch, as replayed
-            current_q = self.critic(data.observations, data.actions, data.selections)
-        return F.mse_loss(current_q, self._critic_targets(data), reduction="none").mean(dim=0)
-
-    def _actor_losses(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
-        """
-        Each actor's loss: -Q_i(x_i) plus its regulariser (see :meth:`_actor_loss_terms`).
-
-        :param data: A replay batch.
-        :return: One loss per agent, ``[n_agents]``.
-        """
-        terms = self._actor_loss_terms(data)
-        return terms.policy_loss + terms.reg_loss
-
-    def _actor_loss_terms(self, data: MultiAgentReplayBufferSamples) -> ActorLossTerms:
-        """
-        The actor losses' parts from one forward pass of the actors.
-
-        Policy loss: -Q_i(x_i) with only a_i replaced by mu_i(o_i); the other agents' actions are the sampled
-        ones. Regulariser: ``actor_reg_coef`` times the mean over the batch and agent i's action components of
-        its pre-``tanh`` output squared, as Lowe et al.'s ``p_reg``; it depends on actor i only.
-
-        :param data: A replay batch.
-        :return: The policy loss, the regulariser and the action saturation, ``[n_agents]`` each.
-        """
-        policy_actions, preactivations = self.actor.forward_with_preactivation(data.observations)
-        per_critic_actions = th.where(self._own_action_mask, policy_actions.unsqueeze(0), data.actions.unsqueeze(0))
-        policy_loss = -self.critic(data.observations, per_critic_actions, data.selections).mean(dim=0)
-        if self.actor_reg_coef > 0:
-            reg_loss = self.actor_reg_coef * (self._own_action_mean @ preactivations.pow(2).mean(dim=0))
-        else:
-            reg_loss = th.zeros_like(policy_loss)
-        with th.no_grad():
-            saturated = ((policy_actions.abs() > SATURATION_THRESHOLD) & self._continuous_components).float().mean(dim=0)
-            saturation = self._own_action_mean @ saturated
-        return ActorLossTerms(policy_loss, reg_loss, saturation)
+        """The team's critic targets (:func:`~sb3_maddpg.losses.critic_targets`) on a replay batch, ``[batch, n_agents]``."""
+        return critic_targets(self._team.target_actions, self._team.target_q, one_member(data), self.gamma)[0]
 
     def _log_losses(
         self, critic_losses: th.Tensor, actor_losses: th.Tensor, actor_reg_losses: th.Tensor, saturation: th.Tensor
@@ -632,10 +561,9 @@ class MADDPG(OffPolicyAlgorithm):
             "critic",
             "actor_target",
             "critic_target",
-            "_own_action_mask",
-            "_own_action_mean",
+            "_team",
+            "_action_parts",
             "_discrete_components",
-            "_continuous_components",
             "_warned_never_updated",
         ]
 

@@ -15,6 +15,7 @@ from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import PettingZooToGym, SimpleSpreadVecEnv, make_simple_spread, make_simple_spread_vec_env
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.policies import AgentActor, MultiAgentActor
+from tests.loss_helpers import team_actor_terms
 
 # Agent 0 continuous (2 components), agent 1 discrete (3 actions).
 MIXED = AgentLayout(("mover", "chooser"), (4, 4), (2, 3), discrete_actions=(False, True))
@@ -90,7 +91,7 @@ def test_maddpg_explores_and_stores_one_hots(tmp_path: Path) -> None:
     action, _ = model.predict(env.reset(seed=0)[0], deterministic=True)
     assert is_one_hot(action.reshape(3, 5), low=0.0)
     # Discrete components are never counted as saturated.
-    assert model._actor_loss_terms(model.replay_buffer.sample(32)).saturation.abs().sum() == 0
+    assert team_actor_terms(model, model.replay_buffer.sample(32)).saturation.abs().sum() == 0
     model.save(tmp_path / "discrete.zip")
     loaded = MADDPG.load(tmp_path / "discrete.zip")
     np.testing.assert_array_equal(

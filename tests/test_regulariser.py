@@ -13,6 +13,7 @@ from stable_baselines3.common.logger import KVWriter, Logger
 from sb3_maddpg import MADDPG
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
+from tests.loss_helpers import team_actor_terms
 
 BATCH = 8
 TEAMS = ("homogeneous", "heterogeneous", "shared")
@@ -83,7 +84,7 @@ def test_regulariser_reaches_only_its_own_actor(team: str) -> None:
     model = make_model(team)
     layout = model.agent_layout
     assert layout is not None
-    reg_losses = model._actor_loss_terms(sample(model)).reg_loss
+    reg_losses = team_actor_terms(model, sample(model)).reg_loss
     params = list(model.actor.parameters())
     max_out = max(layout.action_sizes)
     for i in range(layout.n_agents):
@@ -103,8 +104,8 @@ def test_zero_coefficient_leaves_the_policy_gradient_loss(scheme: str) -> None:
     data = sample(model)
     layout = model.agent_layout
     assert layout is not None
-    losses = model._actor_losses(data)
-    assert th.equal(model._actor_loss_terms(data).reg_loss, th.zeros(3, device=model.device))
+    losses = team_actor_terms(model, data).total
+    assert th.equal(team_actor_terms(model, data).reg_loss, th.zeros(3, device=model.device))
     # -Q_i computed independently: agent i's own action from its own actor, the others' from the sample.
     with th.no_grad():
         for i in range(3):
@@ -121,16 +122,16 @@ def test_penalty_matches_hand_computation(team: str) -> None:
     data = sample(model)
     layout = model.agent_layout
     assert layout is not None
-    terms = model._actor_loss_terms(data)
+    terms = team_actor_terms(model, data)
     with th.no_grad():
         for i in range(layout.n_agents):
             pre = hand_preactivation(model, i, data.observations[:, layout.obs_slices[i]])
             assert pre.abs().amax() > 0.1  # not a vacuous comparison
             assert terms.reg_loss[i].item() == pytest.approx(1e-3 * pre.pow(2).mean().item(), rel=1e-5)
         # The loss the actors minimise is the sum of the two parts.
-        assert th.allclose(model._actor_losses(data), terms.policy_loss + terms.reg_loss)
+        assert th.allclose(team_actor_terms(model, data).total, terms.policy_loss + terms.reg_loss)
     model.actor_reg_coef = 0.02
-    assert th.allclose(model._actor_loss_terms(data).reg_loss, 20 * terms.reg_loss)
+    assert th.allclose(team_actor_terms(model, data).reg_loss, 20 * terms.reg_loss)
 
 
 @pytest.mark.parametrize("team", TEAMS)
@@ -162,7 +163,7 @@ def test_coefficient_survives_save_and_load(tmp_path) -> None:
     assert loaded.actor_reg_coef == 0.05
     loaded.replay_buffer = model.replay_buffer
     data = sample(model)
-    assert th.allclose(loaded._actor_loss_terms(data).reg_loss, model._actor_loss_terms(data).reg_loss)
+    assert th.allclose(team_actor_terms(loaded, data).reg_loss, team_actor_terms(model, data).reg_loss)
 
 
 # ---------------------------------------------------------------------------------------------- the logs

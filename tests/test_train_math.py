@@ -10,6 +10,7 @@ from sb3_maddpg import MADDPG
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.envs import make_simple_spread
 from sb3_maddpg.policies import AgentCritic
+from tests.loss_helpers import team_actor_terms, team_critic_losses
 
 BATCH = 8
 
@@ -77,17 +78,17 @@ def test_targets_use_target_actors_not_online_ones() -> None:
 def test_each_critic_learns_from_its_own_reward() -> None:
     model = make_model()
     data = sample(model)
-    base = model._critic_losses(data).detach()
+    base = team_critic_losses(model, data).detach()
     rewards = data.rewards.clone()
     rewards[:, 1] += 5.0
-    moved = model._critic_losses(data._replace(rewards=rewards)).detach()
+    moved = team_critic_losses(model, data._replace(rewards=rewards)).detach()
     assert moved[1] != base[1]
     assert th.equal(moved[[0, 2]], base[[0, 2]])
 
 
 def test_critic_loss_reaches_only_its_own_critic() -> None:
     model = make_model()
-    losses = model._critic_losses(sample(model))
+    losses = team_critic_losses(model, sample(model))
     for i in range(3):
         grads = th.autograd.grad(losses[i], list(model.critic.mlp.weights), retain_graph=True)
         for grad in grads:
@@ -98,7 +99,7 @@ def test_critic_loss_reaches_only_its_own_critic() -> None:
 @pytest.mark.parametrize("scheme", ["full", "actions", "selected", "attention", "learned_selection"])
 def test_actor_loss_reaches_only_its_own_actor(scheme: str) -> None:
     model = make_model(scheme)
-    losses = model._actor_losses(sample(model))
+    losses = team_actor_terms(model, sample(model)).total
     params = list(model.actor.parameters())
     for i in range(3):
         for grad in th.autograd.grad(losses[i], params, retain_graph=True):
@@ -109,16 +110,16 @@ def test_actor_loss_reaches_only_its_own_actor(scheme: str) -> None:
 def test_actor_loss_takes_other_agents_actions_from_the_sample() -> None:
     model = make_model()
     data = sample(model)
-    before = model._actor_losses(data).detach()
+    before = team_actor_terms(model, data).total.detach()
     with th.no_grad():
         model.actor.mlp.weights[-1][1].add_(1.0)  # change agent 1's actor only
-    after = model._actor_losses(data).detach()
+    after = team_actor_terms(model, data).total.detach()
     assert after[1] != before[1]
     assert th.equal(after[[0, 2]], before[[0, 2]])
     # ...while the sampled actions of agent 1 do matter to critic 0 (it sees them).
     actions = data.actions.clone()
     actions[:, 5:10] = -actions[:, 5:10]
-    assert model._actor_losses(data._replace(actions=actions))[0] != after[0]
+    assert team_actor_terms(model, data._replace(actions=actions)).total[0] != after[0]
 
 
 @pytest.mark.parametrize("scheme", ["full", "attention", "learned_selection"])

@@ -1,0 +1,176 @@
+"""
+MADDPG's losses as functions of the networks and a batch: the critics' targets, the critics' losses and the actors'
+loss terms.
+
+Every tensor has a leading member dimension ``M``: the networks of ``M`` teams (runs trained together, each with its
+own batch) are evaluated at once, and each member's losses depend on its own networks and batch only. One team is
+``M = 1`` (:func:`one_member` and :class:`TeamNetworks`). The networks are passed as functions, so that a sibling
+algorithm changes them, not the math: MATD3's target actor adds its smoothing noise, its target critic returns the
+minimum of its twins, and its critic returns both twins stacked in front (``[2, M, batch, n_agents]``), which
+:func:`critic_losses` broadcasts over.
+"""
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import torch as th
+from torch.nn import functional as F
+
+from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.policies import MultiAgentActor, MultiAgentCritic
+
+SATURATION_THRESHOLD = 0.99
+"""An action component with ``|a| >`` this, in the policy's [-1, 1] space, counts as saturated in the logs."""
+
+Actions = Callable[[th.Tensor], th.Tensor]
+"""Observations ``[M, batch, obs_dim]`` to joint actions in [-1, 1] ``[M, batch, action_dim]``."""
+PolicyWithPreactivation = Callable[[th.Tensor], tuple[th.Tensor, th.Tensor]]
+"""Observations ``[M, batch, obs_dim]`` to the joint actions and the actors' outputs before ``tanh``, both
+``[M, batch, action_dim]``, from one forward pass."""
+QValues = Callable[[th.Tensor, th.Tensor, th.Tensor | None], th.Tensor]
+"""``(observations [M, batch, obs_dim], actions, selections [M, batch, n_agents, k] or None)`` to every agent's Q-value
+``[..., M, batch, n_agents]``. The actions are ``[M, batch, action_dim]``, the same for every critic, or
+``[M, n_agents, batch, action_dim]``, critic i's own joint action in ``[:, i]``."""
+
+
+class ActorLossTerms(NamedTuple):
+    """The parts of the agents' actor losses on one batch, ``[M, n_agents]`` each."""
+
+    policy_loss: th.Tensor
+    """-Q_i: the policy-gradient part."""
+    reg_loss: th.Tensor
+    """``actor_reg_coef`` times the mean squared pre-``tanh`` output of actor i (zeros when the coefficient is 0)."""
+    saturation: th.Tensor
+    """Fraction of agent i's action components with ``|a| > SATURATION_THRESHOLD`` (no gradient)."""
+
+    @property
+    def total(self) -> th.Tensor:
+        """The loss each actor minimises: the policy-gradient part plus the regulariser, ``[M, n_agents]``."""
+        return self.policy_loss + self.reg_loss
+
+
+class ActionParts(NamedTuple):
+    """Which components of the joint action are whose: what the actor loss needs of the agent layout."""
+
+    own: th.Tensor
+    """``own[i, 0, d]``: action component d is agent i's, ``[n_agents, 1, action_dim]`` (bool)."""
+    own_mean: th.Tensor
+    """Row i averages over agent i's own components: ``[n_agents, action_dim]``."""
+    continuous: th.Tensor
+    """Components of continuous agents (a discrete agent's one-hot is never "saturated"), ``[action_dim]`` (bool)."""
+
+    @classmethod
+    def of(cls, layout: AgentLayout, device: th.device | str = "cpu") -> "ActionParts":
+        """
+        :param layout: The team's agent layout.
+        :param device: The device of the losses.
+        :return: The layout's action parts.
+        """
+        own = th.zeros(layout.n_agents, 1, layout.action_dim, dtype=th.bool)
+        continuous = th.ones(layout.action_dim, dtype=th.bool)
+        for i, action_slice in enumerate(layout.action_slices):
+            own[i, 0, action_slice] = True
+            continuous[action_slice] = not layout.is_discrete(i)
+        sizes = th.tensor(layout.action_sizes, dtype=th.float32).unsqueeze(1)
+        return cls(own.to(device), (own[:, 0].float() / sizes).to(device), continuous.to(device))
+
+
+def critic_targets(
+    target_actions: Actions, target_q: QValues, batch: MultiAgentReplayBufferSamples, gamma: float | th.Tensor
+) -> th.Tensor:
+    """
+    y_i = r_i + gamma * (1 - done_i) * Q_i'(x_i'), with x_i' built from the next observations and every agent's target
+    action a_j' = mu_j'(o_j'); done_i is a true termination (a truncation bootstraps). No gradient.
+
+    :param target_actions: The target actors (MADDPG: ``mu'(o')``, a discrete agent's a sample).
+    :param target_q: The target critics.
+    :param batch: Replay batches, ``[M, batch, ...]`` each field.
+    :param gamma: The discount, one for all members or one each (``[M, 1, 1]``).
+    :return: ``[M, batch, n_agents]``.
+    """
+    with th.no_grad():
+        next_actions = target_actions(batch.next_observations)
+        next_q = target_q(batch.next_observations, next_actions, batch.selections)
+        return batch.rewards + (1.0 - batch.dones) * gamma * next_q
+
+
+def critic_losses(critic: QValues, batch: MultiAgentReplayBufferSamples, targets: th.Tensor) -> th.Tensor:
+    """
+    Each critic's mean squared TD error on the batch.
+
+    :param critic: The critics (twin critics: both stacked in front, ``[2, M, batch, n_agents]``).
+    :param batch: Replay batches, ``[M, batch, ...]`` each field.
+    :param targets: :func:`critic_targets`, ``[M, batch, n_agents]``.
+    :return: One loss per member and agent, ``[..., M, n_agents]``.
+    """
+    current_q = critic(batch.observations, batch.actions, batch.selections)
+    return F.mse_loss(current_q, targets.expand_as(current_q), reduction="none").mean(dim=-2)
+
+
+def actor_loss_terms(
+    policy: PolicyWithPreactivation,
+    critic: QValues,
+    batch: MultiAgentReplayBufferSamples,
+    parts: ActionParts,
+    reg_coef: float | th.Tensor,
+) -> ActorLossTerms:
+    """
+    The actor losses' parts from one forward pass of the actors.
+
+    Policy loss: -Q_i(x_i) with only a_i replaced by mu_i(o_i); the other agents' actions are the sampled ones.
+    Regulariser: ``reg_coef`` times the mean over the batch and agent i's action components of its pre-``tanh`` output
+    squared, as Lowe et al.'s ``p_reg``; it depends on actor i only.
+
+    :param policy: The actors.
+    :param critic: The critics the actors ascend (MATD3: the first twin).
+    :param batch: Replay batches, ``[M, batch, ...]`` each field.
+    :param parts: Which action components are whose.
+    :param reg_coef: The regulariser's weight, one for all members or one each (``[M, 1]``); 0 skips it.
+    :return: The policy loss, the regulariser and the action saturation, ``[M, n_agents]`` each.
+    """
+    policy_actions, preactivations = policy(batch.observations)
+    per_critic_actions = th.where(parts.own, policy_actions.unsqueeze(-3), batch.actions.unsqueeze(-3))
+    policy_loss = -critic(batch.observations, per_critic_actions, batch.selections).mean(dim=-2)
+    if isinstance(reg_coef, th.Tensor) or reg_coef > 0:
+        reg_loss = reg_coef * (preactivations.pow(2).mean(dim=-2) @ parts.own_mean.T)
+    else:
+        reg_loss = th.zeros_like(policy_loss)
+    with th.no_grad():
+        saturated = ((policy_actions.abs() > SATURATION_THRESHOLD) & parts.continuous).float().mean(dim=-2)
+        saturation = saturated @ parts.own_mean.T
+    return ActorLossTerms(policy_loss, reg_loss, saturation)
+
+
+def one_member(batch: MultiAgentReplayBufferSamples) -> MultiAgentReplayBufferSamples:
+    """:return: A team's replay batch with a member dimension in front (``M = 1``)."""
+    selections = None if batch.selections is None else batch.selections.unsqueeze(0)
+    observations, actions, next_observations, dones, rewards = (field.unsqueeze(0) for field in batch[:5])
+    return MultiAgentReplayBufferSamples(observations, actions, next_observations, dones, rewards, selections)
+
+
+class TeamNetworks(NamedTuple):
+    """One team's networks as the functions of the losses, of tensors with a member dimension in front (``M = 1``)."""
+
+    actor: MultiAgentActor
+    critic: MultiAgentCritic
+    actor_target: MultiAgentActor
+    critic_target: MultiAgentCritic
+
+    def policy(self, observations: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """The actors' actions and pre-activations (a discrete agent's: straight-through Gumbel-softmax)."""
+        actions, preactivations = self.actor.forward_with_preactivation(observations[0])
+        return actions.unsqueeze(0), preactivations.unsqueeze(0)
+
+    def q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        """The critics."""
+        return self.critic(observations[0], actions[0], None if selections is None else selections[0]).unsqueeze(0)
+
+    def target_actions(self, observations: th.Tensor) -> th.Tensor:
+        """The target actors (a discrete agent's: a Gumbel-max sample)."""
+        return self.actor_target.sample(observations[0]).unsqueeze(0)
+
+    def target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        """The target critics."""
+        selections = None if selections is None else selections[0]
+        return self.critic_target(observations[0], actions[0], selections).unsqueeze(0)

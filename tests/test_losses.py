@@ -1,0 +1,103 @@
+"""The losses with a member dimension: M teams evaluated at once give each team's own losses, independently."""
+
+import pytest
+import torch as th
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.losses import ActorLossTerms, actor_loss_terms, critic_losses, critic_targets, one_member
+from tests.loss_helpers import team_actor_terms, team_critic_losses
+
+FAST = dict(learning_starts=50, batch_size=32, buffer_size=1_000, train_freq=25, policy_kwargs=dict(net_arch=[16]))
+
+
+def trained(seed: int, scheme: str) -> MADDPG:
+    selection = 1 if scheme == "selected" else None
+    model = MADDPG("MlpPolicy", make_simple_spread(n_agents=3), critic_sharing=scheme, selection=selection, seed=seed, **FAST)
+    model.learn(100)
+    return model
+
+
+def stack(batches: list[MultiAgentReplayBufferSamples]) -> MultiAgentReplayBufferSamples:
+    fields = zip(*batches)
+    return MultiAgentReplayBufferSamples(*(None if f[0] is None else th.stack(f) for f in fields))
+
+
+class Members:
+    """The networks of several models as member networks, each member on its own slice (a many-runs trainer's view)."""
+
+    def __init__(self, models: list[MADDPG]) -> None:
+        self.teams = [model._team for model in models]
+
+    def _each(self, name: str, *tensors: th.Tensor | None) -> th.Tensor:
+        outs = [
+            getattr(team, name)(*(None if t is None else t[m : m + 1] for t in tensors)) for m, team in enumerate(self.teams)
+        ]
+        return th.cat(outs)
+
+    def policy(self, obs: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        outs = [team.policy(obs[m : m + 1]) for m, team in enumerate(self.teams)]
+        return th.cat([a for a, _ in outs]), th.cat([p for _, p in outs])
+
+    def q(self, obs: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        return self._each("q", obs, actions, selections)
+
+    def target_actions(self, obs: th.Tensor) -> th.Tensor:
+        return self._each("target_actions", obs)
+
+    def target_q(self, obs: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        return self._each("target_q", obs, actions, selections)
+
+
+@pytest.mark.parametrize("scheme", ["full", "selected"])
+def test_members_get_their_own_losses_and_nothing_of_the_others(scheme: str) -> None:
+    models = [trained(0, scheme), trained(1, scheme)]
+    data = [model.replay_buffer.sample(32) for model in models]
+    members, batch = Members(models), stack(data)
+    gammas = th.tensor([0.95, 0.9]).view(2, 1, 1)
+    for model, gamma in zip(models, (0.95, 0.9)):
+        model.gamma = gamma
+    coefs = th.tensor([[1e-3], [0.02]])
+    models[1].actor_reg_coef = 0.02
+
+    targets = critic_targets(members.target_actions, members.target_q, batch, gammas)
+    losses = critic_losses(members.q, batch, targets)
+    terms = actor_loss_terms(members.policy, members.q, batch, models[0]._action_parts, coefs)
+    assert targets.shape == (2, 32, 3) and losses.shape == (2, 3) and terms.policy_loss.shape == (2, 3)
+    for m, (model, rows) in enumerate(zip(models, data)):
+        th.testing.assert_close(targets[m], model._critic_targets(rows), rtol=0, atol=0)
+        th.testing.assert_close(losses[m], team_critic_losses(model, rows), rtol=1e-6, atol=1e-8)  # a mean of another shape
+        for term, own in zip(terms, team_actor_terms(model, rows)):
+            th.testing.assert_close(term[m], own, rtol=1e-6, atol=1e-8)
+        assert terms.reg_loss[m].abs().sum() > 0
+
+    # Another batch for member 1: member 0's losses are bit-identical, and its gradients too.
+    other = stack([data[0], models[1].replay_buffer.sample(32)])
+    moved = critic_losses(members.q, other, critic_targets(members.target_actions, members.target_q, other, gammas))
+    assert th.equal(moved[0], losses[0]) and not th.equal(moved[1], losses[1])
+    moved_terms = actor_loss_terms(members.policy, members.q, other, models[0]._action_parts, coefs)
+    assert th.equal(moved_terms.total[0], terms.total[0]) and not th.equal(moved_terms.total[1], terms.total[1])
+    params = list(models[1].actor.parameters())
+    grads = th.autograd.grad(terms.total[0].sum(), params, allow_unused=True)
+    assert all(g is None or g.abs().sum() == 0 for g in grads)  # member 0's loss reaches no parameter of member 1
+
+
+def test_twin_critics_broadcast_over_the_targets() -> None:
+    model = trained(0, "full")
+    batch, team = one_member(model.replay_buffer.sample(32)), model._team
+    targets = critic_targets(team.target_actions, team.target_q, batch, model.gamma)
+
+    def twins(obs: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        q = team.q(obs, actions, selections)
+        return th.stack((q, q + 1.0))  # [2, M, batch, n_agents]
+
+    both = critic_losses(twins, batch, targets)
+    assert both.shape == (2, 1, 3)
+    th.testing.assert_close(both[0], critic_losses(team.q, batch, targets))
+    th.testing.assert_close(both[1], critic_losses(lambda *args: team.q(*args) + 1.0, batch, targets))
+
+
+def test_total_is_the_sum_of_the_parts() -> None:
+    terms = ActorLossTerms(th.tensor([[1.0, 2.0]]), th.tensor([[0.5, 0.25]]), th.zeros(1, 2))
+    assert th.equal(terms.total, th.tensor([[1.5, 2.25]]))
