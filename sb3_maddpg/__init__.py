@@ -1,10 +1,11 @@
 """sb3-maddpg: multi-agent DDPG for Stable-Baselines3, with swappable critic information sharing."""
 
 from sb3_maddpg.envs import register_envs
+from sb3_maddpg.export import export_actors
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.version import __version__
 
 register_envs()
 
-__all__ = ["MADDPG", "AgentLayout", "__version__"]
+__all__ = ["MADDPG", "AgentLayout", "__version__", "export_actors"]

@@ -1,0 +1,169 @@
+"""Each agent's actor alone, for decentralised execution: one file per agent (ONNX or TorchScript) and a manifest.
+
+Centralised training, decentralised execution: at deployment each agent runs on its own, with its own observation.
+:func:`export_actors` writes, for every agent, a network that takes that agent's observation (``[batch, obs_size]``,
+float32, as the env gives it) and returns its action in the env's units: a continuous agent's action rescaled from the
+policy's [-1, 1] to its ``Box`` (what ``model.predict(..., deterministic=True)`` gives for its slice), a discrete agent's
+action index (int64). An observation normalisation (``VecNormalize``) stays outside: normalise before calling it.
+"""
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import torch as th
+from torch import nn
+
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.networks import AgentEnsembleMLP
+from sb3_maddpg.version import __version__
+
+FORMATS = {"onnx": ".onnx", "torchscript": ".pt"}
+"""Export formats and their file suffixes."""
+MANIFEST = "manifest.json"
+"""The manifest's file name in the export directory."""
+ONNX_OPSET = 17
+"""The ONNX operator set of the exported files (onnxruntime 1.14 and newer run it)."""
+
+
+class AgentActor(nn.Module):
+    """
+    One agent's actor as a standalone network: its layers copied out of the team's actor ensemble, then its action
+    in the env's units.
+
+    :param mlp: The team's actor networks.
+    :param agent: The agent's index.
+    :param layout: The team's layout.
+    :param low: The agent's action lower bounds (continuous agents).
+    :param high: The agent's action upper bounds (continuous agents).
+    """
+
+    low: th.Tensor
+    high: th.Tensor
+
+    def __init__(self, mlp: AgentEnsembleMLP, agent: int, layout: AgentLayout, low: th.Tensor, high: th.Tensor) -> None:
+        super().__init__()
+        member = 0 if mlp.share_parameters else agent
+        in_dim, out_dim = layout.obs_sizes[agent], layout.action_sizes[agent]
+        layers: list[nn.Module] = []
+        for index, (weight, bias) in enumerate(zip(mlp.weights, mlp.biases)):
+            rows = weight[member, :in_dim] if index == 0 else weight[member]
+            columns = slice(None) if index < mlp.n_layers - 1 else slice(0, out_dim)
+            linear = nn.Linear(rows.shape[0], rows[:, columns].shape[1])
+            with th.no_grad():
+                linear.weight.copy_(rows[:, columns].T)
+                linear.bias.copy_(bias[member, 0, columns])
+            layers.append(linear)
+            if index < mlp.n_layers - 1:
+                layers.append(type(mlp.activation)())
+        self.net = nn.Sequential(*layers)
+        self.discrete = layout.is_discrete(agent)
+        self.requires_grad_(False)  # for inference only
+        self.register_buffer("low", low.detach().clone().float())
+        self.register_buffer("high", high.detach().clone().float())
+
+    def forward(self, observation: th.Tensor) -> th.Tensor:
+        """
+        :param observation: The agent's own observations, ``[batch, obs_size]``.
+        :return: Its actions in the env's units, ``[batch, action_size]`` (a discrete agent: indices ``[batch]``).
+        """
+        output = self.net(observation)
+        if self.discrete:
+            return output.argmax(dim=1)
+        return self.low + 0.5 * (th.tanh(output) + 1.0) * (self.high - self.low)
+
+
+def agent_actors(model: Any) -> dict[str, AgentActor]:
+    """
+    :param model: A :class:`~sb3_maddpg.MADDPG` model (trained or not).
+    :return: Each agent's standalone actor, by agent id, on the CPU, in eval mode.
+    """
+    layout: AgentLayout = model.agent_layout
+    low = th.as_tensor(model.action_space.low)
+    high = th.as_tensor(model.action_space.high)
+    mlp = model.policy.actor.mlp.to("cpu")
+    try:
+        return {
+            agent_id: AgentActor(mlp, i, layout, low[layout.action_slices[i]], high[layout.action_slices[i]]).eval()
+            for i, agent_id in enumerate(layout.agent_ids)
+        }
+    finally:
+        model.policy.actor.mlp.to(model.device)
+
+
+def export_actors(model: Any, directory: str | os.PathLike[str], format: str = "onnx") -> dict[str, Path]:
+    """
+    Write each agent's actor to ``<directory>/<agent_id><suffix>`` and a manifest, ``<directory>/manifest.json``
+    (agent ids, each agent's file, observation and action spaces, the format, the package version).
+
+    :param model: A :class:`~sb3_maddpg.MADDPG` model.
+    :param directory: Where to write (created if missing).
+    :param format: ``"onnx"`` (input ``observation``, output ``action``; a dynamic batch dimension) or
+        ``"torchscript"`` (``torch.jit.load`` it).
+    :return: Each agent's file, by agent id.
+    """
+    if format not in FORMATS:
+        raise ValueError(f"format must be one of {sorted(FORMATS)}, got {format!r}.")
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    layout: AgentLayout = model.agent_layout
+    actors = agent_actors(model)
+    files: dict[str, Path] = {}
+    entries = []
+    for i, (agent_id, actor) in enumerate(actors.items()):
+        path = out / f"{agent_id}{FORMATS[format]}"
+        example = th.zeros(1, layout.obs_sizes[i])
+        if format == "onnx":
+            _export_onnx(actor, example, path)
+        else:
+            th.jit.trace(actor, example).save(str(path))
+        files[agent_id] = path
+        action_slice = layout.action_slices[i]
+        entries.append(
+            {
+                "agent_id": agent_id,
+                "file": path.name,
+                "observation_size": layout.obs_sizes[i],
+                "observation_slice": [layout.obs_slices[i].start, layout.obs_slices[i].stop],
+                "action": (
+                    {"type": "discrete", "n": layout.action_sizes[i]}
+                    if layout.is_discrete(i)
+                    else {
+                        "type": "box",
+                        "low": model.action_space.low[action_slice].tolist(),
+                        "high": model.action_space.high[action_slice].tolist(),
+                    }
+                ),
+            }
+        )
+    manifest: dict[str, Any] = {"format": format, "sb3_maddpg_version": __version__, "agents": entries}
+    if format == "onnx":
+        manifest["onnx"] = {"input": "observation", "output": "action", "opset": ONNX_OPSET}
+    (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+    return files
+
+
+def _export_onnx(actor: AgentActor, example: th.Tensor, path: Path) -> None:
+    """Write one actor as ONNX, with a dynamic batch dimension."""
+    try:  # torch's exporter needs both; said here with the fix
+        import onnx  # noqa: F401
+        import onnxscript  # noqa: F401
+    except ModuleNotFoundError as error:
+        from sb3_maddpg.install_hint import extra_install_command
+
+        raise ModuleNotFoundError(
+            "export_actors(format='onnx') needs onnx and onnxscript, which are not installed: "
+            f"{extra_install_command('export')}, or use format='torchscript'."
+        ) from error
+    th.onnx.export(
+        actor,
+        (example,),
+        str(path),
+        input_names=["observation"],
+        output_names=["action"],
+        dynamic_shapes={"observation": {0: th.export.Dim("batch")}},
+        opset_version=ONNX_OPSET,
+        dynamo=True,
+        verbose=False,
+    )
