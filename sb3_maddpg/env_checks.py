@@ -5,13 +5,12 @@ Duck-typed on purpose: algorithm code never imports an environment package (Pett
 
 import io
 import pathlib
-import zipfile
 from typing import Any
 
 from gymnasium import spaces
-from stable_baselines3.common.save_util import json_to_data, open_path
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_normalize
 
+from sb3_maddpg.compat import read_saved_data
 from sb3_maddpg.layout import AgentLayout
 
 WRAP_HINT = (
@@ -111,30 +110,6 @@ def env_layout(env: Any) -> AgentLayout:
     return layout_of(env if isinstance(env, VecEnv) else DummyVecEnv([lambda: env]))
 
 
-def saved_layout(path: str | pathlib.Path | io.BufferedIOBase, custom_objects: dict[str, Any] | None = None) -> Any:
-    """
-    :param path: A model saved by ``MADDPG.save`` (a path, with or without ``.zip``, or an open file).
-    :param custom_objects: As for ``MADDPG.load``.
-    :return: The ``agent_layout`` stored in the save, or ``None`` where it cannot be read (``load`` then reports why).
-    """
-    try:
-        file = open_path(path, "r", verbose=0, suffix="zip")
-    except (OSError, ValueError):
-        return None
-    position = file.tell() if file.seekable() else None
-    try:
-        with zipfile.ZipFile(file) as archive:
-            data = json_to_data(archive.read("data").decode(), custom_objects=custom_objects)
-    except (KeyError, OSError, ValueError, zipfile.BadZipFile):
-        return None
-    finally:
-        if position is not None:
-            file.seek(position)
-        if file is not path:
-            file.close()
-    return data.get("agent_layout")
-
-
 def refuse_env_of_another_team(
     path: str | pathlib.Path | io.BufferedIOBase, env: Any, custom_objects: dict[str, Any] | None = None
 ) -> None:
@@ -147,7 +122,8 @@ def refuse_env_of_another_team(
     :param custom_objects: As for ``MADDPG.load``.
     """
     refuse_unsupported_env(env)
-    model_layout = saved_layout(path, custom_objects)
+    data = read_saved_data(path, custom_objects)
+    model_layout = None if data is None else data.get("agent_layout")
     if isinstance(model_layout, AgentLayout):
         check_same_layout(env_layout(env), model_layout)
 

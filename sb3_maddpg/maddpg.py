@@ -20,6 +20,7 @@ from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_maddpg.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
+from sb3_maddpg.compat import attributes_missing_from, pop_0_2_dev_schedule, read_saved_data
 from sb3_maddpg.env_checks import (
     check_same_layout,
     layout_of,
@@ -36,7 +37,7 @@ from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiA
 from sb3_maddpg.selection import Selector
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent, validate_critic_sharing
 from sb3_maddpg.team_setup import resolve_selection, warn_if_selecting_everyone
-from sb3_maddpg.update_schedule import UpdateSchedule, pop_0_2_dev_schedule
+from sb3_maddpg.update_schedule import UpdateSchedule
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
 
@@ -195,11 +196,6 @@ class MADDPG(OffPolicyAlgorithm):
         """When the model takes gradient steps (see :attr:`update_schedule`)."""
         self._logs_dumped_at = -1
         self._warned_never_updated = False  # not saved: a loaded model may warn once more
-        if not _init_setup_model:
-            # SB3's load() builds the model this way and then sets the saved attributes over these: a model saved
-            # by 0.1, which has none of them, keeps training as it did (SB3's train_freq, no regulariser).
-            self.update_rule = UpdateSchedule.sb3_semantics()
-            self.actor_reg_coef = 0.0
         self.noise_std = noise_std
         self.agent_layout: AgentLayout | None = None
         self.selection: Selector | None = None
@@ -241,7 +237,7 @@ class MADDPG(OffPolicyAlgorithm):
             critic_sharing_kwargs=self.critic_sharing_kwargs,
             selection_size=selection_size,
         )
-        self.update_rule = pop_0_2_dev_schedule(self.__dict__) or self.update_rule
+        pop_0_2_dev_schedule(self.__dict__)  # a 0.2.0 development save's old attributes (load() read them)
         self.train_freq = self.update_rule.train_freq(self.n_envs) or self.train_freq  # type: ignore[assignment]
         super()._setup_model()
         self._create_aliases()
@@ -520,7 +516,10 @@ class MADDPG(OffPolicyAlgorithm):
         """
         if env is not None:
             refuse_env_of_another_team(path, env, custom_objects)
-        return super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
+        data = read_saved_data(path, custom_objects)
+        # What an older save lacks, filled with what its version implies; the caller's kwargs over it.
+        missing = {} if data is None else attributes_missing_from(data)
+        return super().load(path, env, device, custom_objects, print_system_info, force_reset, **{**missing, **kwargs})
 
     def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
         """

@@ -1,7 +1,6 @@
 """When MADDPG takes gradient steps, and how many: the paper's per-transition rule, or SB3's ``train_freq``."""
 
 import dataclasses
-from typing import Any
 
 from stable_baselines3.common.type_aliases import TrainFreq, TrainFrequencyUnit
 
@@ -108,25 +107,3 @@ class UpdateSchedule:
             )
         steps = f"{gradient_steps} gradient step(s)" if gradient_steps >= 0 else "a gradient step per transition"
         return f"{steps} (batch {batch_size}) {every}, after step {learning_starts:,} (SB3's train_freq semantics)"
-
-
-_ATTRIBUTES_OF_0_2_DEV = ("transitions_per_update", "_train_freq_from_ratio", "_earn_gradient_steps", "_update_credit")
-
-
-def pop_0_2_dev_schedule(attributes: dict[str, Any]) -> UpdateSchedule | None:
-    """
-    Compatibility with models saved by 0.2.0's development versions before this class, which kept the schedule in
-    five attributes of MADDPG: read them into a schedule and remove them.
-
-    :param attributes: A loaded model's ``__dict__``.
-    :return: The saved schedule, or None when the model was saved otherwise (by 0.1 or with an ``UpdateSchedule``).
-    """
-    if not all(name in attributes for name in _ATTRIBUTES_OF_0_2_DEV):
-        return None
-    return UpdateSchedule(
-        transitions_per_update=attributes.pop("transitions_per_update"),
-        derives_train_freq=attributes.pop("_train_freq_from_ratio"),
-        earns_gradient_steps=attributes.pop("_earn_gradient_steps"),
-        credit=attributes.pop("_update_credit"),
-        counted_at=attributes.pop("_credited_timesteps", 0),
-    )

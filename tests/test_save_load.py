@@ -230,6 +230,31 @@ def test_a_model_saved_by_0_1_keeps_its_training_rules() -> None:
     assert model._n_updates == updates + 12
     fresh = MADDPG("MlpPolicy", make_team(), **FAST)  # a model built by 0.2 has 0.2's defaults
     assert fresh.actor_reg_coef == 1e-3
+    # What the save lacks is filled in, never over what the caller passes to load.
+    chosen = MADDPG.load(path, env=make_team(), actor_reg_coef=1e-2)
+    assert chosen.actor_reg_coef == 1e-2 and "SB3's train_freq semantics" in chosen.update_schedule
+
+
+def test_building_without_setting_up_keeps_what_the_caller_passed() -> None:
+    # The compatibility with 0.1's saves lives in load(): the constructor never replaces a caller's arguments.
+    kwargs = {name: value for name, value in FAST.items() if name != "train_freq"}
+    model = MADDPG("MlpPolicy", make_team(), actor_reg_coef=1e-3, transitions_per_update=50, _init_setup_model=False, **kwargs)
+    assert model.actor_reg_coef == 1e-3
+    assert model.update_rule.earns_gradient_steps and model.update_rule.transitions_per_update == 50
+
+
+def test_attributes_missing_from_a_save_by_version() -> None:
+    from sb3_maddpg.compat import SAVED_BEFORE_0_2, attributes_missing_from
+    from sb3_maddpg.update_schedule import UpdateSchedule
+
+    assert attributes_missing_from({"update_rule": UpdateSchedule.sb3_semantics(), "actor_reg_coef": 0.5}) == {}
+    before_0_2 = attributes_missing_from({"learning_rate": 0.01})
+    assert set(before_0_2) == set(SAVED_BEFORE_0_2) and before_0_2["actor_reg_coef"] == 0.0
+    assert not before_0_2["update_rule"].earns_gradient_steps
+    assert attributes_missing_from({"actor_reg_coef": 0.5}).keys() == {"update_rule"}  # only what it lacks
+    dev = {"transitions_per_update": 30, "_train_freq_from_ratio": True, "_earn_gradient_steps": True, "_update_credit": 7}
+    assert attributes_missing_from(dev) == {"update_rule": UpdateSchedule(30, True, True, credit=7, counted_at=0)}
+    assert len(dev) == 4  # the save's data is not changed
 
 
 @pytest.mark.parametrize("scheme", ["full", "selected"])
