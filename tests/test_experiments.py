@@ -283,6 +283,9 @@ def test_local_backend_runs_the_smoke_sweep(local_results: Path) -> None:
         assert 0.0 <= summary["score"]["success_rate"] <= 1.0
         assert summary["score"]["min_dist_sum"] > 0
         assert summary["train_steps_per_s"] > 0
+        # What the last checkpoint's team does at its episodes' end, on the same evaluation episodes.
+        assert 0 <= summary["behaviour"]["covered"] <= 3 and 0 <= summary["behaviour"]["strays"] <= 3
+        assert summary["behaviour"]["assignment_gap"] >= -1e-9
     assert "sweep finished: 10 run(s)" in (local_results / "sweep.log").read_text()
 
 

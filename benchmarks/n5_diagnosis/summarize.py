@@ -120,6 +120,24 @@ def summarise(results: Path) -> str:
             values = [value for value in (at(points, step) for points in curves) if value is not None]
             cells.append(f"{statistics.mean(values):.2f}" if len(values) == len(curves) else "")
         curve_lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    behaviour_lines = [
+        "",
+        "## What the teams do at their episodes' end (last checkpoint, within 0.3; runs made since behaviour is recorded)",
+        "",
+        "| factor | runs | landmarks covered (of 5) | crowded landmarks | strays | stray speed | assignment gap |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name in order:
+        described = [s["behaviour"] for s in summaries if s["experiment"] == name and "behaviour" in s]
+        if described:
+            label = experiments.get(name, {}).get("description", name).removeprefix("N=5 diagnosis: ").split(";")[0]
+            means = {key: statistics.mean(b[key] for b in described) for key in described[0]}
+            behaviour_lines.append(
+                f"| {label} | {len(described)} | {means['covered']:.2f} | {means['crowded']:.2f} | {means['strays']:.2f} | "
+                f"{means['stray_speed']:.2f} | {means['assignment_gap']:.2f} |"
+            )
+    if len(behaviour_lines) == 5:
+        behaviour_lines = []
     notes = [
         "",
         "Throughput and wall time were measured with two runs at a time on a 2-core machine that was also running other "
@@ -127,7 +145,7 @@ def summarise(results: Path) -> str:
         "",
         "Made by `bash benchmarks/n5_diagnosis/run.sh` (resumable), then `python benchmarks/n5_diagnosis/summarize.py`.",
     ]
-    return "\n".join(lines + curve_lines + notes) + "\n"
+    return "\n".join(lines + curve_lines + behaviour_lines + notes) + "\n"
 
 
 if __name__ == "__main__":

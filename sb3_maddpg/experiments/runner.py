@@ -14,6 +14,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
+from sb3_maddpg.behaviour import team_behaviour
 from sb3_maddpg.evaluation import TeamEvalCallback, eval_keys, evaluate_team, write_rows
 from sb3_maddpg.experiments.config import DEFAULT_ENV, PAPER_NAMES, RunConfig
 from sb3_maddpg.experiments.results import (
@@ -87,6 +88,20 @@ class CheckpointAtSteps(BaseCallback):
         return True
 
 
+def final_behaviour(config: RunConfig, model: Any, eval_env: VecEnv) -> dict[str, float] | None:
+    """
+    :param config: The run.
+    :param model: Its last checkpoint.
+    :param eval_env: Its evaluation env.
+    :return: What the team does at its episodes' end (:func:`~sb3_maddpg.behaviour.team_behaviour`, over
+        ``eval_episodes`` episodes), for simple_spread runs that observe every landmark; else ``None``.
+    """
+    neighbors = config.env_kwargs.get("num_landmark_neighbors")
+    if config.env != DEFAULT_ENV or (neighbors is not None and neighbors < config.n_agents):
+        return None
+    return team_behaviour(model, eval_env, n_episodes=config.eval_episodes, seed=config.eval_seed)
+
+
 def execute_run(
     config: RunConfig,
     results_dir: str | os.PathLike[str],
@@ -100,7 +115,8 @@ def execute_run(
     The directory holds ``config.json``, ``progress.csv`` (SB3's training log), ``train.log`` (progress
     lines), ``learning_curve.csv`` (team evaluations during training), ``checkpoint_evals.csv`` (one
     evaluation of ``eval_episodes`` episodes per checkpoint), ``summary.json`` (the run's score: each
-    metric's mean over the checkpoints, and timings), ``checkpoints/`` (model files, unless
+    metric's mean over the checkpoints, timings and, for simple_spread, ``behaviour``: what the last checkpoint's
+    team does at its episodes' end, see :mod:`sb3_maddpg.behaviour`), ``checkpoints/`` (model files, unless
     ``keep_checkpoints`` is off) and the ``done`` marker, written last.
 
     :param config: The run.
@@ -178,6 +194,7 @@ def execute_run(
         )
         rows.append({"timesteps": steps, "episodes": steps // config.episode_length, **{k: result[k] for k in keys}})
     write_rows(str(directory / CHECKPOINT_EVALS_FILE), rows)
+    behaviour = final_behaviour(config, checkpoint, eval_env) if checkpoints.saved else None
     eval_time = time.perf_counter() - eval_started
     eval_env.close()
     if not config.keep_checkpoints:
@@ -198,6 +215,8 @@ def execute_run(
         "wall_time_s": round(time.perf_counter() - started, 2),
         "train_steps_per_s": round(config.total_timesteps / train_time, 1),
     }
+    if behaviour is not None:
+        summary["behaviour"] = behaviour
     write_json_atomic(directory / SUMMARY_FILE, summary)
     progress.log(
         f"{config.run_id}: done in {format_seconds(summary['wall_time_s'])} "
