@@ -4,8 +4,9 @@ from sb3_maddpg.envs import register_envs
 from sb3_maddpg.export import export_actors
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.maddpg import MADDPG
+from sb3_maddpg.matd3 import MATD3
 from sb3_maddpg.version import __version__
 
 register_envs()
 
-__all__ = ["MADDPG", "AgentLayout", "__version__", "export_actors"]
+__all__ = ["MADDPG", "MATD3", "AgentLayout", "__version__", "export_actors"]

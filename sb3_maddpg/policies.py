@@ -2,7 +2,7 @@
 
 import contextlib
 from collections.abc import Iterator, Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import torch as th
 from gymnasium import spaces
@@ -294,6 +294,9 @@ class MADDPGPolicy(BasePolicy):
     :param normalize_images: Unused (observations are vectors); kept for SB3 compatibility.
     """
 
+    critic_class: ClassVar[type[MultiAgentCritic]] = MultiAgentCritic
+    """The team critic :meth:`make_critic` builds (MATD3's policy: twin critics)."""
+
     def __init__(
         self,
         observation_space: spaces.Box,
@@ -365,7 +368,7 @@ class MADDPGPolicy(BasePolicy):
     def make_critic(self) -> MultiAgentCritic:
         """A new team critic."""
         agent_ids = self.agent_layout.agent_ids
-        return MultiAgentCritic(
+        return self.critic_class(
             self.agent_layout,
             schemes_per_agent(self.critic_sharing, agent_ids),
             kwargs_per_agent(self.critic_sharing_kwargs, agent_ids),

@@ -1,0 +1,286 @@
+"""MATD3: SB3's TD3 choices (twin critics, target policy smoothing, delayed policy updates) on MADDPG's base."""
+
+from collections.abc import Sequence
+from typing import Any, ClassVar, TypeVar, cast
+
+import torch as th
+from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.noise import ActionNoise
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
+from stable_baselines3.common.utils import polyak_update
+
+from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.losses import TeamNetworks, actor_loss_terms, critic_losses, critic_targets, one_member
+from sb3_maddpg.maddpg import LOG_INTERVAL, MADDPG
+from sb3_maddpg.matd3_policies import MATD3Policy, MlpPolicy, TwinMultiAgentCritic
+from sb3_maddpg.selection import Selector
+from sb3_maddpg.sharing import CriticSharing
+
+SelfMATD3 = TypeVar("SelfMATD3", bound="MATD3")
+
+
+def smooth_target_actions(actions: th.Tensor, noise_std: float, noise_clip: float, continuous: th.Tensor) -> th.Tensor:
+    """
+    TD3's target policy smoothing, in the policy's [-1, 1] space: Gaussian noise of ``noise_std``, clipped to
+    ``[-noise_clip, noise_clip]``, added to the continuous agents' components, the sum clipped to [-1, 1]. A discrete
+    agent's one-hot stays the target actor's Gumbel-max sample (noise on a one-hot is not an action).
+
+    :param actions: The target actors' joint actions in [-1, 1], ``[..., action_dim]``.
+    :param noise_std: The noise's standard deviation (TD3's ``target_policy_noise``).
+    :param noise_clip: The largest noise magnitude (TD3's ``target_noise_clip``).
+    :param continuous: The continuous agents' components, ``[action_dim]`` (bool).
+    :return: The smoothed actions, the shape of ``actions``.
+    """
+    noise = th.randn_like(actions).mul_(noise_std).clamp_(-noise_clip, noise_clip)
+    return th.where(continuous, (actions + noise).clamp(-1.0, 1.0), actions)
+
+
+class TwinTeamNetworks(TeamNetworks):
+    """One team's networks as the functions of the losses (``M = 1``), with the twin critics' two views."""
+
+    __slots__ = ()
+
+    def q_twins(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        """Both twin critics stacked in front, ``[2, 1, batch, n_agents]`` (what :func:`critic_losses` broadcasts over)."""
+        critic = cast(TwinMultiAgentCritic, self.critic)
+        return critic.twins(observations[0], actions[0], None if selections is None else selections[0]).unsqueeze(1)
+
+    def target_q_min(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        """The minimum of the two target critics, agent by agent, ``[1, batch, n_agents]``."""
+        critic_target = cast(TwinMultiAgentCritic, self.critic_target)
+        selections = None if selections is None else selections[0]
+        return critic_target.twins(observations[0], actions[0], selections).amin(dim=0).unsqueeze(0)
+
+
+class MATD3(MADDPG):
+    """
+    Multi-Agent TD3: MADDPG with SB3's TD3 choices, agent by agent.
+
+    TD3: Fujimoto et al. (2018) https://arxiv.org/abs/1802.09477; its multi-agent form (MATD3): Ackermann et al. (2019)
+    https://arxiv.org/abs/1910.01465. Each agent i has two critics, each with its own instance of agent i's sharing
+    scheme's extractor; critic i's target is ``r_i + gamma * (1 - done_i) * min(Q_i1', Q_i2')`` at the target actors'
+    actions plus clipped smoothing noise; the actors ascend their first critic, and the actors and every target network
+    move once every ``policy_delay`` critic updates. The update math is :mod:`sb3_maddpg.losses`', as MADDPG's.
+    TD3's parameters have SB3's names and defaults; every other parameter is :class:`~sb3_maddpg.MADDPG`'s, with the
+    paper's defaults (Lowe et al.).
+
+    :param policy: The policy model to use (``"MlpPolicy"`` or a :class:`~sb3_maddpg.matd3_policies.MATD3Policy`
+        subclass).
+    :param env: The environment to learn from (see :class:`~sb3_maddpg.MADDPG`).
+    :param critic_sharing: What each critic sees: a scheme's name, a
+        :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor` subclass, or one per agent id (see
+        :class:`~sb3_maddpg.MADDPG`); both of an agent's critics see the same.
+    :param selection: For schemes that use a selection (see :class:`~sb3_maddpg.MADDPG`).
+    :param learning_rate: Learning rate of every actor and critic (Adam), constant or a schedule.
+    :param buffer_size: Replay buffer size, in joint transitions.
+    :param learning_starts: Env steps (all envs counted) of uniformly random actions before learning starts.
+    :param batch_size: Minibatch size of each gradient step (the same rows for every agent and both twins).
+    :param tau: Polyak coefficient of the target networks.
+    :param gamma: Discount factor.
+    :param train_freq: SB3's semantics; None: the per-transition rule (see :class:`~sb3_maddpg.MADDPG`).
+    :param gradient_steps: Critic updates per update, SB3's semantics; None: as :class:`~sb3_maddpg.MADDPG`.
+    :param transitions_per_update: Transitions (all envs counted) per critic update when neither ``train_freq`` nor
+        ``gradient_steps`` is given.
+    :param policy_delay: The actors and the target networks are updated once every ``policy_delay`` critic updates
+        (TD3's, counted over the model's ``_n_updates``, across ``train()`` calls).
+    :param target_policy_noise: Standard deviation of the Gaussian noise added to the continuous agents' target actions,
+        in the policy's [-1, 1] space (0.2, as SB3's TD3; 0.1 in mpe2's [0, 1] units); none on a discrete agent's
+        one-hot.
+    :param target_noise_clip: The smoothing noise is clipped to ``[-target_noise_clip, target_noise_clip]`` ([-1, 1]
+        space) before it is added.
+    :param action_noise: Exploration noise (see :class:`~sb3_maddpg.MADDPG`).
+    :param noise_std: Standard deviation of the default Gaussian exploration noise, in each agent's own action units.
+    :param max_grad_norm: Clip the norm of each agent's actor gradient, and of each of its two critics' gradients, to
+        this; None to disable.
+    :param actor_reg_coef: Weight of the penalty on each actor's pre-``tanh`` output (see :class:`~sb3_maddpg.MADDPG`).
+    :param critic_sharing_kwargs: Extra keyword arguments for the sharing scheme's extractors, or, keyed by agent id,
+        each agent's own (both twins get the same).
+    :param replay_buffer_class: Replay buffer class (default :class:`~sb3_maddpg.buffers.MultiAgentReplayBuffer`).
+    :param replay_buffer_kwargs: Keyword arguments for the replay buffer.
+    :param stats_window_size: Window size for the rollout logging (episodes).
+    :param tensorboard_log: The log location for tensorboard (None: no logging).
+    :param policy_kwargs: Additional arguments for the policy, e.g. ``net_arch``, ``share_parameters``.
+    :param verbose: 0 no output, 1 info messages, 2 debug messages.
+    :param seed: Seed for the pseudo random generators.
+    :param device: Device (cpu, cuda, ...) on which the code should be run; "auto" uses the GPU if possible.
+    :param _init_setup_model: Whether or not to build the network at the creation of the instance.
+    """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"MlpPolicy": MlpPolicy}
+    policy: MATD3Policy
+    critic: TwinMultiAgentCritic
+    critic_target: TwinMultiAgentCritic
+    _team: TwinTeamNetworks
+
+    def __init__(
+        self,
+        policy: str | type[MATD3Policy],
+        env: GymEnv | str | None,
+        critic_sharing: CriticSharing = "full",
+        selection: Selector | int | None = None,
+        learning_rate: float | Schedule = 1e-2,
+        buffer_size: int = 1_000_000,
+        learning_starts: int = 25_600,
+        batch_size: int = 1024,
+        tau: float = 0.01,
+        gamma: float = 0.95,
+        train_freq: int | tuple[int, str] | None = None,
+        gradient_steps: int | None = None,
+        transitions_per_update: int = 100,
+        policy_delay: int = 2,
+        target_policy_noise: float = 0.2,
+        target_noise_clip: float = 0.5,
+        action_noise: ActionNoise | None = None,
+        noise_std: float | Sequence[float] = 0.1,
+        max_grad_norm: float | None = 0.5,
+        actor_reg_coef: float = 1e-3,
+        critic_sharing_kwargs: dict[str, Any] | None = None,
+        replay_buffer_class: type[ReplayBuffer] | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: th.device | str = "auto",
+        _init_setup_model: bool = True,
+    ) -> None:
+        if isinstance(policy_delay, bool) or not isinstance(policy_delay, int) or policy_delay < 1:
+            raise ValueError(
+                f"policy_delay must be an int >= 1 (critic updates per actor and target update), got {policy_delay!r}: "
+                "use 2 (TD3's value), or 1 to update the actors at every critic update."
+            )
+        for name, value in (("target_policy_noise", target_policy_noise), ("target_noise_clip", target_noise_clip)):
+            if not value >= 0:
+                raise ValueError(f"{name} must be >= 0 (in the policy's [-1, 1] space), got {value}: TD3's is 0.2 / 0.5.")
+        # Set before MADDPG's constructor, which ends with _setup_model(): the attributes exist from then on.
+        self.policy_delay = policy_delay
+        self.target_policy_noise = float(target_policy_noise)
+        self.target_noise_clip = float(target_noise_clip)
+        super().__init__(
+            policy,
+            env,
+            critic_sharing=critic_sharing,
+            selection=selection,
+            learning_rate=learning_rate,
+            buffer_size=buffer_size,
+            learning_starts=learning_starts,
+            batch_size=batch_size,
+            tau=tau,
+            gamma=gamma,
+            train_freq=train_freq,
+            gradient_steps=gradient_steps,
+            transitions_per_update=transitions_per_update,
+            action_noise=action_noise,
+            noise_std=noise_std,
+            max_grad_norm=max_grad_norm,
+            actor_reg_coef=actor_reg_coef,
+            critic_sharing_kwargs=critic_sharing_kwargs,
+            replay_buffer_class=replay_buffer_class,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            policy_kwargs=policy_kwargs,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
+
+    def _create_aliases(self) -> None:
+        super()._create_aliases()
+        self._team = TwinTeamNetworks(self.actor, self.critic, self.actor_target, self.critic_target)
+
+    def _smoothed_target_actions(self, next_observations: th.Tensor) -> th.Tensor:
+        """Every target actor on its next observation, plus the clipped smoothing noise (continuous agents only)."""
+        actions = self._team.target_actions(next_observations)
+        return smooth_target_actions(actions, self.target_policy_noise, self.target_noise_clip, self._action_parts.continuous)
+
+    def train(self, gradient_steps: int, batch_size: int = 100) -> None:
+        # Switch to train mode (this affects batch norm / dropout)
+        self.policy.set_training_mode(True)
+        # Update learning rate according to lr schedule
+        self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
+        team = self._team  # the losses' view of the networks: a member dimension of 1 in front
+        critic_log, actor_log, reg_log, saturation_log = [], [], [], []
+        actor_params = list(self.actor.parameters())
+        for _ in range(gradient_steps):
+            self._n_updates += 1
+            # Sample replay buffer: one joint batch, the same rows for every agent and both twins
+            replay_data = one_member(self.replay_buffer.sample(batch_size, env=self._vec_normalize_env))
+            # Critic targets: every target actor on its next observation plus clipped noise, then the min over the
+            # two target critics (no gradient)
+            target_q = critic_targets(self._smoothed_target_actions, team.target_q_min, replay_data, self.gamma)
+            # Both twins' losses against the one target, [2, 1, n_agents]; the first twin's extractors record
+            with self.critic.recording_diagnostics():
+                critic_loss = critic_losses(team.q_twins, replay_data, target_q)
+            # Optimize the critics: one optimiser over both twins (disjoint parameters, each its own loss's gradient)
+            self.critic.optimizer.zero_grad()
+            critic_loss.sum().backward()
+            if self.max_grad_norm is not None:
+                self.critic.clip_grad_norm_per_agent(self.max_grad_norm)
+            self.critic.optimizer.step()
+            critic_log.append(critic_loss[:, 0].detach().mean(0))  # per agent, the twins' mean
+            # Delayed policy updates
+            if self._n_updates % self.policy_delay == 0:
+                # Actor losses: -Q_i1 (the first twin only) with only a_i replaced by mu_i(o_i), plus the regulariser
+                actor_terms = actor_loss_terms(team.policy, team.q, replay_data, self._action_parts, self.actor_reg_coef)
+                # Optimize the actors, computing only the actors' gradients (the critics' are not needed here)
+                self.actor.optimizer.zero_grad()
+                for param, grad in zip(actor_params, th.autograd.grad(actor_terms.total.sum(), actor_params)):
+                    param.grad = grad
+                if self.max_grad_norm is not None:
+                    self.actor.clip_grad_norm_per_agent(self.max_grad_norm)
+                self.actor.optimizer.step()
+                # Update the target networks (Polyak averaging): both twins' and the actors'
+                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
+                polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
+                actor_log.append(actor_terms.policy_loss[0].detach())
+                reg_log.append(actor_terms.reg_loss[0].detach())
+                saturation_log.append(actor_terms.saturation[0])
+
+        critic_means = th.stack(critic_log).mean(0)
+        if actor_log:
+            self._log_losses(critic_means, *(th.stack(log).mean(0) for log in (actor_log, reg_log, saturation_log)))
+        else:  # no delayed update in this call: the actor losses are not recorded (as TD3's)
+            self._log_critic_losses(critic_means)
+
+    def _log_critic_losses(self, critic_losses: th.Tensor) -> None:
+        """
+        Record the train call's critic losses, each agent's and the team's, when no actor was updated.
+
+        :param critic_losses: ``[n_agents]``.
+        """
+        assert self.agent_layout is not None
+        values = critic_losses.tolist()
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        self.logger.record("train/critic_loss", sum(values) / len(values))
+        for agent, value in zip(self.agent_layout.agent_ids, values):
+            self.logger.record(f"train/{agent}/critic_loss", value)
+
+    def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
+        """The team's critic targets (smoothed target actions, min of the twins) on a replay batch, ``[batch, n_agents]``."""
+        return critic_targets(self._smoothed_target_actions, self._team.target_q_min, one_member(data), self.gamma)[0]
+
+    def learn(
+        self: SelfMATD3,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        log_interval: int = LOG_INTERVAL,
+        tb_log_name: str = "MATD3",
+        reset_num_timesteps: bool = True,
+        progress_bar: bool = False,
+    ) -> SelfMATD3:
+        """
+        Train the model (see :meth:`MADDPG.learn <sb3_maddpg.MADDPG.learn>`).
+
+        :param total_timesteps: Env steps to train for (all envs counted); a lower bound, as in SB3.
+        :param callback: Callback(s) called at every step.
+        :param log_interval: Finished episodes (all envs counted) between two writes of the logs.
+        :param tb_log_name: The name of the run for TensorBoard logging.
+        :param reset_num_timesteps: Whether to count timesteps from 0 again (False to continue a run).
+        :param progress_bar: Display a progress bar (needs tqdm and rich).
+        :return: The trained model.
+        """
+        return super().learn(total_timesteps, callback, log_interval, tb_log_name, reset_num_timesteps, progress_bar)
