@@ -1,0 +1,389 @@
+"""MATD3: the min of the twin target critics, clipped target smoothing (none on one-hots, none when acting), delayed
+actor and target updates, what each critic sees (MADDPG and MATD3 alike), the actors' first-critic gradient, save/load."""
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import torch as th
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+
+from sb3_maddpg import MADDPG, MATD3
+from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
+from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.losses import critic_losses, critic_targets, one_member
+from sb3_maddpg.matd3 import smooth_target_actions
+from sb3_maddpg.matd3_policies import MATD3Policy, TwinMultiAgentCritic
+from sb3_maddpg.policies import AgentCritic
+
+pytestmark = pytest.mark.filterwarnings("ignore:learn\\(\\) ended at step")  # make_model() only collects
+
+BATCH = 8
+N_AGENTS = 3
+ALGORITHMS = {"MADDPG": MADDPG, "MATD3": MATD3}
+PER_AGENT_MAP = {"agent_0": "full", "agent_1": "independent", "agent_2": "actions"}
+
+
+def make_model(scheme: Any = "full", algorithm: type[MADDPG] = MATD3, **kwargs: Any) -> MADDPG:
+    """A model after 60 collected steps and no update (learning_starts is beyond them)."""
+    if scheme == "selected":
+        kwargs.setdefault("selection", 1)  # the nearest other agent: a real subset of a team of 3
+    model = algorithm(
+        "MlpPolicy",
+        make_simple_spread(n_agents=N_AGENTS),
+        critic_sharing=scheme,
+        policy_kwargs=dict(net_arch=[16, 16]),
+        learning_starts=10_000,
+        buffer_size=1_000,
+        batch_size=BATCH,
+        seed=0,
+        **kwargs,
+    )
+    model.learn(60)
+    return model
+
+
+def sample(model: MADDPG) -> MultiAgentReplayBufferSamples:
+    """A replay batch with distinct per-agent rewards and some terminal rows."""
+    data = model.replay_buffer.sample(BATCH)
+    dones = th.zeros(BATCH, N_AGENTS)
+    dones[::3] = 1.0
+    return data._replace(rewards=th.randn(BATCH, N_AGENTS), dones=dones)
+
+
+def states(module: th.nn.Module) -> dict[str, th.Tensor]:
+    return {name: value.detach().clone() for name, value in module.state_dict().items()}
+
+
+def moved(before: dict[str, th.Tensor], module: th.nn.Module) -> bool:
+    return any(not th.equal(before[name], value) for name, value in module.state_dict().items())
+
+
+def is_one_hot(values: th.Tensor) -> bool:
+    """Every row is one 1 and the rest -1 (a discrete agent's action in the [-1, 1] space)."""
+    return bool(th.isin(values, th.tensor([-1.0, 1.0])).all() and ((values == 1.0).sum(dim=-1) == 1).all())
+
+
+class MixedTeam(ParallelEnv):
+    """Two agents on a line: ``mover`` (Box(-1, 1, (1,))) moves, ``chooser`` (Discrete(3)) picks left, stay or right;
+    both are rewarded for ending near 0."""
+
+    metadata = {"name": "mixed_team_v0"}
+
+    def __init__(self) -> None:
+        self.possible_agents = ["mover", "chooser"]
+        self.agents: list[str] = []
+
+    def observation_space(self, agent: str) -> spaces.Box:
+        return spaces.Box(-10.0, 10.0, (1,), np.float32)
+
+    def action_space(self, agent: str) -> spaces.Space:
+        return spaces.Box(-1.0, 1.0, (1,), np.float32) if agent == "mover" else spaces.Discrete(3)
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        self.agents, self.t = list(self.possible_agents), 0
+        self.position = {agent: np.array([1.0], np.float32) for agent in self.agents}
+        return dict(self.position), {agent: {} for agent in self.agents}
+
+    def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
+        self.position["mover"] = self.position["mover"] + 0.1 * actions["mover"]
+        self.position["chooser"] = self.position["chooser"] + 0.1 * (actions["chooser"] - 1)
+        self.t += 1
+        rewards = {agent: -float(abs(self.position[agent][0])) for agent in self.agents}
+        truncated = dict.fromkeys(self.agents, self.t >= 10)
+        return dict(self.position), rewards, dict.fromkeys(self.agents, False), truncated, {a: {} for a in self.agents}
+
+
+# --- The critics' target -----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("scheme", ["full", "selected", "attention"])
+def test_critic_target_is_the_min_of_the_two_target_critics_by_hand(scheme: str) -> None:
+    model = make_model(scheme)
+    data = sample(model)
+    layout = model.agent_layout
+    assert layout is not None
+    th.manual_seed(5)
+    targets = model._critic_targets(data)
+    # By hand: each target actor on its own next observation, TD3's clipped noise, then per agent the smaller twin.
+    next_actions = th.cat(
+        [model.actor_target.mlp.forward_agent(j, data.next_observations[:, layout.obs_slices[j]]) for j in range(3)], dim=1
+    )
+    th.manual_seed(5)
+    noise = (th.randn(BATCH, layout.action_dim) * model.target_policy_noise).clamp(-0.5, 0.5)
+    next_actions = (next_actions + noise).clamp(-1.0, 1.0)
+    twin_1_smaller, twin_2_smaller = False, False
+    with th.no_grad():
+        for i in range(N_AGENTS):
+            q1 = AgentCritic(model.critic_target, i)(data.next_observations, next_actions, data.selections)[:, 0]
+            q2 = AgentCritic(model.critic_target.twin, i)(data.next_observations, next_actions, data.selections)[:, 0]
+            expected = data.rewards[:, i] + model.gamma * (1 - data.dones[:, i]) * th.minimum(q1, q2)
+            assert th.allclose(targets[:, i], expected, atol=1e-6)
+            live = data.dones[:, i] == 0
+            twin_1_smaller |= bool((q1 < q2)[live].any())
+            twin_2_smaller |= bool((q2 < q1)[live].any())
+    assert twin_1_smaller and twin_2_smaller  # the min is taken row by row, not one twin throughout
+
+
+def test_twin_critics_are_independent_networks_with_their_own_extractors() -> None:
+    model = make_model("attention")
+    assert isinstance(model.policy, MATD3Policy) and isinstance(model.critic, TwinMultiAgentCritic)
+    first, second = model.critic.extractors, model.critic.twin.extractors
+    assert all(a is not b and type(a) is type(b) for a, b in zip(first, second))
+    first_params = {id(p) for p in model.critic.mlp.parameters()} | {id(p) for p in first.parameters()}
+    assert first_params.isdisjoint(id(p) for p in model.critic.twin.parameters())
+    assert not th.equal(model.critic.mlp.weights[0], model.critic.twin.mlp.weights[0])  # initialised apart
+    assert not th.equal(next(first[0].parameters()), next(second[0].parameters()))
+    # One critic optimiser over both twins, as SB3's TD3.
+    optimised = {id(p) for group in model.critic.optimizer.param_groups for p in group["params"]}
+    assert optimised == {id(p) for p in model.critic.parameters()}
+
+
+# --- Target policy smoothing ----------------------------------------------------------------------------------------
+
+
+def test_smoothing_noise_is_clipped_and_absent_on_discrete_one_hots() -> None:
+    th.manual_seed(0)
+    actions = th.zeros(1, 4096, 5)
+    actions[..., 2:] = -1.0
+    actions[..., 3] = 1.0  # components 2..4: a discrete agent's one-hot
+    continuous = th.tensor([True, True, False, False, False])
+    smoothed = smooth_target_actions(actions, noise_std=1.0, noise_clip=0.5, continuous=continuous)
+    noise = smoothed[..., :2]
+    assert noise.abs().max() == 0.5 and (noise.abs() == 0.5).float().mean() > 0.5  # clipped: P(|N(0,1)| > .5) = .62
+    assert (noise.abs() < 0.5).any() and noise.std() > 0.1
+    assert th.equal(smoothed[..., 2:], actions[..., 2:])
+    # The sum stays in [-1, 1].
+    near_edge = smooth_target_actions(th.full((1, 4096, 5), 0.9), 1.0, 0.5, continuous)
+    assert near_edge.max() == 1.0 and near_edge[..., :2].min() >= 0.4 - 1e-6
+
+
+def test_a_mixed_teams_target_actions_keep_the_one_hot_and_smooth_the_continuous_agent() -> None:
+    model = MATD3("MlpPolicy", PettingZooToGym(MixedTeam()), learning_starts=1_000, target_policy_noise=1.0, seed=0)
+    model.learn(40)
+    next_obs = th.as_tensor(model.replay_buffer.next_observations[:40, 0]).unsqueeze(0)
+    smoothed = model._smoothed_target_actions(next_obs)[0]
+    assert is_one_hot(smoothed[:, 1:])
+    with th.no_grad():
+        offset = smoothed[:, 0] - model.actor_target(next_obs[0])[:, 0]
+    assert offset.abs().max() <= 0.5 + 1e-6 and offset.abs().max() > 0.1
+
+
+def test_no_smoothing_noise_when_acting_or_evaluating() -> None:
+    model = make_model(target_policy_noise=1.0, target_noise_clip=1.0)
+    obs = model.replay_buffer.observations[:16, 0]
+    first, _ = model.predict(obs, deterministic=True)
+    second, _ = model.predict(obs, deterministic=True)
+    with th.no_grad():
+        expected = model.policy.unscale_action(model.actor(th.as_tensor(obs)).numpy())
+    np.testing.assert_array_equal(first, second)
+    np.testing.assert_allclose(first, expected, atol=1e-6)
+    env = make_simple_spread(n_agents=N_AGENTS)
+    assert evaluate_team(model, env, n_episodes=2, seed=3) == evaluate_team(model, env, n_episodes=2, seed=3)
+
+
+# --- Delayed updates ------------------------------------------------------------------------------------------------
+
+
+def test_actor_and_targets_move_only_every_policy_delay_critic_updates() -> None:
+    model = make_model(policy_delay=3)
+    moves = []
+    for _ in range(6):
+        before = {name: states(getattr(model, name)) for name in ("critic", "actor", "actor_target", "critic_target")}
+        model.train(gradient_steps=1, batch_size=BATCH)
+        moves.append({name: moved(state, getattr(model, name)) for name, state in before.items()})
+    assert [m["critic"] for m in moves] == [True] * 6
+    for name in ("actor", "actor_target", "critic_target"):
+        assert [m[name] for m in moves] == [False, False, True, False, False, True], name
+    # Counted over the model's updates, inside a train() call as across calls: updates 7 and 8 move no actor, 9 does.
+    before_actor = states(model.actor)
+    model.train(gradient_steps=2, batch_size=BATCH)
+    assert not moved(before_actor, model.actor)
+    model.train(gradient_steps=1, batch_size=BATCH)
+    assert moved(before_actor, model.actor)
+
+
+# --- What each critic sees: MADDPG and MATD3 alike ------------------------------------------------------------------
+
+
+def visible(scheme: Any, i: int, selections: th.Tensor | None) -> tuple[list[set[int]], list[set[int]]]:
+    """Row by row, whose observations and whose actions critic i may see (the paper's Table 1)."""
+    if isinstance(scheme, dict):
+        scheme = scheme[f"agent_{i}"]
+    everyone, alone = set(range(N_AGENTS)), {i}
+    obs, actions = {
+        "independent": (alone, alone),
+        "full": (everyone, everyone),
+        "observations": (everyone, alone),
+        "actions": (alone, everyone),
+        "attention": (everyone, everyone),
+        "selected": (None, None),
+    }[scheme]
+    if obs is None:
+        assert selections is not None
+        rows = [{i, *selections[b, i].tolist()} for b in range(BATCH)]
+        return rows, rows
+    return [obs] * BATCH, [actions] * BATCH
+
+
+def critic_loss_function(model: MADDPG) -> Any:
+    """The critic (or both twins, stacked in front) as ``train()`` hands it to :func:`critic_losses`."""
+    return model._team.q_twins if isinstance(model, MATD3) else model._team.q  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("algorithm", list(ALGORITHMS))
+@pytest.mark.parametrize(
+    "scheme", ["independent", "full", "observations", "actions", "selected", "attention", PER_AGENT_MAP], ids=str
+)
+def test_each_critics_loss_reaches_exactly_the_inputs_its_scheme_allows(algorithm: str, scheme: Any) -> None:
+    model = make_model(scheme, ALGORITHMS[algorithm])
+    layout = model.agent_layout
+    assert layout is not None
+    data = one_member(sample(model))
+    obs, actions = data.observations.clone().requires_grad_(True), data.actions.clone().requires_grad_(True)
+    team = model._team
+    targets = critic_targets(team.target_actions, team.target_q, data, model.gamma)
+    losses = critic_losses(critic_loss_function(model), data._replace(observations=obs, actions=actions), targets)
+    twins = losses.reshape(-1, N_AGENTS)  # [n_twins, n_agents]: 1 for MADDPG, 2 for MATD3
+    assert twins.shape[0] == (2 if algorithm == "MATD3" else 1)
+    selections = None if data.selections is None else data.selections[0]
+    for twin in range(twins.shape[0]):
+        for i in range(N_AGENTS):
+            obs_grad, action_grad = th.autograd.grad(twins[twin, i], (obs, actions), retain_graph=True)
+            seen_obs, seen_actions = visible(scheme, i, selections)
+            for b in range(BATCH):
+                for j in range(N_AGENTS):
+                    sees_obs = bool(obs_grad[0, b, layout.obs_slices[j]].abs().sum() > 0)
+                    sees_action = bool(action_grad[0, b, layout.action_slices[j]].abs().sum() > 0)
+                    assert sees_obs == (j in seen_obs[b]), (twin, i, b, j, "observation")
+                    assert sees_action == (j in seen_actions[b]), (twin, i, b, j, "action")
+
+
+@pytest.mark.parametrize("scheme", ["full", "attention"])
+def test_each_twins_loss_moves_only_its_own_agents_own_twin(scheme: str) -> None:
+    model = make_model(scheme)
+    data = one_member(sample(model))
+    team = model._team
+    losses = critic_losses(team.q_twins, data, critic_targets(team.target_actions, team.target_q, data, model.gamma))
+    critics = (model.critic, model.critic.twin)
+    for twin in range(2):
+        for i in range(N_AGENTS):
+            model.critic.zero_grad()
+            losses[twin, 0, i].backward(retain_graph=True)
+            for other, critic in enumerate(critics):
+                for weight in critic.mlp.weights:
+                    grad = th.zeros_like(weight) if weight.grad is None else weight.grad
+                    reached = (grad.abs().sum(dim=(1, 2)) > 0).tolist()
+                    assert reached == [other == twin and j == i for j in range(N_AGENTS)], (twin, i, other)
+                for j, extractor in enumerate(critic.extractors):
+                    touched = any(p.grad is not None and p.grad.abs().sum() > 0 for p in extractor.parameters())
+                    assert touched == (scheme == "attention" and other == twin and j == i)
+
+
+# --- The actors ascend their first critic -----------------------------------------------------------------------
+
+
+def one_update(model: MADDPG) -> None:
+    """One gradient step with fixed random draws (the batch, the smoothing noise)."""
+    np.random.seed(7)
+    th.manual_seed(7)
+    model.train(gradient_steps=1, batch_size=BATCH)
+
+
+@pytest.mark.parametrize("scheme", ["full", "attention"])
+def test_each_actors_gradient_comes_from_its_first_critic_only(scheme: str) -> None:
+    reference, changed_twin_2, changed_twin_1 = (make_model(scheme, policy_delay=1) for _ in range(3))
+    actor_before = states(reference.actor)
+    with th.no_grad():
+        for param in changed_twin_2.critic.twin.parameters():
+            param.add_(th.randn_like(param))
+        for param in changed_twin_1.critic.mlp.parameters():
+            param.add_(th.randn_like(param))
+    for model in (reference, changed_twin_2, changed_twin_1):
+        one_update(model)
+    assert moved(actor_before, reference.actor)
+    for name, value in reference.actor.state_dict().items():
+        assert th.equal(value, changed_twin_2.actor.state_dict()[name]), name
+    assert moved(states(reference.actor), changed_twin_1.actor)  # the first critic does steer the actors
+
+
+# --- Save and load ----------------------------------------------------------------------------------------------
+
+
+def assert_same_tree(expected: Any, actual: Any, path: str = "") -> None:
+    """Equality of (optimiser) state dicts holding tensors, numbers, lists and dicts."""
+    if isinstance(expected, dict):
+        assert isinstance(actual, dict) and set(expected) == set(actual), path
+        for key in expected:
+            assert_same_tree(expected[key], actual[key], f"{path}/{key}")
+    elif isinstance(expected, list | tuple):
+        assert len(expected) == len(actual), path
+        for index, (a, b) in enumerate(zip(expected, actual)):
+            assert_same_tree(a, b, f"{path}/{index}")
+    elif isinstance(expected, th.Tensor):
+        assert th.equal(expected, actual), path
+    else:
+        assert expected == actual, path
+
+
+@pytest.mark.parametrize("scheme", ["full", "selected", "attention"])
+def test_save_and_load_round_trip(scheme: str, tmp_path: Path) -> None:
+    model = make_model(scheme, policy_delay=3, target_policy_noise=0.3, target_noise_clip=0.4)
+    for _ in range(4):  # past a delayed update, and mid-cycle: the delay's phase is saved too
+        model.train(gradient_steps=1, batch_size=BATCH)
+    model.save(tmp_path / "matd3.zip")
+    loaded = MATD3.load(tmp_path / "matd3.zip")
+    assert isinstance(loaded.policy, MATD3Policy) and isinstance(
+        loaded.critic.twin.extractors[0], type(model.critic.twin.extractors[0])
+    )
+    assert (loaded.policy_delay, loaded.target_policy_noise, loaded.target_noise_clip) == (3, 0.3, 0.4)
+    assert loaded._n_updates == model._n_updates == 4
+    assert_same_tree(model.policy.state_dict(), loaded.policy.state_dict())  # both twins, extractors, targets
+    assert any(".twin.extractors." in name for name in loaded.policy.state_dict()) == (scheme == "attention")
+    assert_same_tree(model.actor.optimizer.state_dict(), loaded.actor.optimizer.state_dict())
+    assert_same_tree(model.critic.optimizer.state_dict(), loaded.critic.optimizer.state_dict())
+    obs = model.replay_buffer.observations[:8, 0]
+    np.testing.assert_array_equal(model.predict(obs, deterministic=True)[0], loaded.predict(obs, deterministic=True)[0])
+    # The loaded model trains on as the saved one would have.
+    loaded.replay_buffer = model.replay_buffer
+    loaded.set_logger(model.logger)
+    for trained in (model, loaded):
+        for _ in range(2):
+            one_update(trained)
+    assert_same_tree(model.policy.state_dict(), loaded.policy.state_dict())
+
+
+# --- End to end -------------------------------------------------------------------------------------------------
+
+
+def test_refuses_bad_td3_settings() -> None:
+    env = make_simple_spread(n_agents=N_AGENTS)
+    with pytest.raises(ValueError, match="policy_delay must be an int >= 1"):
+        MATD3("MlpPolicy", env, policy_delay=0)
+    with pytest.raises(ValueError, match="target_noise_clip must be >= 0"):
+        MATD3("MlpPolicy", env, target_noise_clip=-0.1)
+
+
+FAST = dict(learning_starts=100, batch_size=32, buffer_size=2_000, transitions_per_update=10, policy_kwargs={"net_arch": [16]})
+
+
+def test_trains_on_simple_spread() -> None:
+    model = MATD3("MlpPolicy", make_simple_spread(n_agents=N_AGENTS), seed=0, **FAST)
+    model.learn(400)
+    assert model._n_updates == 30  # one critic update per 10 transitions past learning_starts
+    logged = model.logger.name_to_value
+    assert np.isfinite(logged["train/critic_loss"]) and np.isfinite(logged["train/agent_2/actor_loss"])
+
+
+def test_a_team_of_continuous_and_discrete_agents_trains(tmp_path: Path) -> None:
+    env = PettingZooToGym(MixedTeam())
+    model = MATD3("MlpPolicy", env, seed=0, **FAST)
+    model.learn(400)
+    assert model._n_updates == 30
+    action, _ = model.predict(env.reset(seed=0)[0], deterministic=True)
+    assert -1.0 <= action[0] <= 1.0 and sorted(action[1:].tolist()) == [0.0, 0.0, 1.0]
+    model.save(tmp_path / "mixed.zip")
+    assert MATD3.load(tmp_path / "mixed.zip").agent_layout == env.agent_layout
