@@ -35,12 +35,11 @@ def make_model(scheme: Any = "full", algorithm: type[MADDPG] = MATD3, **kwargs: 
         "MlpPolicy",
         make_simple_spread(n_agents=N_AGENTS),
         critic_sharing=scheme,
-        policy_kwargs=dict(net_arch=[16, 16]),
         learning_starts=10_000,
         buffer_size=1_000,
         batch_size=BATCH,
         seed=0,
-        **kwargs,
+        **{"policy_kwargs": dict(net_arch=[16, 16]), **kwargs},
     )
     model.learn(60)
     return model
@@ -60,6 +59,13 @@ def states(module: th.nn.Module) -> dict[str, th.Tensor]:
 
 def moved(before: dict[str, th.Tensor], module: th.nn.Module) -> bool:
     return any(not th.equal(before[name], value) for name, value in module.state_dict().items())
+
+
+def one_update(model: MADDPG) -> None:
+    """One gradient step with fixed random draws (the batch, the smoothing noise)."""
+    np.random.seed(7)
+    th.manual_seed(7)
+    model.train(gradient_steps=1, batch_size=BATCH)
 
 
 def is_one_hot(values: th.Tensor) -> bool:
@@ -126,6 +132,28 @@ def test_critic_target_is_the_min_of_the_two_target_critics_by_hand(scheme: str)
             twin_1_smaller |= bool((q1 < q2)[live].any())
             twin_2_smaller |= bool((q2 < q1)[live].any())
     assert twin_1_smaller and twin_2_smaller  # the min is taken row by row, not one twin throughout
+
+
+@pytest.mark.parametrize("scheme", ["full", "attention"])
+def test_the_critic_update_descends_both_twins_losses_at_that_target(scheme: str) -> None:
+    """With SGD at learning rate 1 and no clipping, train()'s critic step is minus the gradient of both twins' losses
+    against :meth:`_critic_targets` (the smoothed min target above), on the same batch and the same noise."""
+    model = make_model(
+        scheme, learning_rate=1.0, max_grad_norm=None, policy_kwargs=dict(net_arch=[16, 16], optimizer_class=th.optim.SGD)
+    )
+    np.random.seed(7)
+    data = model.replay_buffer.sample(BATCH)
+    th.manual_seed(7)
+    targets = model._critic_targets(data)
+    losses = critic_losses(model._team.q_twins, one_member(data), targets.unsqueeze(0))
+    params = list(model.critic.parameters())
+    grads = th.autograd.grad(losses.sum(), params, allow_unused=True)
+    expected = [p.detach() - (0 if g is None else g) for p, g in zip(params, grads)]
+    twin_1, twin_2 = states(model.critic.mlp), states(model.critic.twin)
+    one_update(model)
+    for param, value in zip(model.critic.parameters(), expected):
+        assert th.allclose(param, value, atol=1e-6)
+    assert moved(twin_1, model.critic.mlp) and moved(twin_2, model.critic.twin)
 
 
 def test_twin_critics_are_independent_networks_with_their_own_extractors() -> None:
@@ -284,13 +312,6 @@ def test_each_twins_loss_moves_only_its_own_agents_own_twin(scheme: str) -> None
 
 
 # --- The actors ascend their first critic -----------------------------------------------------------------------
-
-
-def one_update(model: MADDPG) -> None:
-    """One gradient step with fixed random draws (the batch, the smoothing noise)."""
-    np.random.seed(7)
-    th.manual_seed(7)
-    model.train(gradient_steps=1, batch_size=BATCH)
 
 
 @pytest.mark.parametrize("scheme", ["full", "attention"])
