@@ -1,6 +1,7 @@
 """MATD3: the min of the twin target critics, clipped target smoothing (none on one-hots, none when acting), delayed
 actor and target updates, what each critic sees (MADDPG and MATD3 alike), the actors' first-critic gradient, save/load."""
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -408,3 +409,17 @@ def test_a_team_of_continuous_and_discrete_agents_trains(tmp_path: Path) -> None
     assert -1.0 <= action[0] <= 1.0 and sorted(action[1:].tolist()) == [0.0, 0.0, 1.0]
     model.save(tmp_path / "mixed.zip")
     assert MATD3.load(tmp_path / "mixed.zip").agent_layout == env.agent_layout
+
+
+def test_the_experiments_runner_trains_matd3_with_algo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from sb3_maddpg.experiments.cli import main
+
+    argv = ["run", "--config", "smoke", "--name", "smoke_matd3", "--results", str(tmp_path), "--schemes", "full"]
+    assert main([*argv, "--seeds", "1", "--algo", "matd3", "--dry-run"]) == 0
+    assert '"algorithm": "sb3_maddpg:MATD3"' in capsys.readouterr().out
+    assert main([*argv, "--seeds", "1", "--algo", "matd3", "--episodes", "20", "--n-checkpoints", "2", "--quiet"]) == 0
+    run = tmp_path / "smoke_matd3" / "full" / "seed_000"
+    assert json.loads((run / "config.json").read_text())["algorithm"] == "sb3_maddpg:MATD3"
+    assert (run / "summary.json").exists()  # trained, checkpoints loaded by MATD3.load and evaluated
+    assert main(["report", str(tmp_path), "--no-plots"]) == 0
+    assert "| smoke_matd3 (N=3" in (tmp_path / "report" / "table_min_dist_sum.md").read_text()

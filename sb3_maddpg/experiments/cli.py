@@ -19,6 +19,9 @@ from sb3_maddpg.install_hint import extra_install_command
 
 DEFAULT_RESULTS = "runs/experiments"
 
+ALGORITHMS = {"maddpg": "sb3_maddpg:MADDPG", "matd3": "sb3_maddpg:MATD3"}
+"""``run --algo``'s names and the experiments' ``algorithm`` each sets."""
+
 
 def _int_list(text: str) -> tuple[int, ...]:
     return tuple(int(item) for item in text.split(",") if item.strip())
@@ -62,6 +65,12 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--eval-episodes", type=int, help="episodes per checkpoint evaluation")
     group.add_argument("--curve-points", type=int, help="learning-curve evaluations per run")
     group.add_argument("--curve-eval-episodes", type=int, help="episodes per learning-curve evaluation")
+    group.add_argument(
+        "--algo",
+        choices=sorted(ALGORITHMS),
+        help="the algorithm every run trains (default: the config's, MADDPG for the presets); store a MATD3 sweep under "
+        "its own --name or --results, so that report tells it apart",
+    )
     group.add_argument(
         "--model-kwargs", type=json.loads, help="JSON merged into the MADDPG kwargs, e.g. '{\"batch_size\": 256}'"
     )
@@ -180,6 +189,7 @@ def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
             keep_checkpoints=args.keep_checkpoints,
             vec_env=args.vec_env,
             n_envs=args.n_envs,
+            algorithm=ALGORITHMS[args.algo] if args.algo else None,
         )
         if args.neighbors is not None:
             neighbors = None if args.neighbors == "all" else int(args.neighbors)
