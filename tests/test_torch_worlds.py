@@ -29,9 +29,9 @@ SETTINGS = [
     (n_agents, num_agent_neighbors, num_landmark_neighbors)
     for n_agents in range(2, 9)
     for num_agent_neighbors in (None, *range(1, n_agents))
-    for num_landmark_neighbors in (None, 1, n_agents - 1)
+    for num_landmark_neighbors in dict.fromkeys((None, 1, n_agents - 1, n_agents))
 ]
-"""N from 2 to 8, every observability of other agents, all landmarks or the nearest one or N-1 of them."""
+"""N from 2 to 8, every observability of other agents; all landmarks in index order, or the nearest 1, N-1 or N."""
 
 
 def random_state(worlds: SimpleSpreadWorlds, rng: np.random.Generator, crowded: bool) -> None:

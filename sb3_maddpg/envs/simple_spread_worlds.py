@@ -132,8 +132,8 @@ class SpreadWorldRules(Generic[ArrayT]):
     mpe2's simple_spread rules on the state of many worlds, for any array library of the array API standard.
 
     Subclasses hold the state (``agent_pos``, ``agent_vel``, ``landmark_pos``: ``[E, N, 2]`` arrays of one
-    floating dtype on one device) and draw new episodes; every rule below reads the namespace, dtype and
-    device from that state.
+    floating dtype on one device) and draw new episodes; every rule below reads the namespace (``xp``), dtype and
+    device from that state, so one implementation serves numpy and torch, on any device.
 
     :param n_worlds: Number of worlds.
     :param n_agents: Agents (and landmarks) per world.
@@ -158,6 +158,7 @@ class SpreadWorldRules(Generic[ArrayT]):
         self.num_landmark_neighbors = num_landmark_neighbors
         self.local_ratio = local_ratio
         xp = self.xp = array_namespace(agent_pos)
+        """The array namespace that runs the rules (:func:`array_namespace` of the state)."""
         self.agent_pos: ArrayT = agent_pos
         self.agent_vel: ArrayT = xp.zeros_like(agent_pos)
         self.landmark_pos: ArrayT = xp.zeros_like(agent_pos)
