@@ -6,9 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch as th
-from gymnasium import spaces
 from mpe2 import simple_spread_v3
-from pettingzoo import ParallelEnv
 from torch import nn
 
 from sb3_maddpg import MADDPG
@@ -16,6 +14,7 @@ from sb3_maddpg.envs import PettingZooToGym, SimpleSpreadVecEnv, make_simple_spr
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.policies import AgentActor, MultiAgentActor
 from tests.loss_helpers import team_actor_terms
+from tests.mixed_team import MixedTeam
 
 # Agent 0 continuous (2 components), agent 1 discrete (3 actions).
 MIXED = AgentLayout(("mover", "chooser"), (4, 4), (2, 3), discrete_actions=(False, True))
@@ -144,38 +143,6 @@ def test_a_mixed_team_trains(scheme: str) -> None:
     model = MADDPG("MlpPolicy", env, critic_sharing=scheme, selection=selection, seed=0, **FAST)
     model.learn(300)
     assert model._n_updates > 0
-
-
-class MixedTeam(ParallelEnv):
-    """Two agents on a line: ``mover`` (Box(-1, 1, (1,))) moves, ``chooser`` (Discrete(3)) picks left, stay or right;
-    both are rewarded for ending near 0."""
-
-    metadata = {"name": "mixed_team_v0"}
-
-    def __init__(self) -> None:
-        self.possible_agents = ["mover", "chooser"]
-        self.agents: list[str] = []
-
-    def observation_space(self, agent: str) -> spaces.Box:
-        return spaces.Box(-10.0, 10.0, (1,), np.float32)
-
-    def action_space(self, agent: str) -> spaces.Space:
-        return spaces.Box(-1.0, 1.0, (1,), np.float32) if agent == "mover" else spaces.Discrete(3)
-
-    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
-        self.agents, self.t = list(self.possible_agents), 0
-        self.position = {agent: np.array([1.0], np.float32) for agent in self.agents}
-        return dict(self.position), {agent: {} for agent in self.agents}
-
-    def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
-        assert isinstance(actions["chooser"], int) and actions["chooser"] in (0, 1, 2)
-        assert actions["mover"].shape == (1,)
-        self.position["mover"] = self.position["mover"] + 0.1 * actions["mover"]
-        self.position["chooser"] = self.position["chooser"] + 0.1 * (actions["chooser"] - 1)
-        self.t += 1
-        rewards = {agent: -float(abs(self.position[agent][0])) for agent in self.agents}
-        truncated = dict.fromkeys(self.agents, self.t >= 10)
-        return dict(self.position), rewards, dict.fromkeys(self.agents, False), truncated, {a: {} for a in self.agents}
 
 
 def test_a_team_of_continuous_and_discrete_agents_trains_end_to_end(tmp_path: Path) -> None:

@@ -13,7 +13,7 @@ from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import PettingZooToGym, make_mpe_env, make_simple_spread
 from sb3_maddpg.export import MANIFEST, export_actors
 from sb3_maddpg.version import __version__
-from tests.test_discrete_actions import MixedTeam
+from tests.mixed_team import MixedTeam
 
 FAST = {"learning_starts": 50, "batch_size": 16, "transitions_per_update": 10, "policy_kwargs": {"net_arch": [16, 16]}}
 

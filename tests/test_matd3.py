@@ -8,8 +8,6 @@ from typing import Any
 import numpy as np
 import pytest
 import torch as th
-from gymnasium import spaces
-from pettingzoo import ParallelEnv
 
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
@@ -19,6 +17,7 @@ from sb3_maddpg.losses import critic_losses, critic_targets, one_member
 from sb3_maddpg.matd3 import smooth_target_actions
 from sb3_maddpg.matd3_policies import MATD3Policy, TwinMultiAgentCritic
 from sb3_maddpg.policies import AgentCritic
+from tests.mixed_team import MixedTeam
 
 pytestmark = pytest.mark.filterwarnings("ignore:learn\\(\\) ended at step")  # make_model() only collects
 
@@ -72,36 +71,6 @@ def one_update(model: MADDPG) -> None:
 def is_one_hot(values: th.Tensor) -> bool:
     """Every row is one 1 and the rest -1 (a discrete agent's action in the [-1, 1] space)."""
     return bool(th.isin(values, th.tensor([-1.0, 1.0])).all() and ((values == 1.0).sum(dim=-1) == 1).all())
-
-
-class MixedTeam(ParallelEnv):
-    """Two agents on a line: ``mover`` (Box(-1, 1, (1,))) moves, ``chooser`` (Discrete(3)) picks left, stay or right;
-    both are rewarded for ending near 0."""
-
-    metadata = {"name": "mixed_team_v0"}
-
-    def __init__(self) -> None:
-        self.possible_agents = ["mover", "chooser"]
-        self.agents: list[str] = []
-
-    def observation_space(self, agent: str) -> spaces.Box:
-        return spaces.Box(-10.0, 10.0, (1,), np.float32)
-
-    def action_space(self, agent: str) -> spaces.Space:
-        return spaces.Box(-1.0, 1.0, (1,), np.float32) if agent == "mover" else spaces.Discrete(3)
-
-    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
-        self.agents, self.t = list(self.possible_agents), 0
-        self.position = {agent: np.array([1.0], np.float32) for agent in self.agents}
-        return dict(self.position), {agent: {} for agent in self.agents}
-
-    def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
-        self.position["mover"] = self.position["mover"] + 0.1 * actions["mover"]
-        self.position["chooser"] = self.position["chooser"] + 0.1 * (actions["chooser"] - 1)
-        self.t += 1
-        rewards = {agent: -float(abs(self.position[agent][0])) for agent in self.agents}
-        truncated = dict.fromkeys(self.agents, self.t >= 10)
-        return dict(self.position), rewards, dict.fromkeys(self.agents, False), truncated, {a: {} for a in self.agents}
 
 
 # --- The critics' target -----------------------------------------------------------------------------------------

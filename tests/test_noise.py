@@ -20,7 +20,8 @@ from sb3_maddpg.noise import (
     noise_copy_for_envs,
     per_env_noise,
 )
-from tests.test_discrete_actions import MixedTeam, is_one_hot
+from tests.mixed_team import MixedTeam
+from tests.test_discrete_actions import is_one_hot
 
 FAST = dict(learning_starts=0, batch_size=16, buffer_size=500, policy_kwargs=dict(net_arch=[8]), seed=0)
 MIXED = AgentLayout(("mover", "chooser", "other"), (1, 1, 1), (2, 3, 1), discrete_actions=(False, True, False))
