@@ -34,9 +34,8 @@ from sb3_maddpg.losses import ActionParts, TeamNetworks, actor_loss_terms, criti
 from sb3_maddpg.losses import ActorLossTerms as ActorLossTerms
 from sb3_maddpg.noise import add_noise, default_noise, discrete_components, fit_noise_to_envs
 from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentCritic
-from sb3_maddpg.selection import Selector
+from sb3_maddpg.selection import Selector, resolve_selection, warn_if_selecting_everyone
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent, validate_critic_sharing
-from sb3_maddpg.team_setup import resolve_selection, warn_if_selecting_everyone
 from sb3_maddpg.update_schedule import UpdateSchedule
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")

@@ -6,6 +6,7 @@ stored (from the observation at time t), kept in the replay buffer with it, and 
 next-state target.
 """
 
+import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Hashable, Sequence
 
@@ -202,4 +203,30 @@ def check_selection(selection: np.ndarray, layout: AgentLayout, k: int, n_rows: 
     if np.any(selection == own):
         raise ValueError(
             f"{source} made an agent select itself: S_i holds other agents only (its own o_i, a_i are always seen)."
+        )
+
+
+def resolve_selection(selection: Selector | int | None) -> Selector:
+    """The selector of ``selected`` sharing: the default ``NearestAgents(k=2)``, or an int ``k`` for ``NearestAgents(k)``."""
+    if selection is None:
+        return NearestAgents(k=2)
+    if isinstance(selection, int) and not isinstance(selection, bool):
+        return NearestAgents(k=selection)
+    if not isinstance(selection, Selector):
+        raise TypeError(
+            f"selection must be a sb3_maddpg.selection.Selector or an int k (the k nearest agents), got "
+            f"{type(selection).__name__}: wrap a function as CallableSelector(fn, k=...)."
+        )
+    return selection
+
+
+def warn_if_selecting_everyone(selection: Selector, layout: AgentLayout) -> None:
+    """Selecting all n - 1 other agents is full sharing in another order: say so, since it compares nothing."""
+    if selection.k == layout.n_agents - 1:
+        warnings.warn(
+            f"critic_sharing='selected' with k={selection.k} selects every other agent of this {layout.n_agents}-agent "
+            f"team: each critic sees what 'full' sees, in another order. Select fewer (e.g. selection=1, the nearest "
+            "agent) for a critic that selects.",
+            UserWarning,
+            stacklevel=3,
         )
