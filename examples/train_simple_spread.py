@@ -1,6 +1,6 @@
 """The main job: MADDPG on cooperative navigation at the paper's hyperparameters, the team measured before and after.
 
-    python examples/train_simple_spread.py               # about 5 minutes on a 2-core CPU
+    python examples/train_simple_spread.py               # about 11 minutes on one core (~3,200 steps/s)
     python examples/train_simple_spread.py --fast        # seconds: checks that everything runs (CI)
     python examples/train_simple_spread.py --agents 5 --steps 2500000 --sharing selected
     python examples/train_simple_spread.py --mpe2        # step mpe2 itself: the same MDP, several times slower
