@@ -3,14 +3,11 @@
 Duck-typed on purpose: algorithm code never imports an environment package (PettingZoo is recognised by its API).
 """
 
-import io
-import pathlib
 from typing import Any
 
 from gymnasium import spaces
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_normalize
 
-from sb3_maddpg.compat import read_saved_data
 from sb3_maddpg.layout import AgentLayout
 
 WRAP_HINT = (
@@ -110,19 +107,15 @@ def env_layout(env: Any) -> AgentLayout:
     return layout_of(env if isinstance(env, VecEnv) else DummyVecEnv([lambda: env]))
 
 
-def refuse_env_of_another_team(
-    path: str | pathlib.Path | io.BufferedIOBase, env: Any, custom_objects: dict[str, Any] | None = None
-) -> None:
+def refuse_env_of_another_team(data: dict[str, Any] | None, env: Any) -> None:
     """
     Refuse an env given to ``MADDPG.load`` whose team is not the saved model's, before SB3 compares the spaces (whose
     error names neither the agents nor what to do).
 
-    :param path: The saved model.
+    :param data: The save's attributes (:func:`~sb3_maddpg.compat.read_saved_data`; ``None``: unreadable, SB3 says why).
     :param env: The env given to ``load``.
-    :param custom_objects: As for ``MADDPG.load``.
     """
     refuse_unsupported_env(env)
-    data = read_saved_data(path, custom_objects)
     model_layout = None if data is None else data.get("agent_layout")
     if isinstance(model_layout, AgentLayout):
         check_same_layout(env_layout(env), model_layout)

@@ -513,9 +513,9 @@ class MADDPG(OffPolicyAlgorithm):
         :param kwargs: Attributes to set on the model over the saved ones.
         :return: The model.
         """
+        data = read_saved_data(path, custom_objects)  # read once: for the team check and for older saves
         if env is not None:
-            refuse_env_of_another_team(path, env, custom_objects)
-        data = read_saved_data(path, custom_objects)
+            refuse_env_of_another_team(data, env)
         # What an older save lacks, filled with what its version implies; the caller's kwargs over it.
         missing = {} if data is None else attributes_missing_from(data)
         return super().load(path, env, device, custom_objects, print_system_info, force_reset, **{**missing, **kwargs})
