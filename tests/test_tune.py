@@ -2,15 +2,19 @@
 trial failed and retried), prunes, and prints the best trial as a preset that `sb3-maddpg run` takes."""
 
 import json
+import multiprocessing
 import os
 import signal
 import subprocess
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import optuna
 import pytest
+from sqlalchemy.exc import OperationalError
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread
@@ -22,6 +26,7 @@ from sb3_maddpg.experiments.tune import (
     TuneSettings,
     finished_trials,
     load_study,
+    open_storage,
     run_study,
     sample_maddpg_params,
 )
@@ -142,3 +147,39 @@ def test_a_killed_study_resumes_and_retries_the_killed_trial(tmp_path: Path) -> 
 def test_bad_settings_say_what_to_do(tmp_path: Path, changes: dict, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         settings(tmp_path, **changes)
+
+
+def open_the_study_at_once(storage: str, barrier: Any) -> int:
+    barrier.wait()  # every process past its imports, so that they create the new file's tables together
+    study = load_study(TuneSettings(experiment=TINY, study_name="together", storage=storage, heartbeat_seconds=1))
+    return len(study.trials)
+
+
+def test_workers_that_open_a_new_study_together_all_get_it(tmp_path: Path) -> None:
+    # --workers N opens one new SQLite file from N processes at once; each creates the tables, and without the
+    # retry every one but the first fails with "table ... already exists" (the CI failure of 2026-12-01).
+    storage, workers = f"sqlite:///{tmp_path / 'together.db'}", 4
+    with multiprocessing.Manager() as manager:
+        barrier = manager.Barrier(workers)
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(workers, mp_context=context) as pool:
+            futures = [pool.submit(open_the_study_at_once, storage, barrier) for _ in range(workers)]
+            assert [future.result(timeout=120) for future in futures] == [0] * workers
+
+
+def test_opening_a_storage_retries_only_the_race_of_creating_its_tables() -> None:
+    calls: list[int] = []
+
+    def created_by_another_worker_twice() -> str:
+        calls.append(1)
+        if len(calls) <= 2:
+            raise OperationalError("CREATE TABLE studies", {}, Exception("table studies already exists"))
+        return "storage"
+
+    assert open_storage(created_by_another_worker_twice, wait_seconds=0) == "storage" and len(calls) == 3
+
+    def locked() -> str:
+        raise OperationalError("SELECT", {}, Exception("database is locked"))
+
+    with pytest.raises(OperationalError, match="database is locked"):
+        open_storage(locked, wait_seconds=0)

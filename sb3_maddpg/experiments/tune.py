@@ -14,6 +14,7 @@ import json
 import math
 import multiprocessing
 import os
+import time
 import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -211,6 +212,35 @@ def run_trial(trial: Any, settings: TuneSettings) -> float:
     return float(sum(last) / len(last))
 
 
+STORAGE_ATTEMPTS = 10
+"""How many times a worker tries to open a storage that another worker is creating at the same moment."""
+
+
+def open_storage(open_once: Callable[[], Any], attempts: int = STORAGE_ATTEMPTS, wait_seconds: float = 0.2) -> Any:
+    """
+    Open an Optuna database storage that other workers may be creating at the same moment.
+
+    Two processes that open a new SQLite file together both create its tables, and the later one fails with
+    "table ... already exists" (``--workers 2`` does that on a new study). The tables exist by then, so
+    opening it again succeeds.
+
+    :param open_once: Opens the storage once (e.g. builds an ``optuna.storages.RDBStorage``).
+    :param attempts: How many times to try before the error is raised.
+    :param wait_seconds: The wait after the first failure; it grows by that much after each one.
+    :return: The storage.
+    """
+    from sqlalchemy.exc import OperationalError
+
+    for attempt in range(1, attempts):
+        try:
+            return open_once()
+        except OperationalError as error:
+            if "already exists" not in str(error):
+                raise
+            time.sleep(wait_seconds * attempt)
+    return open_once()  # the last attempt's error, if any, is the caller's
+
+
 def load_study(settings: TuneSettings) -> Any:
     """
     :param settings: The study.
@@ -227,8 +257,13 @@ def load_study(settings: TuneSettings) -> Any:
                 retry = {"heartbeat_stale_trial_callback": optuna.storages.RetryHeartbeatStaleTrialCallback(max_retry=1)}
             else:
                 retry = {"failed_trial_callback": optuna.storages.RetryFailedTrialCallback(max_retry=1)}
-            storage = optuna.storages.RDBStorage(
-                storage, heartbeat_interval=settings.heartbeat_seconds, grace_period=2 * settings.heartbeat_seconds, **retry
+            storage = open_storage(
+                lambda: optuna.storages.RDBStorage(
+                    settings.storage,
+                    heartbeat_interval=settings.heartbeat_seconds,
+                    grace_period=2 * settings.heartbeat_seconds,
+                    **retry,
+                )
             )
     interval = max(1, settings.budget // settings.n_evaluations)
     return optuna.create_study(
