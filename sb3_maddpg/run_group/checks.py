@@ -1,0 +1,136 @@
+"""What a run group refuses, with the cause first: models that differ in more than their seed, and what it cannot stack."""
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.noise import NormalActionNoise
+
+from sb3_maddpg.maddpg import MADDPG
+from sb3_maddpg.noise import per_env_noise
+from sb3_maddpg.selection import FixedGraph, NearestAgents, Selector
+from sb3_maddpg.sharing import LEARNED_SCHEMES, schemes_per_agent
+
+SAME_EXCEPT_SEED = (
+    "A run group trains runs that differ only in their seed: build every model with the same env layout and "
+    "hyperparameters, e.g. [MADDPG('MlpPolicy', env, ..., seed=s) for s in seeds]."
+)
+
+
+def check_models(models: Sequence[MADDPG]) -> None:
+    """
+    Refuse models a run group cannot train together, naming the cause first and what to do.
+
+    :param models: One model per run.
+    """
+    if len(models) == 0:
+        raise ValueError("A run group needs at least one model: pass one MADDPG model per run.")
+    for index, model in enumerate(models):
+        check_model(model, index)
+    reference = settings(models[0])
+    for index, model in enumerate(models[1:], start=1):
+        for name, value in settings(model).items():
+            if value != reference[name]:
+                raise ValueError(
+                    f"The models differ in {name}: model 0 has {reference[name]!r}, model {index} has {value!r}. "
+                    + SAME_EXCEPT_SEED
+                )
+
+
+def check_model(model: MADDPG, index: int) -> None:
+    """Refuse one model the group cannot train (its algorithm, its team, its scheme, its schedule, its seed)."""
+    if type(model) is not MADDPG:
+        raise TypeError(
+            f"Model {index} is a {type(model).__name__}, but a run group trains MADDPG models only (a sibling's "
+            "critics and update order differ): train it with its own learn(), or pass MADDPG models."
+        )
+    layout = model.agent_layout
+    assert layout is not None, "MADDPG reads the layout when it is built"
+    if layout.has_discrete_actions:
+        raise ValueError(
+            f"Model {index}'s team has discrete agents: their actions are sampled (Gumbel) from torch's global "
+            "generator, which vmap cannot split into one stream per run. Train discrete teams with MADDPG.learn, or "
+            "use continuous actions."
+        )
+    schemes = schemes_per_agent(model.critic_sharing, layout.agent_ids)
+    learned = [scheme.__name__ for scheme in schemes if scheme in LEARNED_SCHEMES.values()]
+    extractor_params = [name for name, _ in model.critic.named_parameters() if not name.startswith("mlp.")]
+    if learned or extractor_params:
+        raise ValueError(
+            f"Model {index}'s critics use a learned scheme ({', '.join(dict.fromkeys(learned)) or 'an extractor'} with "
+            "parameters of its own), which a run group does not stack: its per-run-and-agent gradient clipping "
+            "covers the critics' networks only. Use a fixed scheme ('full', 'independent', 'observations', 'actions', "
+            "'selected'), or train learned schemes with MADDPG.learn."
+        )
+    if not model.update_rule.earns_gradient_steps:
+        raise ValueError(
+            f"Model {index} was given train_freq or gradient_steps (SB3's semantics), but a run group updates by the "
+            "paper's rule only, one gradient step per transitions_per_update transitions: leave train_freq and "
+            "gradient_steps None and set transitions_per_update."
+        )
+    if model.seed is None:
+        raise ValueError(
+            f"Model {index} has no seed, but each run of a group draws its episodes, noise and batches from a generator "
+            "of its own seed: build each model with MADDPG(..., seed=s)."
+        )
+    noise = None if model.action_noise is None else per_env_noise(model.action_noise)
+    if noise is not None and not isinstance(noise, NormalActionNoise):
+        raise ValueError(
+            f"Model {index} explores with {type(noise).__name__}, but a run group draws Gaussian noise only (one "
+            "stream per run, on the device): use noise_std (the default NormalActionNoise) or a NormalActionNoise."
+        )
+    if not model.replay_buffer.handle_timeout_termination:
+        raise ValueError(
+            f"Model {index}'s replay buffer has handle_timeout_termination=False, but a run group bootstraps on "
+            "truncation (simple_spread's episodes never terminate): leave handle_timeout_termination=True."
+        )
+
+
+def settings(model: MADDPG) -> dict[str, Any]:
+    """:return: Everything that must be the same in every run of a group, by name (comparable values)."""
+    policy = model.policy
+    noise = None if model.action_noise is None else per_env_noise(model.action_noise)
+    return {
+        "agent_layout": model.agent_layout,
+        "critic_sharing": model.critic_sharing,
+        "critic_sharing_kwargs": model.critic_sharing_kwargs,
+        "selection": describe_selection(model_selector(model)),
+        "learning_rate": model.learning_rate,
+        "buffer_size": model.buffer_size,
+        "learning_starts": model.learning_starts,
+        "batch_size": model.batch_size,
+        "tau": model.tau,
+        "gamma": model.gamma,
+        "transitions_per_update": model.transitions_per_update,
+        "max_grad_norm": model.max_grad_norm,
+        "actor_reg_coef": model.actor_reg_coef,
+        "n_envs": model.n_envs,
+        "net_arch": policy.net_arch,
+        "activation_fn": policy.activation_fn,
+        "share_parameters": policy.share_parameters,
+        "optimizer": (type(model.actor.optimizer).__name__, model.actor.optimizer.defaults),
+        "action_noise": None if noise is None else _normal_noise(noise),
+        "num_timesteps": model.num_timesteps,
+        "n_updates": model._n_updates,
+    }
+
+
+def model_selector(model: MADDPG) -> Selector | None:
+    """:return: A model's selection rule (``selector`` since sb3-maddpg 0.3, ``selection`` before), None without one."""
+    return getattr(model, "selector", getattr(model, "selection", None))
+
+
+def describe_selection(selection: Selector | None) -> tuple[Any, ...] | None:
+    """:return: The selection rule as comparable values (its class, ``k`` and its settings)."""
+    if selection is None:
+        return None
+    if isinstance(selection, NearestAgents):
+        return ("NearestAgents", selection.k, selection.position_slice)
+    if isinstance(selection, FixedGraph):
+        return ("FixedGraph", selection.k, selection.neighbors.tolist())
+    return (type(selection).__name__, selection.k, id(selection))  # a user's rule: the same object in every model
+
+
+def _normal_noise(noise: Any) -> tuple[list[float], list[float]]:
+    """:return: A NormalActionNoise's mean and std per action component."""
+    return np.asarray(noise._mu).tolist(), np.asarray(noise._sigma).tolist()

@@ -1,0 +1,335 @@
+"""
+``R`` independent MADDPG runs trained together in one process, on one device: the runs' networks stacked, one
+optimiser over them, the replay buffers and the worlds on the device, each run's randomness from its own seed.
+"""
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import torch as th
+from stable_baselines3.common.utils import polyak_update
+
+from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
+from sb3_maddpg.maddpg import MADDPG
+from sb3_maddpg.noise import per_env_noise
+from sb3_maddpg.run_group.buffer import RunReplayBuffers
+from sb3_maddpg.run_group.checks import check_models, model_selector
+from sb3_maddpg.run_group.selection import select_on_device
+from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams, clip_grad_norm_per_run_and_agent
+from sb3_maddpg.run_group.worlds import METRICS, SpreadRuns, SpreadTask
+from sb3_maddpg.update_schedule import UpdateSchedule
+
+LOSS_NAMES = ("critic_loss", "actor_loss", "actor_reg_loss", "action_saturation")
+"""The per-run, per-agent means each :meth:`RunGroup.train` call records in :attr:`RunGroup.losses`."""
+
+
+class RunGroup:
+    """
+    ``R`` independent MADDPG runs of one configuration, differing only in their seeds, trained at once.
+
+    Each run's actors, critics and targets are the parameters of its :class:`~sb3_maddpg.maddpg.MADDPG` model stacked
+    along a run dimension (:class:`~sb3_maddpg.run_group.stacked.StackedTeams`); one update of every run is one pass
+    of :mod:`sb3_maddpg.losses`' functions with ``M = R`` members, then one optimiser step (the models' optimiser,
+    element-wise: Adam's state of run r is run r's), gradient clipping per run and agent, and Polyak updates: what
+    ``MADDPG.train`` does for one run. Data come from ``R`` runs of ``E`` simple_spread worlds in torch on the same
+    device, into replay buffers there; each run's new episodes, exploration noise, warm-up actions and replay
+    batches are drawn from one ``torch.Generator`` seeded by its model's ``seed``, so that a run's data depend on
+    its seed only, not on the other runs. The update ratio is the models' (the paper's one gradient step per
+    ``transitions_per_update`` transitions of each run, after ``learning_starts``).
+
+    The models are read once, when the group is built; :meth:`write_back` puts each run's weights, optimiser state
+    and counters into a model, which then saves as any MADDPG model (``MADDPG.load`` reads it).
+
+    :param models: One MADDPG model per run: the same layout and hyperparameters, each with its own ``seed``.
+    :param worlds_per_run: Worlds ``E`` each run collects in (default: the models' ``n_envs``).
+    :param task: simple_spread's settings (default: read from the models' env, a
+        :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`); only :meth:`learn` needs them.
+    :param device: The device of everything: networks, optimiser state, buffers, worlds.
+    :param world_dtype: The worlds' floating dtype (float64: mpe2's arithmetic; float32, the default: faster).
+    """
+
+    def __init__(
+        self,
+        models: Sequence[MADDPG],
+        worlds_per_run: int | None = None,
+        task: SpreadTask | None = None,
+        device: th.device | str = "cpu",
+        world_dtype: th.dtype = th.float32,
+    ) -> None:
+        check_models(models)
+        first = models[0]
+        assert first.agent_layout is not None
+        self.n_runs = len(models)
+        self.device = th.device(device)
+        self.layout = first.agent_layout
+        self.seeds = [int(model.seed) for model in models]  # type: ignore[arg-type]  # checked: not None
+        self.teams = StackedTeams(
+            [model.actor for model in models],
+            [model.critic for model in models],
+            [model.actor_target for model in models],
+            [model.critic_target for model in models],
+            self.device,
+        )
+        self.actor_optimizer = _stacked_optimizer(self.teams.actor, [model.actor.optimizer for model in models])
+        self.critic_optimizer = _stacked_optimizer(self.teams.critic, [model.critic.optimizer for model in models])
+        self.gamma = first.gamma
+        self.tau = first.tau
+        self.batch_size = first.batch_size
+        self.learning_starts = first.learning_starts
+        self.max_grad_norm = first.max_grad_norm
+        self.actor_reg_coef = first.actor_reg_coef
+        self.lr_schedule = first.lr_schedule
+        self.parts = ActionParts.of(self.layout, self.device)
+        self.update_rule = UpdateSchedule.from_arguments(first.transitions_per_update, None, None)
+        self.selection = model_selector(first)
+        self.num_timesteps = first.num_timesteps
+        """Env steps of each run (all its worlds counted)."""
+        self.n_updates = first._n_updates
+        """Gradient steps of each run."""
+        self.generators = [th.Generator(device=self.device).manual_seed(seed) for seed in self.seeds]
+        """Each run's random stream: episodes, warm-up actions, noise, replay batches."""
+        noise = None if first.action_noise is None else per_env_noise(first.action_noise)
+        # Checked: a NormalActionNoise (or none); its mean and std per action component, on the device.
+        self.noise_mean: th.Tensor | None = None if noise is None else _tensor(noise._mu, self.device)  # type: ignore[attr-defined]
+        self.noise_std: th.Tensor | None = None if noise is None else _tensor(noise._sigma, self.device)  # type: ignore[attr-defined]
+        self.worlds_per_run = int(worlds_per_run or first.n_envs)
+        self.task = task if task is not None else SpreadTask.from_env(first.env) if first.env is not None else None
+        self.buffers = RunReplayBuffers(
+            self.n_runs,
+            max(self.worlds_per_run, first.buffer_size // self.worlds_per_run * self.worlds_per_run),  # whole steps
+            self.layout.obs_dim,
+            self.layout.action_dim,
+            self.layout.n_agents,
+            0 if self.selection is None else self.selection.k,
+            self.device,
+        )
+        self.worlds: SpreadRuns | None = None
+        self.losses: dict[str, th.Tensor] = {}
+        """The last :meth:`train` call's means of :data:`LOSS_NAMES`, ``[R, n_agents]`` each, on the device."""
+
+    # ----- updates -----
+
+    def update(self, batch: MultiAgentReplayBufferSamples) -> dict[str, th.Tensor]:
+        """
+        One gradient step of every run on its batch, as one step of ``MADDPG.train``: the critics, then the actors
+        (against the updated critics), then the targets.
+
+        :param batch: Each run's batch, ``[R, batch, ...]`` each field, on the group's device.
+        :return: This step's :data:`LOSS_NAMES`, ``[R, n_agents]`` each.
+        """
+        teams = self.teams
+        self.n_updates += 1
+        target_q = critic_targets(teams.target_actions, teams.target_q, batch, self.gamma)
+        critic_loss = critic_losses(teams.q, batch, target_q)
+        self._step(self.critic_optimizer, teams.critic.parameters(), critic_loss.sum())
+        actor_terms = actor_loss_terms(teams.policy, teams.q, batch, self.parts, self.actor_reg_coef)
+        # Only the actors' gradients: the critics' are not needed for the actor step.
+        self._step(self.actor_optimizer, teams.actor.parameters(), actor_terms.total.sum())
+        polyak_update(teams.critic.parameters(), teams.critic_target.parameters(), self.tau)
+        polyak_update(teams.actor.parameters(), teams.actor_target.parameters(), self.tau)
+        values = (critic_loss, actor_terms.policy_loss, actor_terms.reg_loss, actor_terms.saturation)
+        return {name: value.detach() for name, value in zip(LOSS_NAMES, values)}
+
+    def _step(self, optimizer: th.optim.Optimizer, params: list[th.Tensor], loss: th.Tensor) -> None:
+        for param, grad in zip(params, th.autograd.grad(loss, params)):
+            param.grad = grad
+        if self.max_grad_norm is not None:
+            clip_grad_norm_per_run_and_agent(params, self.max_grad_norm)
+        optimizer.step()
+
+    def train(self, gradient_steps: int) -> None:
+        """
+        ``gradient_steps`` updates of every run, each on a batch of ``batch_size`` rows its generator draws from its
+        buffer; the steps' mean losses go to :attr:`losses` (no transfer to the host).
+
+        :param gradient_steps: Gradient steps of each run.
+        """
+        logs: list[dict[str, th.Tensor]] = []
+        for _ in range(gradient_steps):
+            logs.append(self.update(self.buffers.sample(self.batch_size, self.generators)))
+        if logs:
+            self.losses = {name: th.stack([log[name] for log in logs]).mean(0) for name in LOSS_NAMES}
+
+    # ----- data -----
+
+    def explore(self, observations: th.Tensor) -> th.Tensor:
+        """
+        Each run's exploration actions in the [-1, 1] space, as ``MADDPG._sample_action``: uniform before
+        ``learning_starts``, then every actor on its own observation; plus Gaussian noise, clipped to [-1, 1].
+
+        :param observations: ``[R, E, obs_dim]``.
+        :return: ``[R, E, action_dim]``.
+        """
+        shape = (observations.shape[1], self.layout.action_dim)
+        if self.num_timesteps < self.learning_starts:
+            actions = th.stack([th.rand(shape, generator=g, device=self.device) for g in self.generators]) * 2.0 - 1.0
+        else:
+            with th.no_grad():
+                actions = self.teams.actions(observations)
+        if self.noise_std is not None and self.noise_mean is not None:
+            noise = th.stack([th.randn(shape, generator=g, device=self.device) for g in self.generators])
+            actions = (actions + self.noise_mean + noise * self.noise_std).clamp(-1.0, 1.0)
+        return actions
+
+    def collect_step(self) -> None:
+        """One step of every run's worlds, its transitions stored in the runs' buffers."""
+        worlds = self._worlds()
+        observations = worlds.observations
+        actions = self.explore(observations)
+        step = worlds.step(actions)
+        selections = None if self.selection is None else select_on_device(self.selection, observations, self.layout)
+        dones = th.zeros_like(step.rewards)  # simple_spread never terminates: its truncations bootstrap
+        self.buffers.add(observations, actions, step.next_observations, step.rewards, dones, selections)
+        self.num_timesteps += self.worlds_per_run
+
+    def learn(self, total_timesteps: int) -> "RunGroup":
+        """
+        Collect and train every run for ``total_timesteps`` more env steps each (all its worlds counted), as
+        ``MADDPG.learn`` with ``reset_num_timesteps=False``: rounds of ``max(1, transitions_per_update // E)`` steps,
+        each followed by the gradient steps its transitions past ``learning_starts`` have earned.
+
+        :param total_timesteps: Env steps of each run.
+        :return: The group.
+        """
+        end = self.num_timesteps + total_timesteps
+        train_freq = self.update_rule.train_freq(self.worlds_per_run)
+        assert train_freq is not None, "the group's rule derives train_freq"
+        while self.num_timesteps < end:
+            for _ in range(train_freq.frequency):
+                self.collect_step()
+            steps = self.update_rule.earned(self.num_timesteps, self.learning_starts)
+            if steps > 0 and self.num_timesteps > self.learning_starts:
+                self._update_learning_rate(1.0 - self.num_timesteps / end)
+                self.train(steps)
+        return self
+
+    def _update_learning_rate(self, progress_remaining: float) -> None:
+        """Every optimiser's learning rate from the models' schedule, as SB3's ``_update_learning_rate``."""
+        for optimizer in (self.actor_optimizer, self.critic_optimizer):
+            for group in optimizer.param_groups:
+                group["lr"] = self.lr_schedule(progress_remaining)
+
+    def _worlds(self) -> SpreadRuns:
+        if self.worlds is None:
+            if self.task is None:
+                raise ValueError(
+                    "The run group does not know its worlds' settings: the models' env is not a SimpleSpreadVecEnv. "
+                    "Pass RunGroup(models, task=SpreadTask(n_agents=..., num_agent_neighbors=...))."
+                )
+            worlds = SpreadRuns(self.task, self.worlds_per_run, self.generators, self.device)
+            expected = self.task.layout(worlds.obs_size)
+            if expected != self.layout:
+                raise ValueError(
+                    f"The task's worlds have agent layout {expected}, but the models' team is {self.layout}: pass the "
+                    "SpreadTask of the env the models were built on."
+                )
+            self.worlds = worlds
+        return self.worlds
+
+    def episode_stats(self) -> dict[str, np.ndarray]:
+        """
+        :return: For every finished round of episodes, each run's mean over its worlds of the team reward
+            (``"reward"``) and of the task metrics at the episodes' end, ``[rounds, R]`` each (one transfer).
+        """
+        names = ("reward", *METRICS)
+        episodes = [] if self.worlds is None else self.worlds.episodes
+        if not episodes:
+            return {name: np.zeros((0, self.n_runs)) for name in names}
+        table = th.stack(episodes).cpu().numpy()
+        return {name: table[:, i] for i, name in enumerate(names)}
+
+    # ----- back to the models -----
+
+    def write_back(self, run: int, model: MADDPG) -> MADDPG:
+        """
+        Put run ``run``'s weights (actors, critics, targets), optimiser states and counters into ``model``, a model
+        of the group's configuration (e.g. the one the run was built from); ``model.save`` then writes a file
+        ``MADDPG.load`` reads. The replay buffer stays in the group.
+
+        :param run: The run.
+        :param model: The model to write into.
+        :return: The model.
+        """
+        if not 0 <= run < self.n_runs:
+            raise ValueError(f"run must be in [0, {self.n_runs - 1}], got {run}.")
+        if model.agent_layout != self.layout:
+            raise ValueError(
+                f"The model's team is {model.agent_layout}, the group's is {self.layout}: write a run back into a model "
+                "of the group's configuration."
+            )
+        teams = self.teams
+        pairs: list[tuple[StackedModule, Any]] = [
+            (teams.actor, model.actor),
+            (teams.critic, model.critic),
+            (teams.actor_target, model.actor_target),
+            (teams.critic_target, model.critic_target),
+        ]
+        for stacked, module in pairs:
+            stacked.load_into(run, module)
+        _load_member_state(self.actor_optimizer, teams.actor, run, model.actor.optimizer)
+        _load_member_state(self.critic_optimizer, teams.critic, run, model.critic.optimizer)
+        model.num_timesteps = self.num_timesteps
+        model._n_updates = self.n_updates
+        return model
+
+
+def _tensor(values: Any, device: th.device) -> th.Tensor:
+    return th.as_tensor(np.asarray(values), dtype=th.float32, device=device)
+
+
+def _stacked_optimizer(stacked: StackedModule, optimizers: Sequence[th.optim.Optimizer]) -> th.optim.Optimizer:
+    """
+    One optimiser of the models' class and settings over the stacked parameters, with their states stacked (models
+    that have not trained have none).
+
+    :param stacked: The stacked parameters.
+    :param optimizers: Each run's optimiser (over the same parameters, in the same order).
+    :return: The optimiser.
+    """
+    optimizer = type(optimizers[0])(stacked.parameters(), **optimizers[0].defaults)
+    states = [opt.state_dict()["state"] for opt in optimizers]
+    if not any(states):
+        return optimizer
+    if not all(state.keys() == states[0].keys() for state in states):
+        raise ValueError(
+            "Some models' optimisers have state and others none (or for other parameters): build the group from "
+            "models that have all trained for the same steps, or none at all."
+        )
+    stacked_state: dict[int, dict[str, Any]] = {}
+    for index, param in enumerate(stacked.parameters()):
+        entry: dict[str, Any] = {}
+        for key, value in states[0][index].items():
+            values = [state[index][key] for state in states]
+            if isinstance(value, th.Tensor) and value.shape == param.shape[1:]:
+                entry[key] = th.stack([v.to(param.device) for v in values])
+            elif all(th.equal(th.as_tensor(v), th.as_tensor(value)) for v in values):
+                entry[key] = value
+            else:
+                raise ValueError(
+                    f"The models' optimisers are at different points ({key} differs): build the group from models that "
+                    "have trained for the same steps."
+                )
+        stacked_state[index] = entry
+    optimizer.load_state_dict({"state": stacked_state, "param_groups": optimizer.state_dict()["param_groups"]})
+    return optimizer
+
+
+def _load_member_state(optimizer: th.optim.Optimizer, stacked: StackedModule, run: int, target: th.optim.Optimizer) -> None:
+    """Write run ``run``'s slice of the stacked optimiser's state into one model's optimiser (and its learning rate)."""
+    state: dict[int, dict[str, Any]] = {}
+    for index, param in enumerate(stacked.parameters()):
+        entry = optimizer.state.get(param, {})
+        state[index] = {
+            key: value[run].clone() if isinstance(value, th.Tensor) and value.shape == param.shape else _copy(value)
+            for key, value in entry.items()
+        }
+    param_groups = target.state_dict()["param_groups"]
+    for group in param_groups:
+        group["lr"] = optimizer.param_groups[0]["lr"]
+    target.load_state_dict({"state": {i: s for i, s in state.items() if s}, "param_groups": param_groups})
+
+
+def _copy(value: Any) -> Any:
+    return value.clone() if isinstance(value, th.Tensor) else value
