@@ -68,8 +68,9 @@ class RunsStep(NamedTuple):
 class SpreadRuns:
     """
     ``n_runs`` runs of ``worlds_per_run`` simple_spread worlds in one
-    :class:`~sb3_maddpg.envs.torch_spread_worlds.TorchSpreadWorlds` (run r the r-th block of worlds), each run's new episodes drawn from its own generator; an episode's end resets
-    every world, as :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`'s.
+    :class:`~sb3_maddpg.envs.torch_spread_worlds.TorchSpreadWorlds` (run r the r-th block of worlds), each run's new
+    episodes drawn from its own generator; an episode's end resets every world, as
+    :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`'s.
 
     :param task: The worlds' settings.
     :param worlds_per_run: Worlds ``E`` per run.
