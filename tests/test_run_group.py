@@ -1,0 +1,360 @@
+"""The run group (sb3_maddpg.run_group): R runs trained together equal R runs trained alone, and never touch each other.
+
+- One update of a group of one equals MADDPG.train's (weights, targets, optimiser state), for every fixed scheme.
+- Perturbing one run's batch, weights or seed leaves every other run bit-identical; a huge gradient in one run does not
+  shrink another's step (clipping per run and agent).
+- A run alone and the same seed inside a group of 8 agree; the group's data follow the numpy env's distribution.
+- Weights written back into a model save and load as any MADDPG model's; a group rebuilt from them continues exactly.
+- What a group cannot train is refused with the cause first.
+"""
+
+import copy
+from typing import Any
+
+import numpy as np
+import pytest
+import torch as th
+from scipy import stats
+from stable_baselines3.common.logger import Logger
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.envs import SimpleSpreadVecEnv
+from sb3_maddpg.losses import one_member
+from sb3_maddpg.run_group import RunGroup, RunReplayBuffers, SpreadTask, clip_grad_norm_per_run_and_agent
+from sb3_maddpg.run_group.selection import select_on_device
+from sb3_maddpg.selection import FixedGraph, NearestAgents
+
+N_AGENTS = 3
+SMALL = {"net_arch": [16, 16]}
+
+
+def make_model(seed: int | None = 0, n_agents: int = N_AGENTS, n_envs: int = 2, **kwargs: Any) -> MADDPG:
+    settings: dict[str, Any] = {
+        "learning_starts": 100,
+        "batch_size": 32,
+        "buffer_size": 2_000,
+        "policy_kwargs": SMALL,
+        **kwargs,
+    }
+    return MADDPG("MlpPolicy", SimpleSpreadVecEnv(n_envs, n_agents=n_agents), seed=seed, **settings)
+
+
+def random_batch(model: MADDPG, batch_size: int, generator: th.Generator) -> MultiAgentReplayBufferSamples:
+    """A batch of one team, ``[batch, ...]`` each field (float32; selections that never select the agent itself)."""
+    layout = model.agent_layout
+    assert layout is not None
+    n = layout.n_agents
+
+    def normal(*shape: int) -> th.Tensor:
+        return th.randn(*shape, generator=generator)
+
+    selections = None
+    k = model.policy.selection_size
+    if k:
+        others = th.stack([th.randperm(n - 1, generator=generator) for _ in range(batch_size * n)]).view(batch_size, n, -1)
+        own = th.arange(n).view(1, n, 1)
+        selections = (others + (others >= own).long())[..., :k]  # others' indices, skipping the agent itself
+    dones = (th.rand(batch_size, n, generator=generator) < 0.2).float()
+    return MultiAgentReplayBufferSamples(
+        normal(batch_size, layout.obs_dim),
+        normal(batch_size, layout.action_dim).clamp(-1, 1),
+        normal(batch_size, layout.obs_dim),
+        dones,
+        normal(batch_size, n),
+        selections,
+    )
+
+
+def stack_batches(batches: list[MultiAgentReplayBufferSamples]) -> MultiAgentReplayBufferSamples:
+    """Runs' batches stacked along the run dimension."""
+    fields = [None if batches[0][i] is None else th.stack([b[i] for b in batches]) for i in range(6)]
+    return MultiAgentReplayBufferSamples(*fields)  # type: ignore[arg-type]
+
+
+def run_state(group: RunGroup, run: int) -> list[th.Tensor]:
+    """Run ``run``'s weights, targets and optimiser state, in a fixed order."""
+    teams = group.teams
+    tensors = [
+        stacked.params[name][run]
+        for stacked in (teams.actor, teams.critic, teams.actor_target, teams.critic_target)
+        for name in stacked.names
+    ]
+    for optimizer in (group.actor_optimizer, group.critic_optimizer):
+        for state in optimizer.state.values():
+            tensors += [state["exp_avg"][run], state["exp_avg_sq"][run]]
+    return [tensor.detach() for tensor in tensors]
+
+
+def model_state(model: MADDPG) -> dict[str, th.Tensor]:
+    """A model's weights, targets and optimiser state, by name."""
+    state = {f"policy.{name}": value for name, value in model.policy.state_dict().items()}
+    for label, optimizer in (("actor", model.actor.optimizer), ("critic", model.critic.optimizer)):
+        for index, entry in optimizer.state_dict()["state"].items():
+            for key, value in entry.items():
+                state[f"{label}.{index}.{key}"] = th.as_tensor(value)
+    return state
+
+
+# ----- 1. a group of one is MADDPG.train -----
+
+
+@pytest.mark.parametrize(
+    ("scheme", "extra"),
+    [
+        ("full", {}),
+        ("independent", {}),
+        ("observations", {}),
+        ("actions", {}),
+        ("selected", {"selector": 1}),
+        ("full", {"policy_kwargs": {**SMALL, "share_parameters": True}}),
+    ],
+)
+def test_one_update_of_a_group_of_one_equals_maddpg_train(
+    scheme: str, extra: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A small max_grad_norm, so that the clipping acts; a learning rate that moves the weights visibly.
+    settings: dict[str, Any] = {"critic_sharing": scheme, "max_grad_norm": 0.05, "learning_rate": 3e-3, **extra}
+    if "selector" in extra and "selector" not in MADDPG.__init__.__code__.co_varnames:
+        settings["selection"] = settings.pop("selector")  # the name before sb3-maddpg 0.3
+    reference, model = make_model(**settings), make_model(**settings)
+    reference.set_logger(Logger(folder=None, output_formats=[]))  # train() records its losses
+    group = RunGroup([model])
+    generator = th.Generator().manual_seed(1)
+    for _ in range(3):  # three steps: Adam's moments and step count matter
+        batch = random_batch(reference, 32, generator)
+        monkeypatch.setattr(reference.replay_buffer, "sample", lambda *args, _batch=batch, **kwargs: _batch)
+        reference.train(gradient_steps=1, batch_size=32)
+        group.update(one_member(batch))
+    group.write_back(0, model)
+    expected, actual = model_state(reference), model_state(model)
+    assert expected.keys() == actual.keys()
+    moved = model.actor.mlp.weights[0] - make_model(**settings).actor.mlp.weights[0]
+    assert moved.abs().max() > 1e-3  # the updates did something
+    for name, value in expected.items():
+        th.testing.assert_close(actual[name], value, atol=1e-6, rtol=1e-5, msg=name)
+    assert model._n_updates == reference._n_updates == 3
+
+
+# ----- 2, 3. runs never touch each other -----
+
+
+def three_runs(**kwargs: Any) -> list[MADDPG]:
+    return [make_model(seed, **kwargs) for seed in (0, 1, 2)]
+
+
+@pytest.mark.parametrize("scheme", ["full", "selected"])
+@pytest.mark.parametrize("perturb", ["batch", "weights"])
+def test_perturbing_one_run_leaves_the_others_bit_identical(scheme: str, perturb: str) -> None:
+    extra: dict[str, Any] = {"critic_sharing": scheme, "max_grad_norm": 0.05}
+    if scheme == "selected":
+        extra["selector" if "selector" in MADDPG.__init__.__code__.co_varnames else "selection"] = 1
+    models = three_runs(**extra)
+    generator = th.Generator().manual_seed(3)
+    batches = [stack_batches([random_batch(models[0], 32, generator) for _ in models]) for _ in range(2)]
+    plain, perturbed = RunGroup(models), RunGroup(models)
+    if perturb == "weights":
+        with th.no_grad():
+            perturbed.teams.critic.params["mlp.weight_0"][1] += 0.5
+            perturbed.teams.actor.params["mlp.weight_1"][1] *= 2.0
+    for batch in batches:
+        plain.update(batch)
+        if perturb == "batch":
+            batch = batch._replace(rewards=batch.rewards.clone(), observations=batch.observations.clone())
+            batch.rewards[1] += 10.0
+            batch.observations[1] *= -1.0
+        perturbed.update(batch)
+    for run in (0, 2):
+        assert all(th.equal(a, b) for a, b in zip(run_state(plain, run), run_state(perturbed, run)))
+    assert not all(th.equal(a, b) for a, b in zip(run_state(plain, 1), run_state(perturbed, 1)))
+
+
+def test_a_huge_gradient_in_one_run_does_not_shrink_another_runs_step() -> None:
+    models = three_runs(max_grad_norm=0.5)
+    generator = th.Generator().manual_seed(4)
+    batch = stack_batches([random_batch(models[0], 32, generator) for _ in models])
+    huge = batch._replace(rewards=batch.rewards.clone())
+    huge.rewards[0] *= 1e6  # run 0's critic gradients: far over max_grad_norm
+    plain, with_huge = RunGroup(models), RunGroup(models)
+    plain.update(batch)
+    with_huge.update(huge)
+    for run in (1, 2):
+        assert all(th.equal(a, b) for a, b in zip(run_state(plain, run), run_state(with_huge, run)))
+
+
+def test_clipping_is_per_run_and_agent() -> None:
+    generator = th.Generator().manual_seed(5)
+    params = [th.zeros(3, 2, 4, 5, requires_grad=True), th.zeros(3, 2, 1, 5, requires_grad=True)]
+    for param in params:
+        param.grad = th.randn(param.shape, generator=generator) * 0.01
+    params[0].grad[1, 0] *= 1e4  # run 1, agent 0 only
+    before = [param.grad.clone() for param in params]  # type: ignore[union-attr]
+    clip_grad_norm_per_run_and_agent(params, max_norm=1.0)
+    norms = th.stack([param.grad.pow(2).sum(dim=(2, 3)) for param in params]).sum(0).sqrt()  # type: ignore[union-attr]
+    assert norms[1, 0] == pytest.approx(1.0, rel=1e-4)
+    for run, agent in [(0, 0), (0, 1), (1, 1), (2, 0), (2, 1)]:  # every other slice untouched
+        assert all(th.equal(param.grad[run, agent], old[run, agent]) for param, old in zip(params, before))  # type: ignore[index]
+
+
+def test_changing_one_runs_seed_leaves_the_others_learning_bit_identical() -> None:
+    plain = RunGroup([make_model(seed) for seed in (0, 1, 2)]).learn(400)
+    changed = RunGroup([make_model(seed) for seed in (0, 7, 2)]).learn(400)
+    assert plain.n_updates == 3  # (400 - 100) / 100 gradient steps: the paper's ratio
+    stats_plain, stats_changed = plain.episode_stats(), changed.episode_stats()
+    for run in (0, 2):
+        assert all(th.equal(a, b) for a, b in zip(run_state(plain, run), run_state(changed, run)))
+        assert np.array_equal(stats_plain["reward"][:, run], stats_changed["reward"][:, run])
+    assert not np.array_equal(stats_plain["reward"][:, 1], stats_changed["reward"][:, 1])
+
+
+# ----- 4. alone and in a group -----
+
+
+def test_a_run_alone_and_in_a_group_of_8_agree() -> None:
+    seeds = list(range(8))
+    grouped = RunGroup([make_model(seed) for seed in seeds]).learn(500)
+    alone = [RunGroup([make_model(seed)]).learn(500) for seed in seeds]
+    rewards = grouped.episode_stats()["reward"]
+    for run, single in enumerate(alone):
+        assert single.n_updates == grouped.n_updates == 4
+        # The same seed draws the same episodes, noise and batches; the arithmetic of a batch of 8 networks may round
+        # differently from one network's, so the weights agree to float tolerance, and so does what they did.
+        for a, b in zip(run_state(grouped, run), run_state(single, 0)):
+            th.testing.assert_close(a, b, atol=1e-5, rtol=1e-4)
+        np.testing.assert_allclose(single.episode_stats()["reward"][:, 0], rewards[:, run], rtol=1e-4)
+
+
+def test_the_groups_worlds_and_exploration_follow_the_numpy_envs_distribution() -> None:
+    """Warm-up episodes (uniform actions plus the noise) of 8 runs against MADDPG's own warm-up on the numpy env: the
+    worlds' mean min_dist_sum at the episodes' end, 64 rounds of 8 worlds each way."""
+    group = RunGroup([make_model(seed, learning_starts=10_000) for seed in range(8)], worlds_per_run=8).learn(1600)
+    grouped = group.episode_stats()["min_dist_sum"].ravel()
+    model = make_model(0, n_envs=8, learning_starts=10_000)
+    env = model.env
+    assert env is not None
+    model._last_obs = env.reset()  # type: ignore[assignment]
+    numpy_env = []
+    for step in range(64 * 25):
+        actions, _ = model._sample_action(model.learning_starts, model.action_noise, env.num_envs)
+        model._last_obs, _, _, infos = env.step(actions)  # type: ignore[assignment]
+        if step % 25 == 24:
+            numpy_env.append(np.mean([info["min_dist_sum"] for info in infos]))
+    assert grouped.shape == (64,) and len(numpy_env) == 64
+    assert stats.mannwhitneyu(grouped, numpy_env).pvalue > 0.01
+    assert stats.ks_2samp(grouped, numpy_env).pvalue > 0.01
+
+
+# ----- back into models -----
+
+
+def test_weights_written_back_save_and_load_and_act_the_same(tmp_path: Any) -> None:
+    models = three_runs()
+    group = RunGroup(models).learn(300)
+    observations = th.randn(3, 5, models[0].agent_layout.obs_dim)  # type: ignore[union-attr]
+    with th.no_grad():
+        group_actions = group.teams.actions(observations)
+    for run, model in enumerate(models):
+        group.write_back(run, model)
+        assert model.num_timesteps == 300 and model._n_updates == 2
+        model.save(tmp_path / f"run_{run}")
+        loaded = MADDPG.load(tmp_path / f"run_{run}")
+        actions, _ = loaded.predict(observations[run].numpy(), deterministic=True)
+        expected = loaded.policy.unscale_action(group_actions[run].numpy())
+        np.testing.assert_allclose(actions, expected, atol=1e-6)
+        assert loaded.num_timesteps == 300
+
+
+def test_a_group_rebuilt_from_written_back_models_continues_exactly() -> None:
+    models = three_runs()
+    group = RunGroup(models)
+    generator = th.Generator().manual_seed(6)
+    batches = [stack_batches([random_batch(models[0], 32, generator) for _ in models]) for _ in range(3)]
+    for batch in batches[:2]:
+        group.update(batch)
+    for run, model in enumerate(models):
+        group.write_back(run, model)
+    rebuilt = RunGroup(models)
+    group.update(batches[2])
+    rebuilt.update(batches[2])
+    for run in range(3):
+        for a, b in zip(run_state(group, run), run_state(rebuilt, run)):
+            assert th.equal(a, b)
+
+
+# ----- the parts -----
+
+
+def test_each_run_samples_its_own_rows_from_its_own_generator() -> None:
+    buffers = RunReplayBuffers(2, capacity=6, obs_dim=1, action_dim=1, n_agents=1)
+    for step in range(4):  # 8 rows into 6: the first two are overwritten
+        values = th.tensor([[[step * 2.0], [step * 2.0 + 1]], [[-step * 2.0], [-step * 2.0 - 1]]])
+        buffers.add(values, values, values, values, values)
+    assert buffers.size == 6 and buffers.observations[0, :, 0].tolist() == [6, 7, 2, 3, 4, 5]
+    rows = buffers.sample_rows(10, [th.Generator().manual_seed(11), th.Generator().manual_seed(12)])
+    assert th.equal(rows[1], th.randint(0, 6, (10,), generator=th.Generator().manual_seed(12)))
+    batch = buffers.get(rows)
+    assert th.equal(batch.observations[0, :, 0], buffers.observations[0, rows[0], 0])
+
+
+@pytest.mark.parametrize("selector", [NearestAgents(k=2), NearestAgents(k=1), FixedGraph([[1, 2], [2, 0], [0, 1]])])
+def test_selections_on_the_device_are_the_selectors(selector: Any) -> None:
+    layout = make_model().agent_layout
+    assert layout is not None
+    observations = th.randn(4, 6, layout.obs_dim, generator=th.Generator().manual_seed(7))
+    expected = selector.select(observations.reshape(-1, layout.obs_dim).numpy(), layout).reshape(4, 6, N_AGENTS, -1)
+    assert np.array_equal(select_on_device(selector, observations, layout).numpy(), expected)
+
+
+# ----- 5. refusals -----
+
+
+def test_models_that_differ_in_more_than_their_seed_are_refused() -> None:
+    with pytest.raises(ValueError, match=r"^The models differ in gamma: model 0 has 0.95, model 1 has 0.9\..*seed"):
+        RunGroup([make_model(0), make_model(1, gamma=0.9)])
+    with pytest.raises(ValueError, match=r"^The models differ in agent_layout"):
+        RunGroup([make_model(0), make_model(1, n_agents=2)])
+    with pytest.raises(ValueError, match=r"^The models differ in critic_sharing"):
+        RunGroup([make_model(0), make_model(1, critic_sharing="independent")])
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: make_model(critic_sharing="attention"), r"^Model 0's critics use a learned scheme \(AttentionCritic"),
+        (lambda: make_model(seed=None), r"^Model 0 has no seed.*MADDPG\(\.\.\., seed=s\)"),
+        (lambda: make_model(train_freq=1), r"^Model 0 was given train_freq or gradient_steps.*transitions_per_update"),
+    ],
+)
+def test_what_a_group_cannot_train_is_refused_with_the_cause_first(make: Any, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        RunGroup([make()])
+
+
+def test_an_empty_group_and_worlds_of_another_team_are_refused() -> None:
+    with pytest.raises(ValueError, match=r"^A run group needs at least one model"):
+        RunGroup([])
+    group = RunGroup([make_model()], task=SpreadTask(n_agents=N_AGENTS, num_agent_neighbors=1))
+    with pytest.raises(ValueError, match=r"^The task's worlds have agent layout"):
+        group.learn(10)
+
+
+# ----- 6. CUDA -----
+
+
+@pytest.mark.skipif(not th.cuda.is_available(), reason="needs a CUDA device")
+def test_a_group_on_cuda_updates_as_on_the_cpu_and_learns() -> None:
+    models = three_runs(
+        critic_sharing="selected", **{"selector" if "selector" in MADDPG.__init__.__code__.co_varnames else "selection": 1}
+    )
+    generator = th.Generator().manual_seed(8)
+    batch = stack_batches([random_batch(models[0], 32, generator) for _ in models])
+    on_cpu, on_cuda = RunGroup(models), RunGroup(models, device="cuda")
+    on_cpu.update(batch)
+    on_cuda.update(MultiAgentReplayBufferSamples(*(None if f is None else f.cuda() for f in batch)))
+    for run in range(3):
+        for a, b in zip(run_state(on_cpu, run), run_state(on_cuda, run)):
+            th.testing.assert_close(b.cpu(), a, atol=1e-5, rtol=1e-4)
+    on_cuda.learn(300)
+    assert on_cuda.n_updates == 3 and on_cuda.buffers.observations.is_cuda
+    model = on_cuda.write_back(0, copy.deepcopy(models[0]))
+    assert model.num_timesteps == 300
