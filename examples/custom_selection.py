@@ -82,7 +82,7 @@ def main() -> None:
     obs = env.reset()  # [n_envs, joint observation]
     print("selection at reset in world 0 (row i: the agents critic i sees):\n", selector.select(obs, layout)[0])
 
-    model = MADDPG("MlpPolicy", env, critic_sharing="selected", selection=selector, seed=0, **overrides)
+    model = MADDPG("MlpPolicy", env, critic_sharing="selected", selector=selector, seed=0, **overrides)
     with ctrl_c_ends_quietly(model):
         model.learn(total_timesteps=args.steps)
 
@@ -99,7 +99,7 @@ def main() -> None:
     path = Path(tempfile.mkdtemp()) / "maddpg_custom_selection"
     model.save(path)
     loaded = MADDPG.load(path, env=eval_env)
-    print("loaded; its selector is", type(loaded.selection).__name__)
+    print("loaded; its selector is", type(loaded.selector).__name__)
 
     # The other built-in selectors: a fixed graph, or roles (agents select the others with their role).
     ring = FixedGraph([[(i - 1) % n_agents, (i + 1) % n_agents] for i in range(n_agents)])

@@ -64,7 +64,7 @@ def main() -> None:
     eval_env = make_partial_env(1 if args.mpe2 else eval_episodes)
     for scheme, selection in (("selected", NearestAgents(k=2)), ("full", None)):
         env = make_partial_env(args.n_envs)
-        model = MADDPG("MlpPolicy", env, critic_sharing=scheme, selection=selection, seed=args.seed, **overrides)
+        model = MADDPG("MlpPolicy", env, critic_sharing=scheme, selector=selection, seed=args.seed, **overrides)
         with ctrl_c_ends_quietly(model):
             model.learn(total_timesteps=args.steps)
         result = evaluate_team(model, eval_env, n_episodes=eval_episodes, seed=10_000)

@@ -163,3 +163,28 @@ class MultiAgentReplayBuffer(ReplayBuffer):
             rewards=self.to_torch(self.rewards[batch_inds, env_indices]),
             selections=selections,
         )
+
+
+def refuse_buffer_of_another_team(buffer: ReplayBuffer, layout: AgentLayout | None, selection_size: int, n_envs: int) -> None:
+    """
+    Refuse a replay buffer whose rows a model would misread.
+
+    :param buffer: The buffer to check (e.g. one loaded with ``load_replay_buffer``).
+    :param layout: The model's agent layout.
+    :param selection_size: The model's selection size ``k`` (0 without a selection).
+    :param n_envs: The model's number of envs.
+    :raises TypeError: For a buffer without per-agent rewards.
+    :raises ValueError: For a buffer of another layout, selection size or number of envs.
+    """
+    if not isinstance(buffer, MultiAgentReplayBuffer):
+        raise TypeError(
+            f"The replay buffer is a {type(buffer).__name__}, not a MultiAgentReplayBuffer: it has no per-agent "
+            "rewards. Load a buffer saved by a MADDPG model's save_replay_buffer()."
+        )
+    if (buffer.layout, buffer.selection_size, buffer.n_envs) != (layout, selection_size, n_envs):
+        raise ValueError(
+            f"The replay buffer holds transitions of agent layout {buffer.layout} with selections of "
+            f"k={buffer.selection_size} from {buffer.n_envs} env(s), but this model has agent layout "
+            f"{layout} with k={selection_size} and {n_envs} env(s): load a buffer saved by a model of the same "
+            "team (same agents, sizes and order), the same selection size and the same number of envs."
+        )

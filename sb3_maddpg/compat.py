@@ -8,6 +8,7 @@ never over what the save holds or what the caller passes to ``load``.
 
 import io
 import pathlib
+import warnings
 import zipfile
 from collections.abc import Callable
 from typing import Any
@@ -25,6 +26,39 @@ SAVED_BEFORE_0_2: dict[str, Callable[[], Any]] = {
 SCHEDULE_OF_0_2_DEV = ("transitions_per_update", "_train_freq_from_ratio", "_earn_gradient_steps", "_update_credit")
 """The attributes in which models saved by 0.2.0's development versions kept the update rule (before
 :class:`~sb3_maddpg.update_schedule.UpdateSchedule`)."""
+
+
+RENAMED_IN_0_3 = {"selection": "selector"}
+"""Attributes of models saved by sb3-maddpg < 0.3 that 0.3 renamed: old name -> new name."""
+
+
+def rename_0_2_attributes(attributes: dict[str, Any]) -> None:
+    """
+    Give a loaded model's attributes saved under a name of sb3-maddpg < 0.3 (:data:`RENAMED_IN_0_3`) their new name.
+
+    :param attributes: A loaded model's ``__dict__``; the save's value replaces the constructor's default.
+    """
+    for old, new in RENAMED_IN_0_3.items():
+        if old in attributes:
+            attributes[new] = attributes.pop(old)
+
+
+def renamed_argument(value: Any, old_value: Any, old: str, new: str) -> Any:
+    """
+    :param value: The argument given under its new name (None when not given).
+    :param old_value: The argument given under the name it had before 0.3 (None when not given); it warns.
+    :param old: The old name.
+    :param new: The new name.
+    :return: The argument given.
+    """
+    if old_value is None:
+        return value
+    if value is not None:
+        raise TypeError(f"Got both {new}= and {old}=: {old} is the name {new} had before sb3-maddpg 0.3; give {new} only.")
+    warnings.warn(
+        f"{old}= is renamed {new}= in sb3-maddpg 0.3: use {new}= (the old name will go).", FutureWarning, stacklevel=3
+    )
+    return old_value
 
 
 def attributes_missing_from(data: dict[str, Any]) -> dict[str, Any]:

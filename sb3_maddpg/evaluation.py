@@ -15,7 +15,7 @@ from stable_baselines3.common.noise import VectorizedActionNoise
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, unwrap_vec_normalize
 
 from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.noise import add_noise, discrete_components, noise_copy_for_envs
+from sb3_maddpg.noise import add_noise, noise_copy_for_envs
 
 TASK_METRICS = ("success", "coverage", "collisions", "min_dist_sum")
 """The task metrics read from ``info`` (see :class:`~sb3_maddpg.envs.SimpleSpreadMetrics`)."""
@@ -174,7 +174,7 @@ def evaluate_team(
     episode_starts = np.ones(n_envs, dtype=bool)
     exploration = None if deterministic else _exploration_noise(model, n_envs)
     layout = getattr(model, "agent_layout", None)  # a MADDPG model's: no noise on its discrete agents' one-hots
-    discrete = discrete_components(layout) if isinstance(layout, AgentLayout) else None
+    discrete = layout.discrete_components() if isinstance(layout, AgentLayout) else None
 
     while (counts < targets).any():
         actions, states = model.predict(observations, state=states, episode_start=episode_starts, deterministic=deterministic)

@@ -7,6 +7,8 @@ algorithm side (which reads it) can share it without importing each other.
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 
 @dataclass(frozen=True, repr=False)
 class AgentLayout:
@@ -110,6 +112,29 @@ class AgentLayout:
             f"{self.n_agents} {agents} ({', '.join(self.agent_ids)}) with observations of {sizes(self.obs_sizes)} and "
             f"actions of {sizes(self.action_sizes)}{kinds}"
         )
+
+    def discrete_components(self) -> np.ndarray:
+        """:return: Whether each component of the joint action belongs to a discrete agent's one-hot, ``[action_dim]``."""
+        discrete = np.zeros(self.action_dim, dtype=bool)
+        for i, action_slice in enumerate(self.action_slices):
+            discrete[action_slice] = self.is_discrete(i)
+        return discrete
+
+    def one_hot_discrete(self, actions: np.ndarray) -> np.ndarray:
+        """
+        Make each discrete agent's part of joint actions in the policy's [-1, 1] space the one-hot (1 and -1) of its
+        largest entry, in place; continuous agents' parts are left as they are.
+
+        :param actions: Joint actions, ``[batch, action_dim]``.
+        :return: ``actions``.
+        """
+        rows = np.arange(len(actions))
+        for i, part in enumerate(self.action_slices):
+            if self.is_discrete(i):
+                chosen = actions[:, part].argmax(axis=1)
+                actions[:, part] = -1.0
+                actions[rows, part.start + chosen] = 1.0
+        return actions
 
     def index_of(self, agent_id: str) -> int:
         """

@@ -11,6 +11,7 @@ from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedul
 from stable_baselines3.common.utils import polyak_update
 
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.compat import renamed_argument
 from sb3_maddpg.losses import TeamNetworks, actor_loss_terms, critic_losses, critic_targets, one_member
 from sb3_maddpg.maddpg import LOG_INTERVAL, MADDPG
 from sb3_maddpg.matd3_policies import MATD3Policy, MlpPolicy, TwinMultiAgentCritic
@@ -71,7 +72,7 @@ class MATD3(MADDPG):
     :param critic_sharing: What each critic sees: a scheme's name, a
         :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor` subclass, or one per agent id (see
         :class:`~sb3_maddpg.MADDPG`); both of an agent's critics see the same.
-    :param selection: For schemes that use a selection (see :class:`~sb3_maddpg.MADDPG`).
+    :param selector: For schemes that use a selection, the rule that selects (see :class:`~sb3_maddpg.MADDPG`).
     :param learning_rate: Learning rate of every actor and critic (Adam), constant or a schedule.
     :param buffer_size: Replay buffer size, in joint transitions.
     :param learning_starts: Env steps (all envs counted) of uniformly random actions before learning starts.
@@ -105,6 +106,7 @@ class MATD3(MADDPG):
     :param seed: Seed for the pseudo random generators.
     :param device: Device (cpu, cuda, ...) on which the code should be run; "auto" uses the GPU if possible.
     :param _init_setup_model: Whether or not to build the network at the creation of the instance.
+    :param selection: The name ``selector`` had before sb3-maddpg 0.3 (it warns).
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"MlpPolicy": MlpPolicy}
@@ -118,7 +120,7 @@ class MATD3(MADDPG):
         policy: str | type[MATD3Policy],
         env: GymEnv | str | None,
         critic_sharing: CriticSharing = "full",
-        selection: Selector | int | None = None,
+        selector: Selector | int | None = None,
         learning_rate: float | Schedule = 1e-2,
         buffer_size: int = 1_000_000,
         learning_starts: int = 25_600,
@@ -145,6 +147,7 @@ class MATD3(MADDPG):
         seed: int | None = None,
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
+        selection: Selector | int | None = None,
     ) -> None:
         if isinstance(policy_delay, bool) or not isinstance(policy_delay, int) or policy_delay < 1:
             raise ValueError(
@@ -162,7 +165,7 @@ class MATD3(MADDPG):
             policy,
             env,
             critic_sharing=critic_sharing,
-            selection=selection,
+            selector=renamed_argument(selector, selection, "selection", "selector"),
             learning_rate=learning_rate,
             buffer_size=buffer_size,
             learning_starts=learning_starts,
@@ -240,24 +243,11 @@ class MATD3(MADDPG):
                 reg_log.append(actor_terms.reg_loss[0].detach())
                 saturation_log.append(actor_terms.saturation[0])
 
-        critic_means = th.stack(critic_log).mean(0)
-        if actor_log:
-            self._log_losses(critic_means, *(th.stack(log).mean(0) for log in (actor_log, reg_log, saturation_log)))
-        else:  # no delayed update in this call: the actor losses are not recorded (as TD3's)
-            self._log_critic_losses(critic_means)
-
-    def _log_critic_losses(self, critic_losses: th.Tensor) -> None:
-        """
-        Record the train call's critic losses, each agent's and the team's, when no actor was updated.
-
-        :param critic_losses: ``[n_agents]``.
-        """
-        assert self.agent_layout is not None
-        values = critic_losses.tolist()
-        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
-        self.logger.record("train/critic_loss", sum(values) / len(values))
-        for agent, value in zip(self.agent_layout.agent_ids, values):
-            self.logger.record(f"train/{agent}/critic_loss", value)
+        means = {"critic_loss": th.stack(critic_log).mean(0)}
+        if actor_log:  # else no delayed update in this call: the actor losses are not recorded (as TD3's)
+            logs = {"actor_loss": actor_log, "actor_reg_loss": reg_log, "action_saturation": saturation_log}
+            means.update({name: th.stack(log).mean(0) for name, log in logs.items()})
+        self._log_losses(**means)
 
     def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
         """The team's critic targets (smoothed target actions, min of the twins) on a replay batch, ``[batch, n_agents]``."""

@@ -48,14 +48,6 @@ def discrete_agents(layout: AgentLayout) -> np.ndarray:
     return np.array([layout.is_discrete(i) for i in range(layout.n_agents)], dtype=bool)
 
 
-def discrete_components(layout: AgentLayout) -> np.ndarray:
-    """:return: Whether each component of the joint action belongs to a discrete agent's one-hot, ``[action_dim]``."""
-    discrete = np.zeros(layout.action_dim, dtype=bool)
-    for i, action_slice in enumerate(layout.action_slices):
-        discrete[action_slice] = layout.is_discrete(i)
-    return discrete
-
-
 def per_env_noise(noise: ActionNoise) -> ActionNoise:
     """:return: The noise of one env: SB3's ``VectorizedActionNoise`` unwrapped, any other noise itself."""
     return noise.base_noise if isinstance(noise, VectorizedActionNoise) else noise
@@ -105,7 +97,8 @@ def add_noise(actions: np.ndarray, action_noise: ActionNoise, discrete: np.ndarr
 
     :param actions: Joint actions in [-1, 1], ``[n_envs, action_dim]``.
     :param action_noise: The noise (over the joint action, or vectorised over the envs).
-    :param discrete: Which action components belong to discrete agents (see :func:`discrete_components`), or None.
+    :param discrete: Which action components belong to discrete agents
+        (:meth:`~sb3_maddpg.layout.AgentLayout.discrete_components`), or None.
     :return: The noisy actions, ``[n_envs, action_dim]``.
     """
     noise = draw_noise(action_noise, actions.shape)

@@ -206,27 +206,27 @@ def check_selection(selection: np.ndarray, layout: AgentLayout, k: int, n_rows: 
         )
 
 
-def resolve_selection(selection: Selector | int | None) -> Selector:
+def resolve_selector(selector: Selector | int | None) -> Selector:
     """The selector of ``selected`` sharing: the default ``NearestAgents(k=2)``, or an int ``k`` for ``NearestAgents(k)``."""
-    if selection is None:
+    if selector is None:
         return NearestAgents(k=2)
-    if isinstance(selection, int) and not isinstance(selection, bool):
-        return NearestAgents(k=selection)
-    if not isinstance(selection, Selector):
+    if isinstance(selector, int) and not isinstance(selector, bool):
+        return NearestAgents(k=selector)
+    if not isinstance(selector, Selector):
         raise TypeError(
-            f"selection must be a sb3_maddpg.selection.Selector or an int k (the k nearest agents), got "
-            f"{type(selection).__name__}: wrap a function as CallableSelector(fn, k=...)."
+            f"selector must be a sb3_maddpg.selection.Selector or an int k (the k nearest agents), got "
+            f"{type(selector).__name__}: wrap a function as CallableSelector(fn, k=...)."
         )
-    return selection
+    return selector
 
 
-def warn_if_selecting_everyone(selection: Selector, layout: AgentLayout) -> None:
+def warn_if_selecting_everyone(selector: Selector, layout: AgentLayout) -> None:
     """Selecting all n - 1 other agents is full sharing in another order: say so, since it compares nothing."""
-    if selection.k == layout.n_agents - 1:
+    if selector.k == layout.n_agents - 1:
         warnings.warn(
-            f"critic_sharing='selected' with k={selection.k} selects every other agent of this {layout.n_agents}-agent "
-            f"team: each critic sees what 'full' sees, in another order. Select fewer (e.g. selection=1, the nearest "
+            f"critic_sharing='selected' with k={selector.k} selects every other agent of this {layout.n_agents}-agent "
+            f"team: each critic sees what 'full' sees, in another order. Select fewer (e.g. selector=1, the nearest "
             "agent) for a critic that selects.",
             UserWarning,
-            stacklevel=3,
+            stacklevel=4,  # the caller of MADDPG(...): through _set_up_team and the constructor
         )

@@ -140,7 +140,7 @@ def test_a_mixed_team_trains(scheme: str) -> None:
 
     env = make_mpe_env("simple_speaker_listener", continuous_actions=False)
     selection = FixedGraph([[1], [0]]) if scheme == "selected" else None
-    model = MADDPG("MlpPolicy", env, critic_sharing=scheme, selection=selection, seed=0, **FAST)
+    model = MADDPG("MlpPolicy", env, critic_sharing=scheme, selector=selection, seed=0, **FAST)
     model.learn(300)
     assert model._n_updates > 0
 

@@ -78,9 +78,9 @@ def test_overrides_and_validation() -> None:
 
 
 def test_scheme_model_kwargs_and_the_n3_presets() -> None:
-    experiment = SMOKE.replace(scheme_model_kwargs={"selected": {"selection": 1, "batch_size": 32}})
+    experiment = SMOKE.replace(scheme_model_kwargs={"selected": {"selector": 1, "batch_size": 32}})
     by_scheme = {run.scheme: run.model_kwargs for run in experiment.runs() if run.seed == 0}
-    assert by_scheme["selected"] == {**SMOKE.model_kwargs, "selection": 1, "batch_size": 32}  # over model_kwargs
+    assert by_scheme["selected"] == {**SMOKE.model_kwargs, "selector": 1, "batch_size": 32}  # over model_kwargs
     assert all(by_scheme[scheme] == SMOKE.model_kwargs for scheme in SCHEMES if scheme != "selected")
     # Every RunConfig field that is not per run comes from the experiment.
     run = experiment.runs()[0]
@@ -90,11 +90,11 @@ def test_scheme_model_kwargs_and_the_n3_presets() -> None:
     # Written to JSON and read back, as sweeps store it.
     assert ExperimentConfig.from_dict(json.loads(json.dumps(experiment.to_dict()))).runs()[4].same_as(experiment.runs()[4])
     with pytest.raises(ValueError, match=r"unknown scheme\(s\) \['selectd'\]"):
-        SMOKE.replace(scheme_model_kwargs={"selectd": {"selection": 1}})
+        SMOKE.replace(scheme_model_kwargs={"selectd": {"selector": 1}})
     for experiment in (N3_FULL, N3_PARTIAL):
         runs = experiment.runs()
         assert len(runs) == 5 * 10 and runs[0].n_agents == 3 and runs[0].total_timesteps == 500_000
-        assert {run.scheme: run.model_kwargs.get("selection") for run in runs}["selected"] == 1
+        assert {run.scheme: run.model_kwargs.get("selector") for run in runs}["selected"] == 1
     assert (N3_FULL.num_agent_neighbors, N3_PARTIAL.num_agent_neighbors) == (None, 1)
 
 
@@ -397,8 +397,8 @@ def test_cli_run_and_report(tmp_path: Path, local_results: Path, capsys: pytest.
     assert "sb3-maddpg report: No finished runs" in capsys.readouterr().err
     # One scheme's kwargs from the command line, over the preset's.
     fresh = ["run", "--config", "smoke", "--results", str(tmp_path / "fresh")]
-    assert main([*fresh, "--scheme-model-kwargs", '{"selected": {"selection": 1}}', "--dry-run"]) == 0
-    assert '"scheme_model_kwargs": {"selected": {"selection": 1}}' in capsys.readouterr().out
+    assert main([*fresh, "--scheme-model-kwargs", '{"selected": {"selector": 1}}', "--dry-run"]) == 0
+    assert '"scheme_model_kwargs": {"selected": {"selector": 1}}' in capsys.readouterr().out
     table = (report / "table_coverage.md").read_text()
     assert "| smoke (N=3, 1 nearest obs., 30 ep.) |" in table
     assert "| smoke_local" in table

@@ -14,7 +14,7 @@ FAST = dict(learning_starts=50, batch_size=32, buffer_size=1_000, train_freq=25,
 
 def trained(seed: int, scheme: str) -> MADDPG:
     selection = 1 if scheme == "selected" else None
-    model = MADDPG("MlpPolicy", make_simple_spread(n_agents=3), critic_sharing=scheme, selection=selection, seed=seed, **FAST)
+    model = MADDPG("MlpPolicy", make_simple_spread(n_agents=3), critic_sharing=scheme, selector=selection, seed=seed, **FAST)
     model.learn(100)
     return model
 

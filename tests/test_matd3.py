@@ -30,7 +30,7 @@ PER_AGENT_MAP = {"agent_0": "full", "agent_1": "independent", "agent_2": "action
 def make_model(scheme: Any = "full", algorithm: type[MADDPG] = MATD3, **kwargs: Any) -> MADDPG:
     """A model after 60 collected steps and no update (learning_starts is beyond them)."""
     if scheme == "selected":
-        kwargs.setdefault("selection", 1)  # the nearest other agent: a real subset of a team of 3
+        kwargs.setdefault("selector", 1)  # the nearest other agent: a real subset of a team of 3
     model = algorithm(
         "MlpPolicy",
         make_simple_spread(n_agents=N_AGENTS),

@@ -15,7 +15,6 @@ from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.noise import (
     add_noise,
     default_noise,
-    discrete_components,
     fit_noise_to_envs,
     noise_copy_for_envs,
     per_env_noise,
@@ -77,7 +76,7 @@ def test_add_noise_masks_discrete_components_and_clips() -> None:
     np.random.seed(1)
     draw = noise()
     np.random.seed(1)
-    noisy = add_noise(actions, noise, discrete_components(MIXED))
+    noisy = add_noise(actions, noise, MIXED.discrete_components())
     np.testing.assert_array_equal(noisy[0, 2:5], actions[0, 2:5])  # the chooser's one-hot
     expected = np.clip(actions + draw, -1, 1)
     np.testing.assert_array_equal(noisy[0, [0, 1, 5]], expected[0, [0, 1, 5]])

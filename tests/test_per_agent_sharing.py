@@ -84,7 +84,7 @@ def test_a_mixed_team_trains_saves_and_loads(device: str, tmp_path: Path) -> Non
     extractors = model.critic.extractors
     assert [type(e) for e in extractors] == [FullCriticFeatures, IndependentCriticFeatures, AttentionCriticFeatures]
     assert extractors[2].embed_dim == 8
-    assert model.selection is None
+    assert model.selector is None
     model.learn(600)
     model.save(tmp_path / "mixed.zip")
     loaded = MADDPG.load(tmp_path / "mixed.zip")
@@ -98,12 +98,12 @@ def test_a_mixed_team_trains_saves_and_loads(device: str, tmp_path: Path) -> Non
             "MlpPolicy",
             SimpleSpreadVecEnv(4, n_agents=3),
             critic_sharing={**sharing, "agent_1": "selected"},
-            selection=1,
+            selector=1,
             **FAST,
         )
-    assert with_selected.selection is not None and with_selected.selection.k == 1
-    with pytest.raises(ValueError, match="selection is used only by schemes that read one"):
-        MADDPG("MlpPolicy", SimpleSpreadVecEnv(4, n_agents=3), critic_sharing=sharing, selection=1, **FAST)
+    assert with_selected.selector is not None and with_selected.selector.k == 1
+    with pytest.raises(ValueError, match="selector is used only by schemes that read a selection"):
+        MADDPG("MlpPolicy", SimpleSpreadVecEnv(4, n_agents=3), critic_sharing=sharing, selector=1, **FAST)
 
 
 def test_selected_sharing_pads_unequal_agents_into_equal_slots() -> None:

@@ -83,7 +83,7 @@ def test_schemes_learn(scheme):
     assert model.num_timesteps == 200
     assert model._n_updates > 0
     assert isinstance(model.critic.extractors[0], SHARING_SCHEMES[scheme])
-    assert (model.selection is not None) == (scheme == "selected")
+    assert (model.selector is not None) == (scheme == "selected")
 
 
 @pytest.mark.parametrize("alias", sorted(SCHEME_ALIASES))
@@ -293,20 +293,20 @@ def test_unknown_scheme():
 
 def test_selection_k_out_of_range():
     with pytest.raises(ValueError, match="k=3"):
-        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selection=NearestAgents(k=3), **FAST)
+        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=NearestAgents(k=3), **FAST)
 
 
 @pytest.mark.parametrize("scheme", ["full", "independent", "observations", "actions"])
 def test_selection_for_scheme_without_selection(scheme):
-    with pytest.raises(ValueError, match="selection is used only by"):
-        MADDPG("MlpPolicy", make_team(), critic_sharing=scheme, selection=NearestAgents(k=1), **FAST)
+    with pytest.raises(ValueError, match="selector is used only by"):
+        MADDPG("MlpPolicy", make_team(), critic_sharing=scheme, selector=NearestAgents(k=1), **FAST)
 
 
 def test_selection_as_k_nearest_agents():
-    model = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selection=1, **FAST)
-    assert isinstance(model.selection, NearestAgents) and model.selection.k == 1
+    model = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=1, **FAST)
+    assert isinstance(model.selector, NearestAgents) and model.selector.k == 1
     with pytest.raises(ValueError, match="k=4"):
-        MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selection=4, **FAST)
+        MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=4, **FAST)
 
 
 def test_selecting_every_other_agent_warns():
@@ -315,13 +315,13 @@ def test_selecting_every_other_agent_warns():
         MADDPG("MlpPolicy", make_team(n_agents=3), critic_sharing="selected", **FAST)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        MADDPG("MlpPolicy", make_team(n_agents=3), critic_sharing="selected", selection=1, **FAST)
+        MADDPG("MlpPolicy", make_team(n_agents=3), critic_sharing="selected", selector=1, **FAST)
         MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", **FAST)
 
 
 def test_selection_not_a_selector():
     with pytest.raises(TypeError, match="CallableSelector"):
-        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selection=ring_selection, **FAST)
+        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=ring_selection, **FAST)
 
 
 def test_vec_normalize():
@@ -358,7 +358,7 @@ def test_custom_critic_features_extractor():
 
 def test_callable_selector():
     model = MADDPG(
-        "MlpPolicy", make_team(), critic_sharing="selected", selection=CallableSelector(ring_selection, k=1), **FAST
+        "MlpPolicy", make_team(), critic_sharing="selected", selector=CallableSelector(ring_selection, k=1), **FAST
     )
     model.learn(total_timesteps=100)
     stored = model.replay_buffer.selections[: model.replay_buffer.pos, 0]
@@ -367,14 +367,14 @@ def test_callable_selector():
 
 def test_callable_selector_out_of_range():
     model = MADDPG(
-        "MlpPolicy", make_team(), critic_sharing="selected", selection=CallableSelector(out_of_range_selection, k=1), **FAST
+        "MlpPolicy", make_team(), critic_sharing="selected", selector=CallableSelector(out_of_range_selection, k=1), **FAST
     )
     with pytest.raises(ValueError, match="out of range for 3 agents"):
         model.learn(total_timesteps=100)
 
 
 def test_fixed_graph_selector():
-    model = MADDPG("MlpPolicy", make_team(), critic_sharing="soa", selection=FixedGraph([[2], [0], [1]]), **FAST)
+    model = MADDPG("MlpPolicy", make_team(), critic_sharing="soa", selector=FixedGraph([[2], [0], [1]]), **FAST)
     model.learn(total_timesteps=100)
     assert model._n_updates > 0
 
@@ -415,11 +415,11 @@ def test_selected_sharing_on_a_heterogeneous_team_names_the_cause_first(selectio
     # 3-component observation (not the default k=2, too many for a team of two).
     message = "position_slice=slice(2, 4, None) does not fit agent 'speaker_0''s observation of size 3"
     with pytest.raises(ValueError, match=re.escape(message) + r".*FixedGraph, CallableSelector"):
-        MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selection=selection, **FAST)
+        MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selector=selection, **FAST)
 
 
 def test_selected_sharing_trains_a_heterogeneous_team_with_padded_slots():
-    model = MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selection=FixedGraph([[1], [0]]), **FAST)
+    model = MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selector=FixedGraph([[1], [0]]), **FAST)
     # Each slot holds the largest observation (11) and action (5): (1 + k) * (11 + 5).
     assert [extractor.features_dim for extractor in model.critic.extractors] == [32, 32]
     model.learn(total_timesteps=120)

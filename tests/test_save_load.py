@@ -61,8 +61,8 @@ def joint_batch(model: MADDPG, n: int = 16) -> tuple[np.ndarray, th.Tensor, th.T
     rng = np.random.default_rng(1)
     actions = th.as_tensor(rng.uniform(-1, 1, size=(n, model.agent_layout.action_dim)), dtype=th.float32)
     selection = None
-    if model.selection is not None:
-        selection = th.as_tensor(model.selection.select(obs, model.agent_layout))
+    if model.selector is not None:
+        selection = th.as_tensor(model.selector.select(obs, model.agent_layout))
     return obs, th.as_tensor(obs), actions, selection
 
 
@@ -129,19 +129,19 @@ def test_replay_buffer_round_trip(tmp_path, scheme):
 
 
 def test_replay_buffer_of_another_team_is_refused(tmp_path):
-    model = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selection=2, **FAST)
+    model = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=2, **FAST)
     model.learn(total_timesteps=60)
     model.save_replay_buffer(tmp_path / "buffer.pkl")
     layout = model.agent_layout
 
-    other_team = MADDPG("MlpPolicy", make_team(n_agents=5), critic_sharing="selected", selection=2, **FAST)
+    other_team = MADDPG("MlpPolicy", make_team(n_agents=5), critic_sharing="selected", selector=2, **FAST)
     own_buffer = other_team.replay_buffer
     with pytest.raises(ValueError, match="agent layout") as error:
         other_team.load_replay_buffer(tmp_path / "buffer.pkl")
     assert str(layout) in str(error.value) and str(other_team.agent_layout) in str(error.value)
     assert other_team.replay_buffer is own_buffer  # the refused buffer is not kept
 
-    other_k = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selection=1, **FAST)
+    other_k = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=1, **FAST)
     expected = re.escape(f"{layout} with selections of k=2") + ".*" + re.escape(f"{layout} with k=1")
     with pytest.raises(ValueError, match=expected):
         other_k.load_replay_buffer(tmp_path / "buffer.pkl")
@@ -149,7 +149,7 @@ def test_replay_buffer_of_another_team_is_refused(tmp_path):
     with pytest.raises(ValueError, match="k=2.*k=0"):
         without_selection.load_replay_buffer(tmp_path / "buffer.pkl")
     env = make_vec_env(make_team, n_envs=2, env_kwargs=dict(n_agents=4))
-    two_envs = MADDPG("MlpPolicy", env, critic_sharing="selected", selection=2, **FAST)
+    two_envs = MADDPG("MlpPolicy", env, critic_sharing="selected", selector=2, **FAST)
     with pytest.raises(ValueError, match=r"from 1 env\(s\).*and 2 env\(s\)"):
         two_envs.load_replay_buffer(tmp_path / "buffer.pkl")
 
@@ -158,20 +158,20 @@ def test_replay_buffer_of_another_team_is_refused(tmp_path):
         other_team.load_replay_buffer(tmp_path / "plain.pkl")
 
     # The same team loads it, and stores new rows with its own selector.
-    same = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selection=NearestAgents(k=2), **FAST)
+    same = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=NearestAgents(k=2), **FAST)
     same.load_replay_buffer(tmp_path / "buffer.pkl")
-    assert same.replay_buffer.pos == 60 and same.replay_buffer.selector is same.selection
+    assert same.replay_buffer.pos == 60 and same.replay_buffer.selector is same.selector
 
 
 def test_callable_selector_survives_save_load(tmp_path):
     selector = CallableSelector(reverse_ring, k=1)
-    model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selection=selector, **FAST)
+    model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=selector, **FAST)
     model.learn(total_timesteps=100)
     model.save(tmp_path / "model.zip")
     loaded = MADDPG.load(tmp_path / "model.zip", env=make_team())
-    assert isinstance(loaded.selection, CallableSelector)
-    assert loaded.selection.fn is reverse_ring and loaded.selection.k == 1
-    assert loaded.replay_buffer.selector is loaded.selection
+    assert isinstance(loaded.selector, CallableSelector)
+    assert loaded.selector.fn is reverse_ring and loaded.selector.k == 1
+    assert loaded.replay_buffer.selector is loaded.selector
     loaded.learn(total_timesteps=100, reset_num_timesteps=False)
     stored = loaded.replay_buffer.selections[: loaded.replay_buffer.pos, 0]
     np.testing.assert_array_equal(stored, np.broadcast_to([[2], [0], [1]], stored.shape))
@@ -235,6 +235,26 @@ def test_a_model_saved_by_0_1_keeps_its_training_rules() -> None:
     assert chosen.actor_reg_coef == 1e-2 and "SB3's train_freq semantics" in chosen.update_schedule
 
 
+def test_a_model_saved_by_0_2_keeps_its_selector_under_the_new_name() -> None:
+    # tests/data/maddpg_0.2.0_selected.zip: sb3-maddpg 0.2.0 (83f1f74), make_simple_spread(n_agents=3),
+    # critic_sharing="selected", selection=NearestAgents(k=1), learning_starts=100, batch_size=32, buffer_size=500,
+    # net_arch=[16, 16], seed=0, learn(300). 0.2 kept the rule in model.selection; 0.3 calls it model.selector.
+    model = MADDPG.load(Path(__file__).parent / "data" / "maddpg_0.2.0_selected.zip", env=make_team())
+    assert isinstance(model.selector, NearestAgents) and model.selector.k == 1
+    assert "selection" not in model.__dict__ and model.selection_size == 1
+    updates = model._n_updates
+    model.learn(200, reset_num_timesteps=False)
+    assert model._n_updates > updates and model.replay_buffer.selections.shape[-1] == 1  # its rows select k=1
+
+
+def test_the_old_name_of_selector_still_works_and_warns() -> None:
+    with pytest.warns(FutureWarning, match=r"selection= is renamed selector="):
+        model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selection=1, **FAST)
+    assert isinstance(model.selector, NearestAgents) and model.selector.k == 1
+    with pytest.raises(TypeError, match=r"Got both selector= and selection="):
+        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=1, selection=1, **FAST)
+
+
 def test_building_without_setting_up_keeps_what_the_caller_passed() -> None:
     # The compatibility with 0.1's saves lives in load(): the constructor never replaces a caller's arguments.
     kwargs = {name: value for name, value in FAST.items() if name != "train_freq"}
@@ -260,7 +280,7 @@ def test_attributes_missing_from_a_save_by_version() -> None:
 @pytest.mark.parametrize("scheme", ["full", "selected"])
 def test_policy_save_load_round_trip(tmp_path, scheme):
     """policy.save() / MADDPGPolicy.load(): SB3's policy-only round trip (no lr_schedule in the file, as TD3's)."""
-    kwargs = dict(FAST, selection=1) if scheme == "selected" else FAST
+    kwargs = dict(FAST, selector=1) if scheme == "selected" else FAST
     model = MADDPG("MlpPolicy", make_team(), critic_sharing=scheme, **kwargs)
     model.learn(total_timesteps=100)
     obs, obs_t, actions_t, selection = joint_batch(model)

@@ -102,7 +102,7 @@ def test_the_stored_selection_is_made_from_the_observation_at_time_t() -> None:
         "MlpPolicy",
         make_simple_spread(n_agents=4),
         critic_sharing="selected",
-        selection=1,
+        selector=1,
         learning_starts=10_000,  # collect only
         buffer_size=1_000,
         policy_kwargs=dict(net_arch=[8]),
@@ -110,8 +110,8 @@ def test_the_stored_selection_is_made_from_the_observation_at_time_t() -> None:
     )
     model.learn(100)
     buffer, layout = model.replay_buffer, model.agent_layout
-    from_obs = model.selection.select(buffer.observations[:100, 0], layout)
-    from_next_obs = model.selection.select(buffer.next_observations[:100, 0], layout)
+    from_obs = model.selector.select(buffer.observations[:100, 0], layout)
+    from_next_obs = model.selector.select(buffer.next_observations[:100, 0], layout)
     # The agents move: the nearest agent changes between t and t + 1 in some rows (17 of 100 with seed 0), so
     # the check below can tell the two apart.
     assert (from_obs != from_next_obs).any(axis=(1, 2)).sum() >= 5

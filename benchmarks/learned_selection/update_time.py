@@ -42,7 +42,7 @@ def build(n_agents: int, scheme: str, seed: int) -> Any:
     k = selection_size(n_agents)
     kwargs: dict[str, Any] = {}
     if scheme == "selected":
-        kwargs["selection"] = k
+        kwargs["selector"] = k
     if scheme == "learned_selection":
         kwargs["critic_sharing_kwargs"] = {"k": k}
     model = MADDPG(

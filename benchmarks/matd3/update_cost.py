@@ -38,7 +38,7 @@ VARIANTS = {
 def build(algorithm: type[MADDPG], kwargs: dict[str, Any], n_agents: int, scheme: str, fill: int) -> MADDPG:
     """A model whose buffer holds ``fill`` random transitions (uniform actions: ``learning_starts`` is beyond them)."""
     env = make_simple_spread_vec_env(n_envs=100, n_agents=n_agents)
-    extra = {"selection": 2} if scheme == "selected" else {}
+    extra = {"selector": 2} if scheme == "selected" else {}
     model = algorithm("MlpPolicy", env, critic_sharing=scheme, learning_starts=10 * fill, seed=0, **extra, **kwargs)
     with warnings.catch_warnings():  # "learn() ended without a single gradient update": only the buffer is wanted
         warnings.simplefilter("ignore", UserWarning)

@@ -77,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument(
         "--scheme-model-kwargs",
         type=json.loads,
-        help='JSON of MADDPG kwargs for one scheme only, merged per scheme, e.g. \'{"selected": {"selection": 1}}\'',
+        help='JSON of MADDPG kwargs for one scheme only, merged per scheme, e.g. \'{"selected": {"selector": 1}}\'',
     )
     group.add_argument(
         "--env",

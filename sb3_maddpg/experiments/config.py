@@ -244,7 +244,7 @@ class ExperimentConfig:
     :param vec_env: ``"batched"`` or ``"mpe2"`` (see :class:`RunConfig`).
     :param n_envs: Worlds (envs) stepped together during training.
     :param scheme_model_kwargs: Keyword arguments for ``MADDPG`` of one scheme only, over ``model_kwargs``, e.g.
-        ``{"selected": {"selection": 1}}`` (the nearest agent) for the ``selected`` runs.
+        ``{"selected": {"selector": 1}}`` (the nearest agent) for the ``selected`` runs.
     :param env: The task (see :class:`RunConfig`).
     :param env_kwargs: Keyword arguments for the task's constructor.
     :param score_agents: Agent ids whose summed return is scored as ``group_return``.
@@ -281,7 +281,7 @@ class ExperimentConfig:
         if unknown:
             raise ValueError(
                 f"scheme_model_kwargs names unknown scheme(s) {unknown}: its keys must be schemes, e.g. "
-                f"{{'selected': {{'selection': 1}}}} (schemes: {', '.join(SCHEMES)})."
+                f"{{'selected': {{'selector': 1}}}} (schemes: {', '.join(SCHEMES)})."
             )
 
     def runs(self) -> list[RunConfig]:
@@ -349,7 +349,7 @@ EXP2 = ExperimentConfig(
 )
 """The paper's experiment 2 (each agent observes its two nearest other agents)."""
 
-SELECT_NEAREST_AT_N3: dict[str, dict[str, Any]] = {"selected": {"selection": 1}}
+SELECT_NEAREST_AT_N3: dict[str, dict[str, Any]] = {"selected": {"selector": 1}}
 """``selected`` runs of a 3-agent team select the nearest other agent: selecting both (the default ``k=2``) would be
 ``full`` sharing in another order."""
 

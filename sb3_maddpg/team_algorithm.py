@@ -1,0 +1,279 @@
+"""SB3's off-policy loop for a team of agents: what MADDPG and MATD3 share besides their update.
+
+The team's agent layout read from the env and checked wherever an env or a replay buffer comes in; the selection
+rule of the schemes that use one; exploration in the policy's [-1, 1] space; the per-transition update rule's hooks
+into SB3's loop; the logs; loading saves of older versions.
+"""
+
+import io
+import pathlib
+import warnings
+from collections.abc import Sequence
+from typing import Any, TypeVar
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.noise import ActionNoise
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, TrainFreq
+from stable_baselines3.common.vec_env import VecEnv
+
+from sb3_maddpg.buffers import MultiAgentReplayBuffer, refuse_buffer_of_another_team
+from sb3_maddpg.compat import attributes_missing_from, pop_0_2_dev_schedule, read_saved_data, rename_0_2_attributes
+from sb3_maddpg.env_checks import check_same_layout, layout_of, refuse_env_of_another_team, refuse_reward_normalization
+from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.noise import add_noise, default_noise, fit_noise_to_envs
+from sb3_maddpg.policies import MADDPGPolicy
+from sb3_maddpg.selection import Selector, resolve_selector, warn_if_selecting_everyone
+from sb3_maddpg.sharing import CriticSharing, schemes_per_agent
+from sb3_maddpg.update_schedule import UpdateSchedule
+
+SelfTeamAlgorithm = TypeVar("SelfTeamAlgorithm", bound="TeamOffPolicyAlgorithm")
+
+
+class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
+    """
+    SB3's ``OffPolicyAlgorithm`` for a team whose joint observation and action an
+    :class:`~sb3_maddpg.layout.AgentLayout` describes. A subclass calls :meth:`_set_up_team` in its constructor,
+    after SB3's, and implements ``train``.
+    """
+
+    policy: MADDPGPolicy
+    replay_buffer: MultiAgentReplayBuffer
+    agent_layout: AgentLayout | None
+    selector: Selector | None
+    update_rule: UpdateSchedule
+
+    def _set_up_team(
+        self,
+        critic_sharing: CriticSharing,
+        selector: Selector | int | None,
+        update_rule: UpdateSchedule,
+        noise_std: float | Sequence[float],
+        warn_selection: bool,
+    ) -> None:
+        """
+        Read the team from the env (if any), and set what depends on it. Called by a subclass's constructor.
+
+        :param critic_sharing: What each critic sees (see :class:`~sb3_maddpg.MADDPG`).
+        :param selector: The selection rule asked for, or None for the default.
+        :param update_rule: When the model takes gradient steps.
+        :param noise_std: The default exploration noise's standard deviation (see :class:`~sb3_maddpg.MADDPG`).
+        :param warn_selection: Whether to warn of a selection of every other agent (not on load: the save's rule wins).
+        """
+        self.update_rule = update_rule
+        """When the model takes gradient steps (see :attr:`update_schedule`)."""
+        self.noise_std = noise_std
+        self._logs_dumped_at = -1
+        self._warned_never_updated = False  # not saved: a loaded model may warn once more
+        self.agent_layout = None
+        self.selector = None
+        if self.env is None:
+            return
+        self.agent_layout = layout_of(self.env)
+        refuse_reward_normalization(self.env)
+        schemes = schemes_per_agent(critic_sharing, self.agent_layout.agent_ids)
+        for scheme in dict.fromkeys(schemes):  # a team a scheme cannot serve: say so before the selection's errors
+            scheme.check_layout(self.agent_layout)
+        if any(scheme.uses_selection for scheme in schemes):
+            self.selector = resolve_selector(selector)
+            self.selector.validate(self.agent_layout)
+            if warn_selection:
+                warn_if_selecting_everyone(self.selector, self.agent_layout)
+        elif selector is not None:
+            raise ValueError(
+                f"selector is used only by schemes that read a selection (critic_sharing='selected'), got "
+                f"critic_sharing={critic_sharing!r}: drop selector or use critic_sharing='selected'."
+            )
+        if self.action_noise is None:
+            assert isinstance(self.action_space, spaces.Box)
+            self.action_noise = default_noise(self.agent_layout, noise_std, self.action_space)
+
+    def _setup_model(self) -> None:
+        if self.agent_layout is None:
+            raise ValueError(f"{type(self).__name__} needs an env to read the agent layout from (or a saved model to load).")
+        if self.env is not None:  # on load(path, env=...), SB3 compares only the spaces
+            check_same_layout(layout_of(self.env), self.agent_layout)
+        # Older saves' attributes, read by load(): renamed ones, and a 0.2.0 development save's schedule.
+        rename_0_2_attributes(self.__dict__)
+        pop_0_2_dev_schedule(self.__dict__)
+        # A new dict: SB3 keeps the caller's, which must not change under them.
+        if self.replay_buffer_class is not None and issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
+            self.replay_buffer_kwargs = {**self.replay_buffer_kwargs, "layout": self.agent_layout, "selector": self.selector}
+        self.policy_kwargs = {**self.policy_kwargs, **self._team_policy_kwargs()}  # a new dict, as above
+        self.train_freq = self.update_rule.train_freq(self.n_envs) or self.train_freq  # type: ignore[assignment]
+        super()._setup_model()
+        self._discrete_components = self.agent_layout.discrete_components()  # one-hots: no exploration noise
+
+    def _team_policy_kwargs(self) -> dict[str, Any]:
+        """:return: What the policy needs to know of the team, over the caller's ``policy_kwargs``."""
+        return {"agent_layout": self.agent_layout}
+
+    @property
+    def selection_size(self) -> int:
+        """How many other agents the selection rule selects for each agent (0 without one)."""
+        return 0 if self.selector is None else self.selector.k
+
+    @property
+    def transitions_per_update(self) -> int:
+        """Transitions (all envs counted) per gradient step of the per-transition rule."""
+        return self.update_rule.transitions_per_update
+
+    @property
+    def update_schedule(self) -> str:
+        """When the model updates, in words (e.g. for a log line)."""
+        assert isinstance(self.train_freq, TrainFreq), "_setup_model() converts train_freq"
+        return self.update_rule.describe(
+            self.train_freq, self.n_envs, self.gradient_steps, self.batch_size, self.learning_starts
+        )
+
+    def collect_rollouts(
+        self,
+        env: VecEnv,
+        callback: BaseCallback,
+        train_freq: TrainFreq,
+        replay_buffer: ReplayBuffer,
+        action_noise: ActionNoise | None = None,
+        learning_starts: int = 0,
+        log_interval: int | None = None,
+    ) -> RolloutReturn:
+        rollout = super().collect_rollouts(
+            env, callback, train_freq, replay_buffer, action_noise, learning_starts, log_interval
+        )
+        if self.update_rule.earns_gradient_steps:
+            # SB3's learn() reads self.gradient_steps right after this call: the steps this rollout earned.
+            self.gradient_steps = self.update_rule.earned(self.num_timesteps, self.learning_starts)
+        return rollout
+
+    def _setup_learn(
+        self,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        reset_num_timesteps: bool = True,
+        tb_log_name: str = "run",
+        progress_bar: bool = False,
+    ) -> tuple[int, BaseCallback]:
+        if self.env is not None:  # a noise vectorised for another number of envs: SB3 vectorises it again
+            self.action_noise = fit_noise_to_envs(self.action_noise, self.env.num_envs)
+        result = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
+        if reset_num_timesteps:  # timesteps count from 0 again, and so do the credit and the last log step
+            self.update_rule.reset()
+            self._logs_dumped_at = -1
+        return result
+
+    def _sample_action(
+        self, learning_starts: int, action_noise: ActionNoise | None = None, n_envs: int = 1
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        The exploration action: SB3's, with the same result, without ``predict``'s unscale-then-rescale round trip on
+        every step, and with a clear error when the noise does not fit the joint action.
+
+        :param learning_starts: Env steps of uniformly random actions (a discrete agent's: a uniform one-hot).
+        :param action_noise: Noise added in the [-1, 1] space, then clipped to it.
+        :param n_envs: Number of envs.
+        :return: The action for the env and the [-1, 1] action for the replay buffer.
+        """
+        assert self.agent_layout is not None
+        if self.num_timesteps < learning_starts:
+            unscaled = np.array([self.action_space.sample() for _ in range(n_envs)])
+            buffer_action = self.agent_layout.one_hot_discrete(self.policy.scale_action(unscaled))
+        else:
+            with th.no_grad():
+                observations = th.as_tensor(self._last_obs, dtype=th.float32, device=self.device)
+                buffer_action = self.policy.actor.sample(observations.reshape(n_envs, -1)).cpu().numpy()
+        if action_noise is not None:
+            buffer_action = add_noise(buffer_action, action_noise, self._discrete_components)
+        return self.policy.unscale_action(buffer_action), buffer_action
+
+    def dump_logs(self) -> None:
+        """
+        Write the logs at most once per env step (SB3 asks at finished episodes, which many envs end together), with
+        :meth:`_record_diagnostics`.
+        """
+        if self._logs_dumped_at == self.num_timesteps:
+            return
+        self._logs_dumped_at = self.num_timesteps
+        self._record_diagnostics()
+        super().dump_logs()
+
+    def _record_diagnostics(self) -> None:
+        """Record what is worth computing only when the logs are written (none here)."""
+
+    def _warn_if_never_updated(self) -> None:
+        """Say once, naming learning_starts, that the model has not been trained at all: a short run is otherwise silent."""
+        explicitly_no_updates = not self.update_rule.earns_gradient_steps and self.gradient_steps == 0
+        if self._n_updates > 0 or self._warned_never_updated or explicitly_no_updates:
+            return
+        self._warned_never_updated = True
+        warnings.warn(
+            f"learn() ended at step {self.num_timesteps:,} without a single gradient update: the first "
+            f"learning_starts={self.learning_starts:,} steps (all envs counted) are uniformly random actions that fill "
+            f"the replay buffer, and then the model takes {self.update_schedule}. Train for longer, or lower "
+            f"learning_starts for a short test (e.g. {type(self).__name__}(..., learning_starts=2_000)).",
+            UserWarning,
+            stacklevel=3,
+        )
+
+    def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
+        """
+        Use a new env; it must have the same agent layout as the model.
+
+        :param env: The new environment.
+        :param force_reset: Force a reset before the next ``learn``.
+        """
+        wrapped = self._wrap_env(env, self.verbose)  # checked before it replaces the env: a refused one must not stay
+        check_same_layout(layout_of(wrapped), self.agent_layout)
+        refuse_reward_normalization(wrapped)
+        super().set_env(wrapped, force_reset)
+
+    @classmethod
+    def load(  # type: ignore[override]  # the same signature as SB3's, typed for the subclass
+        cls: type[SelfTeamAlgorithm],
+        path: str | pathlib.Path | io.BufferedIOBase,
+        env: GymEnv | None = None,
+        device: th.device | str = "auto",
+        custom_objects: dict[str, Any] | None = None,
+        print_system_info: bool = False,
+        force_reset: bool = True,
+        **kwargs: Any,
+    ) -> SelfTeamAlgorithm:
+        """
+        Load a saved model (SB3's ``load``); an ``env`` must be of the model's team (the same agents, order and sizes).
+
+        :param path: The saved model (``.zip`` optional) or an open file.
+        :param env: The env to train or evaluate on, or ``None`` (``predict`` needs none).
+        :param device: Device to load the model on.
+        :param custom_objects: Objects to replace on load (SB3's argument).
+        :param print_system_info: Print the system the model was saved on and this one.
+        :param force_reset: Reset the env before the next ``learn``.
+        :param kwargs: Attributes to set on the model over the saved ones.
+        :return: The model.
+        """
+        data = read_saved_data(path, custom_objects)  # read once: for the team check and for older saves
+        if env is not None:
+            refuse_env_of_another_team(data, env)
+        # What an older save lacks, filled with what its version implies; the caller's kwargs over it.
+        missing = {} if data is None else attributes_missing_from(data)
+        return super().load(path, env, device, custom_objects, print_system_info, force_reset, **{**missing, **kwargs})
+
+    def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
+        """
+        Load a replay buffer saved by :meth:`save_replay_buffer`; it must be of this model's team.
+
+        :param path: Path to the pickled replay buffer.
+        :param truncate_last_traj: SB3's argument (used by ``HerReplayBuffer`` only).
+        """
+        current = self.replay_buffer
+        super().load_replay_buffer(path, truncate_last_traj)
+        try:
+            refuse_buffer_of_another_team(self.replay_buffer, self.agent_layout, self.selection_size, self.n_envs)
+        except (TypeError, ValueError):
+            self.replay_buffer = current  # a refused buffer must not stay in the model
+            raise
+        self.replay_buffer.selector = self.selector  # new rows: the model's rule, of the same size k
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "_discrete_components", "_warned_never_updated"]

@@ -1,0 +1,49 @@
+"""What a team's training writes to SB3's logger: per-agent values and the team's mean, under ``train/``."""
+
+from collections.abc import Mapping, Sequence
+
+import torch as th
+from stable_baselines3.common.logger import Logger
+
+
+def record_per_agent(logger: Logger, agent_ids: Sequence[str], values: Mapping[str, Sequence[float | None]]) -> None:
+    """
+    Record each agent's value as ``train/<agent>/<name>`` and the team's mean over the agents that have one as
+    ``train/<name>``.
+
+    :param logger: SB3's logger.
+    :param agent_ids: The agents, in layout order.
+    :param values: Per name, one value per agent (or ``None`` for an agent that has none).
+    """
+    for name, per_agent in values.items():
+        given = [value for value in per_agent if value is not None]
+        logger.record(f"train/{name}", sum(given) / len(given))
+        for agent, value in zip(agent_ids, per_agent):
+            if value is not None:
+                logger.record(f"train/{agent}/{name}", value)
+
+
+def record_losses(logger: Logger, agent_ids: Sequence[str], n_updates: int, losses: Mapping[str, th.Tensor]) -> None:
+    """
+    Record a train call's losses: each agent's mean over the call's gradient steps, and the team's.
+
+    :param logger: SB3's logger.
+    :param agent_ids: The agents, in layout order.
+    :param n_updates: The gradient steps taken so far.
+    :param losses: Per name (e.g. ``"critic_loss"``), the per-agent means, ``[n_agents]`` each.
+    """
+    per_agent = th.stack(tuple(losses.values())).tolist()  # one transfer from the device
+    logger.record("train/n_updates", n_updates, exclude="tensorboard")
+    record_per_agent(logger, agent_ids, dict(zip(losses, per_agent)))
+
+
+def record_critic_diagnostics(logger: Logger, agent_ids: Sequence[str], diagnostics: Sequence[Mapping[str, float]]) -> None:
+    """
+    Record what each critic's features extractor reports (e.g. whom an attention critic listens to).
+
+    :param logger: SB3's logger.
+    :param agent_ids: The agents, in layout order.
+    :param diagnostics: One summary per critic (``MultiAgentCritic.diagnostics()``); a critic may lack a name.
+    """
+    names = sorted({name for summary in diagnostics for name in summary})
+    record_per_agent(logger, agent_ids, {name: [summary.get(name) for summary in diagnostics] for name in names})
