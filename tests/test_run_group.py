@@ -27,6 +27,7 @@ from sb3_maddpg.selection import FixedGraph, NearestAgents
 
 N_AGENTS = 3
 SMALL = {"net_arch": [16, 16]}
+SELECTOR = "selector" if "selector" in MADDPG.__init__.__code__.co_varnames else "selection"  # renamed in 0.3
 
 
 def make_model(seed: int | None = 0, n_agents: int = N_AGENTS, n_envs: int = 2, **kwargs: Any) -> MADDPG:
@@ -106,7 +107,7 @@ def model_state(model: MADDPG) -> dict[str, th.Tensor]:
         ("independent", {}),
         ("observations", {}),
         ("actions", {}),
-        ("selected", {"selector": 1}),
+        ("selected", {SELECTOR: 1}),
         ("full", {"policy_kwargs": {**SMALL, "share_parameters": True}}),
     ],
 )
@@ -115,8 +116,6 @@ def test_one_update_of_a_group_of_one_equals_maddpg_train(
 ) -> None:
     # A small max_grad_norm, so that the clipping acts; a learning rate that moves the weights visibly.
     settings: dict[str, Any] = {"critic_sharing": scheme, "max_grad_norm": 0.05, "learning_rate": 3e-3, **extra}
-    if "selector" in extra and "selector" not in MADDPG.__init__.__code__.co_varnames:
-        settings["selection"] = settings.pop("selector")  # the name before sb3-maddpg 0.3
     reference, model = make_model(**settings), make_model(**settings)
     reference.set_logger(Logger(folder=None, output_formats=[]))  # train() records its losses
     group = RunGroup([model])
@@ -148,7 +147,7 @@ def three_runs(**kwargs: Any) -> list[MADDPG]:
 def test_perturbing_one_run_leaves_the_others_bit_identical(scheme: str, perturb: str) -> None:
     extra: dict[str, Any] = {"critic_sharing": scheme, "max_grad_norm": 0.05}
     if scheme == "selected":
-        extra["selector" if "selector" in MADDPG.__init__.__code__.co_varnames else "selection"] = 1
+        extra[SELECTOR] = 1
     models = three_runs(**extra)
     generator = th.Generator().manual_seed(3)
     batches = [stack_batches([random_batch(models[0], 32, generator) for _ in models]) for _ in range(2)]
@@ -242,6 +241,33 @@ def test_the_groups_worlds_and_exploration_follow_the_numpy_envs_distribution() 
     assert grouped.shape == (64,) and len(numpy_env) == 64
     assert stats.mannwhitneyu(grouped, numpy_env).pvalue > 0.01
     assert stats.ks_2samp(grouped, numpy_env).pvalue > 0.01
+
+
+def test_each_stored_transition_is_the_numpy_envs_step_of_the_stored_action() -> None:
+    """An episode of the group's worlds (float64, as the numpy env's), step by step from the same state, the actor
+    acting without noise: the stored observations, actions, rewards and next observations are the numpy env's."""
+    model = make_model(0, learning_starts=0, noise_std=0.0)
+    group = RunGroup([model], worlds_per_run=2, world_dtype=th.float64)
+    env = SimpleSpreadVecEnv(2, n_agents=N_AGENTS)
+    env.reset()
+    for step in range(25):  # the last step ends the episode: its next observations are the last ones, not the reset's
+        worlds = group._worlds().worlds
+        env.worlds.agent_pos[:] = worlds.agent_pos.numpy()
+        env.worlds.agent_vel[:] = worlds.agent_vel.numpy()
+        env.worlds.landmark_pos[:] = worlds.landmark_pos.numpy()
+        observations = env.worlds.observations(env.worlds.distances()).reshape(2, -1)
+        group.collect_step()
+        stored = group.buffers.get(th.tensor([[2 * step, 2 * step + 1]]))
+        np.testing.assert_allclose(stored.observations[0].numpy(), observations, atol=1e-6)
+        actions, _ = model.predict(observations, deterministic=True)
+        np.testing.assert_allclose(model.policy.unscale_action(stored.actions[0].numpy()), actions, atol=1e-6)
+        env._steps = step  # the episode's step count, for the truncation
+        next_observations, _, dones, infos = env.step(actions)
+        if dones[0]:
+            next_observations = np.stack([info["terminal_observation"] for info in infos])
+        np.testing.assert_allclose(stored.next_observations[0].numpy(), next_observations, atol=1e-5)
+        np.testing.assert_allclose(stored.rewards[0].numpy(), np.stack([i["agent_rewards"] for i in infos]), atol=1e-5)
+    assert dones.all() and len(group.worlds.episodes) == 1  # type: ignore[union-attr]
 
 
 # ----- back into models -----
@@ -343,9 +369,7 @@ def test_an_empty_group_and_worlds_of_another_team_are_refused() -> None:
 
 @pytest.mark.skipif(not th.cuda.is_available(), reason="needs a CUDA device")
 def test_a_group_on_cuda_updates_as_on_the_cpu_and_learns() -> None:
-    models = three_runs(
-        critic_sharing="selected", **{"selector" if "selector" in MADDPG.__init__.__code__.co_varnames else "selection": 1}
-    )
+    models = three_runs(critic_sharing="selected", **{SELECTOR: 1})
     generator = th.Generator().manual_seed(8)
     batch = stack_batches([random_batch(models[0], 32, generator) for _ in models])
     on_cpu, on_cuda = RunGroup(models), RunGroup(models, device="cuda")

@@ -105,6 +105,7 @@ class RunGroup:
             0 if self.selection is None else self.selection.k,
             self.device,
         )
+        self.world_dtype = world_dtype
         self.worlds: SpreadRuns | None = None
         self.losses: dict[str, th.Tensor] = {}
         """The last :meth:`train` call's means of :data:`LOSS_NAMES`, ``[R, n_agents]`` each, on the device."""
@@ -218,7 +219,7 @@ class RunGroup:
                     "The run group does not know its worlds' settings: the models' env is not a SimpleSpreadVecEnv. "
                     "Pass RunGroup(models, task=SpreadTask(n_agents=..., num_agent_neighbors=...))."
                 )
-            worlds = SpreadRuns(self.task, self.worlds_per_run, self.generators, self.device)
+            worlds = SpreadRuns(self.task, self.worlds_per_run, self.generators, self.device, self.world_dtype)
             expected = self.task.layout(worlds.obs_size)
             if expected != self.layout:
                 raise ValueError(
