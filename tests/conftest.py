@@ -11,3 +11,50 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 from sb3_maddpg.torch_threads import use_torch_threads  # after the SDL variables
 
 use_torch_threads()
+
+from collections.abc import Callable  # noqa: E402  (after the SDL variables, as above)
+from typing import Any  # noqa: E402
+
+import pytest  # noqa: E402
+import torch as th  # noqa: E402
+
+from sb3_maddpg import MADDPG  # noqa: E402
+from sb3_maddpg.buffers import MultiAgentReplayBufferSamples  # noqa: E402
+from sb3_maddpg.envs import make_simple_spread  # noqa: E402
+
+BATCH = 8
+"""Rows of :func:`replay_batch`'s batches."""
+
+
+@pytest.fixture
+def collected_model() -> Callable[..., MADDPG]:
+    """
+    Build a model whose buffer holds 60 real steps of simple_spread (3 agents) and that has made no update
+    (``learning_starts`` is beyond them): the update-math tests' model. ``selected`` selects the nearest other agent
+    (a real subset of 3); keyword arguments go to the algorithm, ``policy_kwargs`` over ``net_arch=[16, 16]``.
+    """
+
+    def build(scheme: Any = "full", algorithm: type[MADDPG] = MADDPG, env: Any = None, **kwargs: Any) -> MADDPG:
+        if scheme == "selected":
+            kwargs.setdefault("selector", 1)
+        kwargs["policy_kwargs"] = {"net_arch": [16, 16], **kwargs.get("policy_kwargs", {})}
+        settings = {"learning_starts": 10_000, "buffer_size": 1_000, "batch_size": BATCH, "seed": 0, **kwargs}
+        model = algorithm("MlpPolicy", env or make_simple_spread(n_agents=3), critic_sharing=scheme, **settings)
+        model.learn(60)
+        return model
+
+    return build
+
+
+@pytest.fixture
+def replay_batch() -> Callable[[MADDPG], MultiAgentReplayBufferSamples]:
+    """Sample a model's buffer: 8 rows, each agent's reward its own (random) and every third row terminal."""
+
+    def sample(model: MADDPG) -> MultiAgentReplayBufferSamples:
+        data = model.replay_buffer.sample(BATCH)
+        n_agents = data.rewards.shape[1]
+        dones = th.zeros(BATCH, n_agents)
+        dones[::3] = 1.0
+        return data._replace(rewards=th.randn(BATCH, n_agents), dones=dones)
+
+    return sample

@@ -1,6 +1,7 @@
 """MATD3: the min of the twin target critics, clipped target smoothing (none on one-hots, none when acting), delayed
 actor and target updates, what each critic sees (MADDPG and MATD3 alike), the actors' first-critic gradient, save/load."""
 
+import functools
 import json
 from pathlib import Path
 from typing import Any
@@ -10,7 +11,6 @@ import pytest
 import torch as th
 
 from sb3_maddpg import MADDPG, MATD3
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
 from sb3_maddpg.evaluation import evaluate_team
 from sb3_maddpg.losses import critic_losses, critic_targets, one_member
@@ -27,30 +27,10 @@ ALGORITHMS = {"MADDPG": MADDPG, "MATD3": MATD3}
 PER_AGENT_MAP = {"agent_0": "full", "agent_1": "independent", "agent_2": "actions"}
 
 
-def make_model(scheme: Any = "full", algorithm: type[MADDPG] = MATD3, **kwargs: Any) -> MADDPG:
-    """A model after 60 collected steps and no update (learning_starts is beyond them)."""
-    if scheme == "selected":
-        kwargs.setdefault("selector", 1)  # the nearest other agent: a real subset of a team of 3
-    model = algorithm(
-        "MlpPolicy",
-        make_simple_spread(n_agents=N_AGENTS),
-        critic_sharing=scheme,
-        learning_starts=10_000,
-        buffer_size=1_000,
-        batch_size=BATCH,
-        seed=0,
-        **{"policy_kwargs": dict(net_arch=[16, 16]), **kwargs},
-    )
-    model.learn(60)
-    return model
-
-
-def sample(model: MADDPG) -> MultiAgentReplayBufferSamples:
-    """A replay batch with distinct per-agent rewards and some terminal rows."""
-    data = model.replay_buffer.sample(BATCH)
-    dones = th.zeros(BATCH, N_AGENTS)
-    dones[::3] = 1.0
-    return data._replace(rewards=th.randn(BATCH, N_AGENTS), dones=dones)
+@pytest.fixture
+def collected_model(collected_model: Any) -> Any:
+    """The shared fixture's model (conftest.py), a MATD3 unless a test asks for another algorithm."""
+    return functools.partial(collected_model, algorithm=MATD3)
 
 
 def states(module: th.nn.Module) -> dict[str, th.Tensor]:
@@ -77,9 +57,11 @@ def is_one_hot(values: th.Tensor) -> bool:
 
 
 @pytest.mark.parametrize("scheme", ["full", "selected", "attention"])
-def test_critic_target_is_the_min_of_the_two_target_critics_by_hand(scheme: str) -> None:
-    model = make_model(scheme)
-    data = sample(model)
+def test_critic_target_is_the_min_of_the_two_target_critics_by_hand(
+    scheme: str, collected_model: Any, replay_batch: Any
+) -> None:
+    model = collected_model(scheme)
+    data = replay_batch(model)
     layout = model.agent_layout
     assert layout is not None
     th.manual_seed(5)
@@ -105,10 +87,10 @@ def test_critic_target_is_the_min_of_the_two_target_critics_by_hand(scheme: str)
 
 
 @pytest.mark.parametrize("scheme", ["full", "attention"])
-def test_the_critic_update_descends_both_twins_losses_at_that_target(scheme: str) -> None:
+def test_the_critic_update_descends_both_twins_losses_at_that_target(scheme: str, collected_model: Any) -> None:
     """With SGD at learning rate 1 and no clipping, train()'s critic step is minus the gradient of both twins' losses
     against :meth:`_critic_targets` (the smoothed min target above), on the same batch and the same noise."""
-    model = make_model(
+    model = collected_model(
         scheme, learning_rate=1.0, max_grad_norm=None, policy_kwargs=dict(net_arch=[16, 16], optimizer_class=th.optim.SGD)
     )
     np.random.seed(7)
@@ -126,8 +108,8 @@ def test_the_critic_update_descends_both_twins_losses_at_that_target(scheme: str
     assert moved(twin_1, model.critic.mlp) and moved(twin_2, model.critic.twin)
 
 
-def test_twin_critics_are_independent_networks_with_their_own_extractors() -> None:
-    model = make_model("attention")
+def test_twin_critics_are_independent_networks_with_their_own_extractors(collected_model: Any) -> None:
+    model = collected_model("attention")
     assert isinstance(model.policy, MATD3Policy) and isinstance(model.critic, TwinMultiAgentCritic)
     first, second = model.critic.extractors, model.critic.twin.extractors
     assert all(a is not b and type(a) is type(b) for a, b in zip(first, second))
@@ -170,8 +152,8 @@ def test_a_mixed_teams_target_actions_keep_the_one_hot_and_smooth_the_continuous
     assert offset.abs().max() <= 0.5 + 1e-6 and offset.abs().max() > 0.1
 
 
-def test_no_smoothing_noise_when_acting_or_evaluating() -> None:
-    model = make_model(target_policy_noise=1.0, target_noise_clip=1.0)
+def test_no_smoothing_noise_when_acting_or_evaluating(collected_model: Any) -> None:
+    model = collected_model(target_policy_noise=1.0, target_noise_clip=1.0)
     obs = model.replay_buffer.observations[:16, 0]
     first, _ = model.predict(obs, deterministic=True)
     second, _ = model.predict(obs, deterministic=True)
@@ -186,8 +168,8 @@ def test_no_smoothing_noise_when_acting_or_evaluating() -> None:
 # --- Delayed updates ------------------------------------------------------------------------------------------------
 
 
-def test_actor_and_targets_move_only_every_policy_delay_critic_updates() -> None:
-    model = make_model(policy_delay=3)
+def test_actor_and_targets_move_only_every_policy_delay_critic_updates(collected_model: Any) -> None:
+    model = collected_model(policy_delay=3)
     moves = []
     for _ in range(6):
         before = {name: states(getattr(model, name)) for name in ("critic", "actor", "actor_target", "critic_target")}
@@ -236,11 +218,13 @@ def critic_loss_function(model: MADDPG) -> Any:
 @pytest.mark.parametrize(
     "scheme", ["independent", "full", "observations", "actions", "selected", "attention", PER_AGENT_MAP], ids=str
 )
-def test_each_critics_loss_reaches_exactly_the_inputs_its_scheme_allows(algorithm: str, scheme: Any) -> None:
-    model = make_model(scheme, ALGORITHMS[algorithm])
+def test_each_critics_loss_reaches_exactly_the_inputs_its_scheme_allows(
+    algorithm: str, scheme: Any, collected_model: Any, replay_batch: Any
+) -> None:
+    model = collected_model(scheme, algorithm=ALGORITHMS[algorithm])
     layout = model.agent_layout
     assert layout is not None
-    data = one_member(sample(model))
+    data = one_member(replay_batch(model))
     obs, actions = data.observations.clone().requires_grad_(True), data.actions.clone().requires_grad_(True)
     team = model._team
     targets = critic_targets(team.target_actions, team.target_q, data, model.gamma)
@@ -261,9 +245,9 @@ def test_each_critics_loss_reaches_exactly_the_inputs_its_scheme_allows(algorith
 
 
 @pytest.mark.parametrize("scheme", ["full", "attention"])
-def test_each_twins_loss_moves_only_its_own_agents_own_twin(scheme: str) -> None:
-    model = make_model(scheme)
-    data = one_member(sample(model))
+def test_each_twins_loss_moves_only_its_own_agents_own_twin(scheme: str, collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model(scheme)
+    data = one_member(replay_batch(model))
     team = model._team
     losses = critic_losses(team.q_twins, data, critic_targets(team.target_actions, team.target_q, data, model.gamma))
     critics = (model.critic, model.critic.twin)
@@ -285,8 +269,8 @@ def test_each_twins_loss_moves_only_its_own_agents_own_twin(scheme: str) -> None
 
 
 @pytest.mark.parametrize("scheme", ["full", "attention"])
-def test_each_actors_gradient_comes_from_its_first_critic_only(scheme: str) -> None:
-    reference, changed_twin_2, changed_twin_1 = (make_model(scheme, policy_delay=1) for _ in range(3))
+def test_each_actors_gradient_comes_from_its_first_critic_only(scheme: str, collected_model: Any) -> None:
+    reference, changed_twin_2, changed_twin_1 = (collected_model(scheme, policy_delay=1) for _ in range(3))
     actor_before = states(reference.actor)
     with th.no_grad():
         for param in changed_twin_2.critic.twin.parameters():
@@ -321,8 +305,8 @@ def assert_same_tree(expected: Any, actual: Any, path: str = "") -> None:
 
 
 @pytest.mark.parametrize("scheme", ["full", "selected", "attention"])
-def test_save_and_load_round_trip(scheme: str, tmp_path: Path) -> None:
-    model = make_model(scheme, policy_delay=3, target_policy_noise=0.3, target_noise_clip=0.4)
+def test_save_and_load_round_trip(scheme: str, tmp_path: Path, collected_model: Any) -> None:
+    model = collected_model(scheme, policy_delay=3, target_policy_noise=0.3, target_noise_clip=0.4)
     for _ in range(4):  # past a delayed update, and mid-cycle: the delay's phase is saved too
         model.train(gradient_steps=1, batch_size=BATCH)
     model.save(tmp_path / "matd3.zip")

@@ -11,7 +11,6 @@ from mpe2 import simple_speaker_listener_v4
 from stable_baselines3.common.logger import KVWriter, Logger
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
 from tests.loss_helpers import team_actor_terms
 
@@ -24,26 +23,11 @@ def make_speaker_listener() -> PettingZooToGym:
     return PettingZooToGym(simple_speaker_listener_v4.parallel_env(continuous_actions=True, max_cycles=25))
 
 
-def make_model(team: str = "homogeneous", scheme: str = "full", **kwargs: Any) -> MADDPG:
-    """A model that has collected 60 steps and made no update."""
-    env = make_speaker_listener() if team == "heterogeneous" else make_simple_spread(n_agents=3)
-    model = MADDPG(
-        "MlpPolicy",
-        env,
-        critic_sharing=scheme,
-        policy_kwargs=dict(net_arch=[16, 16], share_parameters=team == "shared"),
-        learning_starts=10_000,  # only collect: no update happens while the buffer fills
-        buffer_size=1_000,
-        batch_size=BATCH,
-        seed=0,
-        **kwargs,
-    )
-    model.learn(60)
-    return model
-
-
-def sample(model: MADDPG) -> MultiAgentReplayBufferSamples:
-    return model.replay_buffer.sample(BATCH)
+def team_settings(team: str) -> dict[str, Any]:
+    """``collected_model``'s arguments for each of TEAMS: 3 agents, speaker-listener (other sizes), shared networks."""
+    if team == "heterogeneous":
+        return {"env": make_speaker_listener()}
+    return {"policy_kwargs": {"share_parameters": True}} if team == "shared" else {}
 
 
 def hand_preactivation(model: MADDPG, agent: int, observation: th.Tensor) -> th.Tensor:
@@ -80,11 +64,11 @@ def record_to(model: MADDPG) -> Recorder:
 
 
 @pytest.mark.parametrize("team", ["homogeneous", "heterogeneous"])
-def test_regulariser_reaches_only_its_own_actor(team: str) -> None:
-    model = make_model(team)
+def test_regulariser_reaches_only_its_own_actor(team: str, collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model(**team_settings(team))
     layout = model.agent_layout
     assert layout is not None
-    reg_losses = team_actor_terms(model, sample(model)).reg_loss
+    reg_losses = team_actor_terms(model, replay_batch(model)).reg_loss
     params = list(model.actor.parameters())
     max_out = max(layout.action_sizes)
     for i in range(layout.n_agents):
@@ -99,9 +83,9 @@ def test_regulariser_reaches_only_its_own_actor(team: str) -> None:
 
 
 @pytest.mark.parametrize("scheme", ["full", "selected"])
-def test_zero_coefficient_leaves_the_policy_gradient_loss(scheme: str) -> None:
-    model = make_model(scheme=scheme, actor_reg_coef=0.0)
-    data = sample(model)
+def test_zero_coefficient_leaves_the_policy_gradient_loss(scheme: str, collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model(scheme=scheme, actor_reg_coef=0.0)
+    data = replay_batch(model)
     layout = model.agent_layout
     assert layout is not None
     losses = team_actor_terms(model, data).total
@@ -116,10 +100,10 @@ def test_zero_coefficient_leaves_the_policy_gradient_loss(scheme: str) -> None:
 
 
 @pytest.mark.parametrize("team", TEAMS)
-def test_penalty_matches_hand_computation(team: str) -> None:
-    model = make_model(team)
+def test_penalty_matches_hand_computation(team: str, collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model(**team_settings(team))
     assert model.actor_reg_coef == 1e-3  # on by default, at Lowe et al.'s value
-    data = sample(model)
+    data = replay_batch(model)
     layout = model.agent_layout
     assert layout is not None
     terms = team_actor_terms(model, data)
@@ -135,11 +119,11 @@ def test_penalty_matches_hand_computation(team: str) -> None:
 
 
 @pytest.mark.parametrize("team", TEAMS)
-def test_forward_with_preactivation_is_forward(team: str) -> None:
-    model = make_model(team)
+def test_forward_with_preactivation_is_forward(team: str, collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model(**team_settings(team))
     layout = model.agent_layout
     assert layout is not None
-    observations = sample(model).observations
+    observations = replay_batch(model).observations
     with th.no_grad():
         actions, pre = model.actor.forward_with_preactivation(observations)
         assert actions.shape == pre.shape == (BATCH, layout.action_dim)
@@ -156,13 +140,13 @@ def test_bad_coefficient_is_refused(value: float) -> None:
         MADDPG("MlpPolicy", make_simple_spread(n_agents=3), actor_reg_coef=value)
 
 
-def test_coefficient_survives_save_and_load(tmp_path) -> None:
-    model = make_model(actor_reg_coef=0.05)
+def test_coefficient_survives_save_and_load(tmp_path, collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model(actor_reg_coef=0.05)
     model.save(tmp_path / "model.zip")
     loaded = MADDPG.load(tmp_path / "model.zip", env=make_simple_spread(n_agents=3))
     assert loaded.actor_reg_coef == 0.05
     loaded.replay_buffer = model.replay_buffer
-    data = sample(model)
+    data = replay_batch(model)
     assert th.allclose(team_actor_terms(loaded, data).reg_loss, team_actor_terms(model, data).reg_loss)
 
 
@@ -194,9 +178,9 @@ def test_learn_logs_saturation_and_penalty() -> None:
         assert dump["train/actor_reg_loss"] == pytest.approx(np.mean(reg))
 
 
-def test_saturation_and_penalty_values_on_a_crafted_actor() -> None:
+def test_saturation_and_penalty_values_on_a_crafted_actor(collected_model: Any) -> None:
     """Last layers set by hand: actions are tanh(bias), so the saturation and the penalty are known exactly."""
-    model = make_model("heterogeneous")  # agent 0: 3 action components (padded to 5), agent 1: 5
+    model = collected_model(**team_settings("heterogeneous"))  # agent 0: 3 action components (padded to 5), agent 1: 5
     weights, biases = model.actor.mlp.weights, model.actor.mlp.biases
     with th.no_grad():
         weights[-1].zero_()
@@ -216,8 +200,8 @@ def test_saturation_and_penalty_values_on_a_crafted_actor() -> None:
     assert logged["train/actor_reg_loss"] == pytest.approx(listener_penalty / 2)
 
 
-def test_actor_loss_log_is_the_policy_gradient_part() -> None:
-    with_reg = make_model()
+def test_actor_loss_log_is_the_policy_gradient_part(collected_model: Any) -> None:
+    with_reg = collected_model()
     without = copy.deepcopy(with_reg)
     without.actor_reg_coef = 0.0
     logs = []

@@ -357,9 +357,7 @@ def test_custom_critic_features_extractor():
 
 
 def test_callable_selector():
-    model = MADDPG(
-        "MlpPolicy", make_team(), critic_sharing="selected", selector=CallableSelector(ring_selection, k=1), **FAST
-    )
+    model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=CallableSelector(ring_selection, k=1), **FAST)
     model.learn(total_timesteps=100)
     stored = model.replay_buffer.selections[: model.replay_buffer.pos, 0]
     np.testing.assert_array_equal(stored, np.broadcast_to([[1], [2], [0]], stored.shape))

@@ -1,13 +1,13 @@
 """The update equations: critic targets, termination masking, per-agent rewards, actor gradients, Polyak targets."""
 
 import copy
+from typing import Any
 
 import numpy as np
 import pytest
 import torch as th
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.envs import make_simple_spread
 from sb3_maddpg.policies import AgentCritic
 from tests.loss_helpers import team_actor_terms, team_critic_losses
@@ -15,35 +15,10 @@ from tests.loss_helpers import team_actor_terms, team_critic_losses
 BATCH = 8
 
 
-def make_model(scheme: str = "full", **kwargs) -> MADDPG:
-    model = MADDPG(
-        "MlpPolicy",
-        make_simple_spread(n_agents=3),
-        critic_sharing=scheme,
-        policy_kwargs=dict(net_arch=[16, 16]),
-        learning_starts=10_000,  # only collect: no update happens while the buffer fills
-        buffer_size=1_000,
-        batch_size=BATCH,
-        seed=0,
-        **kwargs,
-    )
-    model.learn(60)
-    return model
-
-
-def sample(model: MADDPG) -> MultiAgentReplayBufferSamples:
-    data = model.replay_buffer.sample(BATCH)
-    # Distinct rewards per agent and a mix of terminal and non-terminal rows.
-    rewards = th.randn(BATCH, 3)
-    dones = th.zeros(BATCH, 3)
-    dones[::3] = 1.0
-    return data._replace(rewards=rewards, dones=dones)
-
-
 @pytest.mark.parametrize("scheme", ["full", "independent", "selected", "attention", "learned_selection"])
-def test_critic_target_matches_hand_computation(scheme: str) -> None:
-    model = make_model(scheme)
-    data = sample(model)
+def test_critic_target_matches_hand_computation(scheme: str, collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model(scheme)
+    data = replay_batch(model)
     layout = model.agent_layout
     assert layout is not None
     # Every agent's *target* actor on its own *next* observation, one agent at a time.
@@ -57,12 +32,13 @@ def test_critic_target_matches_hand_computation(scheme: str) -> None:
             assert th.allclose(model._critic_targets(data)[:, i], expected, atol=1e-6)
     # At a true termination the target is the reward alone.
     terminal = data.dones[:, 0] == 1
+    assert terminal.any() and not terminal.all()  # the batch has both kinds of rows
     assert th.equal(model._critic_targets(data)[terminal], data.rewards[terminal])
 
 
-def test_targets_use_target_actors_not_online_ones() -> None:
-    model = make_model()
-    data = sample(model)
+def test_targets_use_target_actors_not_online_ones(collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model()
+    data = replay_batch(model)
     before = model._critic_targets(data)
     with th.no_grad():
         for param in model.actor.parameters():
@@ -75,9 +51,9 @@ def test_targets_use_target_actors_not_online_ones() -> None:
     assert changed.tolist() == [True, True, True]
 
 
-def test_each_critic_learns_from_its_own_reward() -> None:
-    model = make_model()
-    data = sample(model)
+def test_each_critic_learns_from_its_own_reward(collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model()
+    data = replay_batch(model)
     base = team_critic_losses(model, data).detach()
     rewards = data.rewards.clone()
     rewards[:, 1] += 5.0
@@ -86,9 +62,9 @@ def test_each_critic_learns_from_its_own_reward() -> None:
     assert th.equal(moved[[0, 2]], base[[0, 2]])
 
 
-def test_critic_loss_reaches_only_its_own_critic() -> None:
-    model = make_model()
-    losses = team_critic_losses(model, sample(model))
+def test_critic_loss_reaches_only_its_own_critic(collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model()
+    losses = team_critic_losses(model, replay_batch(model))
     for i in range(3):
         grads = th.autograd.grad(losses[i], list(model.critic.mlp.weights), retain_graph=True)
         for grad in grads:
@@ -97,9 +73,9 @@ def test_critic_loss_reaches_only_its_own_critic() -> None:
 
 
 @pytest.mark.parametrize("scheme", ["full", "actions", "selected", "attention", "learned_selection"])
-def test_actor_loss_reaches_only_its_own_actor(scheme: str) -> None:
-    model = make_model(scheme)
-    losses = team_actor_terms(model, sample(model)).total
+def test_actor_loss_reaches_only_its_own_actor(scheme: str, collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model(scheme)
+    losses = team_actor_terms(model, replay_batch(model)).total
     params = list(model.actor.parameters())
     for i in range(3):
         for grad in th.autograd.grad(losses[i], params, retain_graph=True):
@@ -107,9 +83,9 @@ def test_actor_loss_reaches_only_its_own_actor(scheme: str) -> None:
             assert all(grad[j].abs().sum() == 0 for j in range(3) if j != i)
 
 
-def test_actor_loss_takes_other_agents_actions_from_the_sample() -> None:
-    model = make_model()
-    data = sample(model)
+def test_actor_loss_takes_other_agents_actions_from_the_sample(collected_model: Any, replay_batch: Any) -> None:
+    model = collected_model()
+    data = replay_batch(model)
     before = team_actor_terms(model, data).total.detach()
     with th.no_grad():
         model.actor.mlp.weights[-1][1].add_(1.0)  # change agent 1's actor only
@@ -123,8 +99,8 @@ def test_actor_loss_takes_other_agents_actions_from_the_sample() -> None:
 
 
 @pytest.mark.parametrize("scheme", ["full", "attention", "learned_selection"])
-def test_one_update_moves_targets_by_polyak_average(scheme: str) -> None:
-    model = make_model(scheme)
+def test_one_update_moves_targets_by_polyak_average(scheme: str, collected_model: Any) -> None:
+    model = collected_model(scheme)
     old_actor_target = copy.deepcopy(model.actor_target.state_dict())
     old_critic_target = copy.deepcopy(model.critic_target.state_dict())
     old_actor = copy.deepcopy(model.actor.state_dict())
@@ -200,16 +176,16 @@ def test_each_critics_gradient_is_clipped_with_its_extractors(scheme: str) -> No
         assert float((mlp_steps[i] ** 2 + extractor_step).sqrt()) == pytest.approx(1e-3, rel=1e-3)
 
 
-def test_learning_rate_schedule_reaches_both_optimizers() -> None:
-    model = make_model(learning_rate=lambda progress: 0.02 * progress)
+def test_learning_rate_schedule_reaches_both_optimizers(collected_model: Any) -> None:
+    model = collected_model(learning_rate=lambda progress: 0.02 * progress)
     model._current_progress_remaining = 0.25
     model.train(gradient_steps=1, batch_size=BATCH)
     for optimizer in (model.actor.optimizer, model.critic.optimizer):
         assert optimizer.param_groups[0]["lr"] == pytest.approx(0.005)
 
 
-def test_targets_stay_in_eval_mode_and_frozen() -> None:
-    model = make_model()
+def test_targets_stay_in_eval_mode_and_frozen(collected_model: Any) -> None:
+    model = collected_model()
     model.policy.set_training_mode(True)
     assert model.actor.training and model.critic.training
     assert not model.actor_target.training and not model.critic_target.training
@@ -218,18 +194,18 @@ def test_targets_stay_in_eval_mode_and_frozen() -> None:
     assert not model.actor.training and not model.critic.training
 
 
-def test_truncation_bootstraps_in_stored_transitions() -> None:
+def test_truncation_bootstraps_in_stored_transitions(collected_model: Any) -> None:
     """simple_spread ends by truncation at max_cycles: its last transition must keep bootstrapping."""
-    model = make_model()  # 60 steps: episodes of 25 end at rows 24 and 49
+    model = collected_model()  # 60 steps: episodes of 25 end at rows 24 and 49
     buffer = model.replay_buffer
     assert buffer.timeouts[24, 0] == 1 and buffer.timeouts[49, 0] == 1
     assert buffer.timeouts[:60].sum() == 2
     assert buffer.dones[:60].sum() == 0  # no true termination: every row bootstraps
 
 
-def test_without_timeout_handling_truncation_stops_bootstrapping() -> None:
+def test_without_timeout_handling_truncation_stops_bootstrapping(collected_model: Any) -> None:
     """replay_buffer_kwargs=dict(handle_timeout_termination=False): SB3's meaning, a time limit is a terminal."""
-    model = make_model(replay_buffer_kwargs=dict(handle_timeout_termination=False))
+    model = collected_model(replay_buffer_kwargs=dict(handle_timeout_termination=False))
     buffer = model.replay_buffer
     assert buffer.dones[:60, 0].sum(axis=0).tolist() == [2, 2, 2]  # rows 24 and 49, every agent
     assert buffer.dones[24, 0].tolist() == buffer.dones[49, 0].tolist() == [1, 1, 1]
