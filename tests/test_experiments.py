@@ -15,7 +15,7 @@ from scipy.stats import mannwhitneyu
 
 from sb3_maddpg.experiments import EXP1, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
-from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL, PAPER_NAMES
+from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL, PAPER_NAMES, setting_label
 from sb3_maddpg.experiments.report import format_markdown
 from sb3_maddpg.experiments.results import (
     DONE_FILE,
@@ -479,3 +479,13 @@ def test_scheme_order_is_defined_once_and_plots_do_not_import_the_report() -> No
     imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
     assert "sb3_maddpg.experiments.report" not in imported
     assert "sb3_maddpg.experiments.results" in imported  # sanity: the walk sees plots' imports
+
+
+def test_a_setting_of_another_algorithm_is_labelled_with_its_name() -> None:
+    # The report's scheme columns keep the paper's MADDPG names: the setting's label must say a MATD3 sweep is one.
+    maddpg = EXP1.to_dict()
+    assert setting_label("exp1", maddpg) == "exp1 (N=5, full obs., 100,000 ep.)"
+    matd3 = {**maddpg, "algorithm": "sb3_maddpg:MATD3"}
+    assert setting_label("exp1", matd3) == "exp1 (MATD3, N=5, full obs., 100,000 ep.)"
+    other_task = {**matd3, "env": "simple_tag"}
+    assert setting_label("tag", other_task) == "tag (MATD3, simple_tag, 100,000 ep.)"

@@ -41,15 +41,18 @@ def setting_label(name: str, experiment: dict[str, Any] | None) -> str:
     """
     :param name: The experiment name.
     :param experiment: Its stored config (``ExperimentConfig.to_dict()``), if any.
-    :return: A short label, e.g. ``"exp1 (N=5, full obs., 100,000 ep.)"``.
+    :return: A short label, e.g. ``"exp1 (N=5, full obs., 100,000 ep.)"``; an algorithm other than MADDPG is named
+        first (``"n3_matd3 (MATD3, N=3, ...)"``), since the scheme columns keep the paper's MADDPG names.
     """
     if not experiment:
         return name
+    algorithm = experiment.get("algorithm", DEFAULT_ALGORITHM)
+    prefix = "" if algorithm == DEFAULT_ALGORITHM else f"{algorithm.rpartition(':')[2]}, "
     if experiment.get("env", DEFAULT_ENV) != DEFAULT_ENV:
-        return f"{name} ({experiment['env']}, {experiment['episodes']:,} ep.)"
+        return f"{name} ({prefix}{experiment['env']}, {experiment['episodes']:,} ep.)"
     neighbors = experiment.get("num_agent_neighbors")
     observability = "full obs." if neighbors is None else f"{neighbors} nearest obs."
-    return f"{name} (N={experiment['n_agents']}, {observability}, {experiment['episodes']:,} ep.)"
+    return f"{name} ({prefix}N={experiment['n_agents']}, {observability}, {experiment['episodes']:,} ep.)"
 
 
 TUNE_OBJECTIVES = {"min_dist_sum": "minimize", "normalised": "maximize"}
