@@ -6,6 +6,7 @@ import math
 import os
 import shutil
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -129,10 +130,7 @@ def execute_run(
     directory = run_directory(results_dir, config)
     if is_finished(results_dir, config):
         return collect_result(directory)
-    if directory.exists():
-        shutil.rmtree(directory)
-    directory.mkdir(parents=True)
-    write_json_atomic(directory / CONFIG_FILE, config.to_dict())
+    start_run_directory(config, directory)
 
     if threads is not None:
         import torch as th
@@ -140,49 +138,114 @@ def execute_run(
         th.set_num_threads(threads)
 
     started = time.perf_counter()
-    algorithm: Any = load_algorithm(config.algorithm)
     curve_env = make_eval_env(config, config.curve_eval_episodes)
-    # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.
-    model = algorithm(
-        "MlpPolicy",
-        VecMonitor(make_env(config)),
-        critic_sharing=config.scheme,
-        seed=config.seed,
-        **copy.deepcopy(config.model_kwargs),
-    )
+    model = build_model(config)
     model.set_logger(configure(str(directory), ["csv"]))
 
     progress = ProgressLogCallback(config.run_id, config.total_timesteps, str(directory / LOG_FILE), echo=verbose >= 1)
     checkpoints = CheckpointAtSteps(config.checkpoint_steps(), directory / CHECKPOINT_DIR)
     callbacks: list[BaseCallback] = [checkpoints, progress]
-    if config.curve_points > 0:
-        n_envs = model.get_env().num_envs  # type: ignore[union-attr]
-        callbacks.append(
-            TeamEvalCallback(
-                curve_env,
-                eval_freq=max(1, config.curve_interval // n_envs),
-                n_eval_episodes=config.curve_eval_episodes,
-                seed=config.eval_seed,
-                log_path=str(directory / CURVE_FILE),
-                eval_at_start=True,
-                task_metrics=task_metrics(config),
-                score_agents=config.score_agents,
-            )
-        )
-    progress.log(
-        f"{config.run_id}: training {config.total_timesteps:,} steps ({config.episodes:,} episodes) on {describe(config)}"
-    )
-    model.learn(config.total_timesteps, callback=CallbackList(callbacks), log_interval=max(1, config.episodes // 100))
+    curve = curve_callback(config, curve_env, model.get_env().num_envs, directory)  # type: ignore[union-attr]
+    if curve is not None:
+        callbacks.append(curve)
+    progress.log(training_line(config))
+    model.learn(config.total_timesteps, callback=CallbackList(callbacks), log_interval=log_interval(config))
     train_time = time.perf_counter() - started
     model.get_env().close()  # type: ignore[union-attr]
     del model
 
     curve_env.close()
+    return finish_run(config, directory, checkpoints.saved, started, train_time, progress.log)
+
+
+def start_run_directory(config: RunConfig, directory: Path) -> None:
+    """
+    Start a run's directory afresh: anything an interrupted attempt left is removed, then ``config.json`` is written.
+
+    :param config: The run.
+    :param directory: Its directory.
+    """
+    if directory.exists():
+        shutil.rmtree(directory)
+    directory.mkdir(parents=True)
+    write_json_atomic(directory / CONFIG_FILE, config.to_dict())
+
+
+def build_model(config: RunConfig, **kwargs: Any) -> Any:
+    """
+    :param config: The run.
+    :param kwargs: More keyword arguments for the algorithm (e.g. ``device``), under the config's ``model_kwargs``.
+    :return: The run's untrained model, on a new training env (monitored).
+    """
+    algorithm: Any = load_algorithm(config.algorithm)
+    # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.
+    return algorithm(
+        "MlpPolicy",
+        VecMonitor(make_env(config)),
+        critic_sharing=config.scheme,
+        seed=config.seed,
+        **{**kwargs, **copy.deepcopy(config.model_kwargs)},
+    )
+
+
+def curve_callback(config: RunConfig, curve_env: VecEnv, n_envs: int, directory: Path) -> TeamEvalCallback | None:
+    """
+    :param config: The run.
+    :param curve_env: Its learning-curve evaluation env.
+    :param n_envs: Its training env's worlds (the callback is called once per step of them all).
+    :param directory: Its directory.
+    :return: The callback that writes its learning curve, or ``None`` when it has none (``curve_points=0``).
+    """
+    if config.curve_points == 0:
+        return None
+    return TeamEvalCallback(
+        curve_env,
+        eval_freq=max(1, config.curve_interval // n_envs),
+        n_eval_episodes=config.curve_eval_episodes,
+        seed=config.eval_seed,
+        log_path=str(directory / CURVE_FILE),
+        eval_at_start=True,
+        task_metrics=task_metrics(config),
+        score_agents=config.score_agents,
+    )
+
+
+def training_line(config: RunConfig) -> str:
+    """:return: A run's first progress line: its budget and its task."""
+    return f"{config.run_id}: training {config.total_timesteps:,} steps ({config.episodes:,} episodes) on {describe(config)}"
+
+
+def log_interval(config: RunConfig) -> int:
+    """:return: The episodes between two rows of a run's ``progress.csv`` (about 100 rows per run)."""
+    return max(1, config.episodes // 100)
+
+
+def finish_run(
+    config: RunConfig,
+    directory: Path,
+    saved: list[tuple[int, Path]],
+    started: float,
+    train_time: float,
+    log: Callable[[str], None],
+) -> dict[str, Any]:
+    """
+    Evaluate a trained run's checkpoints and write the rest of its directory: ``checkpoint_evals.csv``,
+    ``summary.json`` and the ``done`` marker, last.
+
+    :param config: The run.
+    :param directory: Its directory.
+    :param saved: Its checkpoints, ``(env steps, model file)`` in order.
+    :param started: When it started (``time.perf_counter()``).
+    :param train_time: Its training's wall time, seconds.
+    :param log: Where its last progress line goes.
+    :return: The summary, plus ``"files"`` (see :func:`execute_run`).
+    """
+    algorithm: Any = load_algorithm(config.algorithm)
     eval_started = time.perf_counter()
     eval_env = make_eval_env(config, config.eval_episodes)
     rows = []
     keys = eval_keys(task_metrics(config), config.score_agents)
-    for steps, path in checkpoints.saved:
+    for steps, path in saved:
         checkpoint = algorithm.load(path, device="cpu")
         result = evaluate_team(
             checkpoint,
@@ -194,7 +257,7 @@ def execute_run(
         )
         rows.append({"timesteps": steps, "episodes": steps // config.episode_length, **{k: result[k] for k in keys}})
     write_rows(str(directory / CHECKPOINT_EVALS_FILE), rows)
-    behaviour = final_behaviour(config, checkpoint, eval_env) if checkpoints.saved else None
+    behaviour = final_behaviour(config, checkpoint, eval_env) if saved else None
     eval_time = time.perf_counter() - eval_started
     eval_env.close()
     if not config.keep_checkpoints:
@@ -218,7 +281,7 @@ def execute_run(
     if behaviour is not None:
         summary["behaviour"] = behaviour
     write_json_atomic(directory / SUMMARY_FILE, summary)
-    progress.log(
+    log(
         f"{config.run_id}: done in {format_seconds(summary['wall_time_s'])} "
         f"({summary['train_steps_per_s']:,.0f} steps/s), score: {score_line(score)}"
     )
