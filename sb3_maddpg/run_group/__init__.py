@@ -10,11 +10,12 @@ each: :mod:`~sb3_maddpg.run_group.stacked` (the runs' networks stacked, evaluate
 
 from sb3_maddpg.run_group.buffer import RunReplayBuffers
 from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams, clip_grad_norm_per_run_and_agent
-from sb3_maddpg.run_group.trainer import LOSS_NAMES, RunGroup
+from sb3_maddpg.run_group.trainer import LOSS_NAMES, GroupCallback, RunGroup
 from sb3_maddpg.run_group.worlds import SpreadRuns, SpreadTask
 
 __all__ = [
     "LOSS_NAMES",
+    "GroupCallback",
     "RunGroup",
     "RunReplayBuffers",
     "SpreadRuns",

@@ -24,6 +24,32 @@ from sb3_maddpg.update_schedule import UpdateSchedule
 LOSS_NAMES = ("critic_loss", "actor_loss", "actor_reg_loss", "action_saturation")
 """The per-run, per-agent means each :meth:`RunGroup.train` call records in :attr:`RunGroup.losses`."""
 
+STATE_VERSION = 1
+"""The layout of :meth:`RunGroup.state_dict`'s value (a state of another version is refused)."""
+
+
+class GroupCallback:
+    """
+    Hooks into :meth:`RunGroup.learn`, as SB3's callbacks into ``learn``: e.g. to save checkpoints at given steps.
+    Subclass it and override what you need; both do nothing here.
+    """
+
+    def on_step(self, group: "RunGroup") -> None:
+        """
+        Called after each step of every run's worlds (``group.num_timesteps`` counts it), before the round's updates:
+        where SB3 calls a callback's ``on_step``.
+
+        :param group: The group.
+        """
+
+    def on_round_end(self, group: "RunGroup") -> None:
+        """
+        Called at the end of each round (its steps, then the updates they earned): a state saved here
+        (:meth:`RunGroup.state_dict`) resumes with the next round.
+
+        :param group: The group.
+        """
+
 
 class RunGroup:
     """
@@ -185,13 +211,14 @@ class RunGroup:
         self.buffers.add(observations, actions, step.next_observations, step.rewards, dones, selections)
         self.num_timesteps += self.worlds_per_run
 
-    def learn(self, total_timesteps: int) -> "RunGroup":
+    def learn(self, total_timesteps: int, callback: GroupCallback | None = None) -> "RunGroup":
         """
         Collect and train every run for ``total_timesteps`` more env steps each (all its worlds counted), as
         ``MADDPG.learn`` with ``reset_num_timesteps=False``: rounds of ``max(1, transitions_per_update // E)`` steps,
         each followed by the gradient steps its transitions past ``learning_starts`` have earned.
 
         :param total_timesteps: Env steps of each run.
+        :param callback: Called after each step and at the end of each round.
         :return: The group.
         """
         end = self.num_timesteps + total_timesteps
@@ -200,10 +227,14 @@ class RunGroup:
         while self.num_timesteps < end:
             for _ in range(train_freq.frequency):
                 self.collect_step()
+                if callback is not None:
+                    callback.on_step(self)
             steps = self.update_rule.earned(self.num_timesteps, self.learning_starts)
             if steps > 0 and self.num_timesteps > self.learning_starts:
                 self._update_learning_rate(1.0 - self.num_timesteps / end)
                 self.train(steps)
+            if callback is not None:
+                callback.on_round_end(self)
         return self
 
     def _update_learning_rate(self, progress_remaining: float) -> None:
@@ -241,6 +272,92 @@ class RunGroup:
         table = th.stack(episodes).cpu().numpy()
         return {name: table[:, i] for i, name in enumerate(names)}
 
+    # ----- save and resume -----
+
+    def state_dict(self) -> dict[str, Any]:
+        """
+        Everything the group's training goes on from, as tensors (on the group's device) and plain values, for
+        ``torch.save``: the stacked weights and targets, the optimisers' states, the replay buffers (the rows
+        filled so far), every run's generator, the worlds (positions, velocities, the episodes' steps and returns,
+        the finished episodes' records), the counters and the update rule's credit. Taken at the end of a round
+        (:meth:`GroupCallback.on_round_end`), :meth:`load_state_dict` continues the same training exactly.
+
+        :return: The state.
+        """
+        teams, buffers = self.teams, self.buffers
+        filled = buffers.size
+        worlds = self.worlds
+        return {
+            "version": STATE_VERSION,
+            "seeds": list(self.seeds),
+            "params": {name: [p.detach().clone() for p in module.parameters()] for name, module in _modules(teams)},
+            "actor_optimizer": self.actor_optimizer.state_dict(),
+            "critic_optimizer": self.critic_optimizer.state_dict(),
+            "num_timesteps": self.num_timesteps,
+            "n_updates": self.n_updates,
+            "update_rule": (self.update_rule.credit, self.update_rule.counted_at),
+            "generators": [generator.get_state() for generator in self.generators],
+            "buffers": {
+                "pos": buffers.pos,
+                "size": filled,
+                **{name: getattr(buffers, name)[:, :filled].clone() for name in _BUFFER_FIELDS},
+            },
+            "worlds": None
+            if worlds is None
+            else {
+                "state": [worlds.worlds.agent_pos, worlds.worlds.agent_vel, worlds.worlds.landmark_pos],
+                "steps": worlds.steps,
+                "observations": worlds.observations,
+                "returns": worlds._returns,
+                "episodes": th.stack(worlds.episodes) if worlds.episodes else None,
+            },
+            "losses": dict(self.losses),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """
+        Continue from a state of :meth:`state_dict`, taken from a group of the same models (seeds and configuration).
+
+        :param state: The state (its tensors on any device).
+        """
+        if state.get("version") != STATE_VERSION:
+            raise ValueError(
+                f"This run-group state has version {state.get('version')!r}, this package reads {STATE_VERSION}: "
+                "start the runs afresh (delete the state file)."
+            )
+        if list(state["seeds"]) != self.seeds:
+            raise ValueError(
+                f"This run-group state is of seeds {state['seeds']}, the group's are {self.seeds}: load a state into "
+                "a group of the same runs."
+            )
+        device = self.device
+        with th.no_grad():
+            for name, module in _modules(self.teams):
+                for param, saved in zip(module.parameters(), state["params"][name]):
+                    param.copy_(saved.to(device))
+        self.actor_optimizer.load_state_dict(state["actor_optimizer"])
+        self.critic_optimizer.load_state_dict(state["critic_optimizer"])
+        self.num_timesteps = int(state["num_timesteps"])
+        self.n_updates = int(state["n_updates"])
+        self.update_rule.credit, self.update_rule.counted_at = state["update_rule"]
+        for generator, generator_state in zip(self.generators, state["generators"]):
+            generator.set_state(generator_state.cpu())
+        saved_buffers = state["buffers"]
+        filled = int(saved_buffers["size"])
+        for name in _BUFFER_FIELDS:
+            getattr(self.buffers, name)[:, :filled] = saved_buffers[name].to(device)
+        self.buffers.pos, self.buffers.size = int(saved_buffers["pos"]), filled
+        saved_worlds = state["worlds"]
+        if saved_worlds is not None:
+            worlds = self._worlds()
+            worlds.worlds.set_state(*saved_worlds["state"])
+            worlds.steps = int(saved_worlds["steps"])
+            worlds.observations = saved_worlds["observations"].to(device)
+            worlds._returns = saved_worlds["returns"].to(device)
+            episodes = saved_worlds["episodes"]
+            worlds.episodes = [] if episodes is None else list(episodes.to(device).unbind(0))
+        self.losses = {name: value.to(device) for name, value in state["losses"].items()}
+
     # ----- back to the models -----
 
     def write_back(self, run: int, model: MADDPG) -> MADDPG:
@@ -274,6 +391,19 @@ class RunGroup:
         model.num_timesteps = self.num_timesteps
         model._n_updates = self.n_updates
         return model
+
+
+_BUFFER_FIELDS = ("observations", "actions", "next_observations", "rewards", "dones", "selections")
+"""The replay buffers' tensors a state holds."""
+
+
+def _modules(teams: StackedTeams) -> list[tuple[str, StackedModule]]:
+    return [
+        ("actor", teams.actor),
+        ("critic", teams.critic),
+        ("actor_target", teams.actor_target),
+        ("critic_target", teams.critic_target),
+    ]
 
 
 def _tensor(values: Any, device: th.device) -> th.Tensor:
