@@ -24,7 +24,9 @@ from sb3_maddpg.experiments.results import write_result_files
 from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.install_hint import extra_install_command
 
-BACKENDS = ("local", "ray")
+BACKENDS = ("local", "ray", "batched")
+"""Where runs execute: a local process pool, Ray tasks, or run groups in this process
+(:mod:`~sb3_maddpg.experiments.batched`)."""
 
 OnResult = Callable[[RunConfig, dict[str, Any] | None, str | None], None]
 """Called as each run ends: ``(config, result, None)`` on success, ``(config, None, traceback)`` on failure."""

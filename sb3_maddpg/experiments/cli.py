@@ -96,7 +96,22 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--n-envs", type=int, help=f"worlds stepped together in training (default {DEFAULT_N_ENVS})")
     group.add_argument("--keep-checkpoints", action=argparse.BooleanOptionalAction, default=None, help="keep model files")
     execution = run.add_argument_group("execution")
-    execution.add_argument("--backend", choices=("local", "ray"), default="local", help="local process pool or Ray")
+    execution.add_argument(
+        "--backend",
+        choices=("local", "ray", "batched"),
+        default="local",
+        help="local process pool, Ray, or batched: a setting and scheme's seeds trained together in one process (run "
+        "groups, fixed schemes on the batched simple_spread env; see --device, --runs-per-process)",
+    )
+    execution.add_argument(
+        "--device", default="auto", help="batched: where the run groups train, cpu or cuda (default auto: cuda if there)"
+    )
+    execution.add_argument(
+        "--runs-per-process",
+        type=int,
+        default=None,
+        help="batched: the most runs in one group (default: all seeds of a setting and scheme; fewer use less memory)",
+    )
     execution.add_argument(
         "--workers",
         type=int,
@@ -290,6 +305,7 @@ def run_command(args: argparse.Namespace) -> int:
     :param args: Parsed ``run`` arguments.
     :return: The exit status.
     """
+    from sb3_maddpg.experiments.batched import BatchedRunRefused
     from sb3_maddpg.experiments.results import ResultsDirectoryLocked
     from sb3_maddpg.experiments.sweep import SweepInterrupted, plan_sweep, run_sweep  # torch: imported for runs only
 
@@ -311,7 +327,12 @@ def run_command(args: argparse.Namespace) -> int:
             threads=args.threads,
             ray_address=args.ray_address,
             verbose=1 if args.quiet else 2,
+            device=args.device,
+            runs_per_process=args.runs_per_process,
         )
+    except BatchedRunRefused as error:  # said before anything trained
+        print(f"sb3-maddpg run: {error}", file=sys.stderr)
+        return 2
     except ResultsDirectoryLocked as error:
         print(f"sb3-maddpg run: {error}", file=sys.stderr)
         return 1

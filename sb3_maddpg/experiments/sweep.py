@@ -130,6 +130,8 @@ def run_sweep(
     threads: int = 1,
     ray_address: str | None = None,
     verbose: int = 2,
+    device: str = "auto",
+    runs_per_process: int | None = None,
 ) -> SweepResult:
     """
     Run every (scheme, seed) of the experiments, skipping runs finished before (resume an
@@ -142,13 +144,17 @@ def run_sweep(
 
     :param experiments: The experiments.
     :param results_dir: The results directory (one sub-directory per experiment, scheme and seed).
-    :param backend: ``"local"`` (a process pool) or ``"ray"``.
+    :param backend: ``"local"`` (a process pool), ``"ray"``, or ``"batched"`` (run groups in this process, see
+        :mod:`~sb3_maddpg.experiments.batched`; the runs it cannot train are refused before anything trains).
     :param workers: Parallel processes (local), or the CPUs of a local Ray instance (0: all).
     :param threads: Torch threads per run.
     :param ray_address: The Ray cluster's address; ``None`` starts a local instance.
     :param verbose: 0 quiet, 1 the sweep's progress (a line per finished run), 2 also each run's progress.
+    :param device: The batched backend's device (``"auto"``: CUDA when there is a GPU).
+    :param runs_per_process: The batched backend's most runs per group (``None``: all of a setting and scheme).
     :return: What the sweep did.
     :raise ResultsDirectoryLocked: When another sweep is running in ``results_dir``.
+    :raise BatchedRunRefused: When the batched backend cannot train a run (nothing has trained then).
     """
     if backend not in BACKENDS:
         raise ValueError(f"Unknown backend {backend!r}; use one of {BACKENDS}.")
@@ -156,20 +162,33 @@ def run_sweep(
     names = [experiment.name for experiment in experiments]
     if len(set(names)) != len(names):
         raise ValueError(f"Experiment names must be unique, got {names}.")
+    execution = Execution(backend, workers, threads, ray_address, device, runs_per_process)
+    if backend == "batched":
+        from sb3_maddpg.experiments.batched import check_batched, plan_groups
+
+        plan_groups([], runs_per_process)  # its argument checks, before anything runs
+        check_batched(plan_sweep(experiments, results_path)[0])
     with lock_results(results_path):
-        return _run_locked_sweep(experiments, results_path, backend, workers, threads, ray_address, verbose)
+        return _run_locked_sweep(experiments, results_path, execution, verbose)
+
+
+@dataclass(frozen=True)
+class Execution:
+    """Where and how a sweep's runs execute (:func:`run_sweep`'s parameters of the same names)."""
+
+    backend: str
+    workers: int
+    threads: int
+    ray_address: str | None
+    device: str
+    runs_per_process: int | None
 
 
 def _run_locked_sweep(
-    experiments: Sequence[ExperimentConfig],
-    results_path: Path,
-    backend: str,
-    workers: int,
-    threads: int,
-    ray_address: str | None,
-    verbose: int,
+    experiments: Sequence[ExperimentConfig], results_path: Path, execution: Execution, verbose: int
 ) -> SweepResult:
     """:func:`run_sweep` once it holds the results directory (same parameters)."""
+    backend, workers, threads, ray_address = execution.backend, execution.workers, execution.threads, execution.ray_address
     for experiment in experiments:
         write_experiment(results_path, experiment.name, experiment.to_dict())
 
@@ -177,12 +196,16 @@ def _run_locked_sweep(
     result = SweepResult(total=len(todo) + skipped, skipped=skipped)
     # Ray's slots are known once it is up (workers=0 means all CPUs): run_ray reports them through on_parallel.
     parallel = workers if backend == "local" else max(1, workers) // max(1, threads)
+    where = f"with {workers} worker(s) x {threads} thread(s)"
+    if backend == "batched":
+        from sb3_maddpg.experiments.batched import plan_groups
+
+        groups = plan_groups(todo, execution.runs_per_process)
+        parallel = max((len(group) for group in groups), default=1)  # a group's runs finish together
+        where = f"in {len(groups)} run group(s) of up to {parallel} run(s) on {execution.device}"
     progress = SweepProgress(result.total, skipped, parallel, str(results_path / SWEEP_LOG), echo=verbose >= 1)
     names = ", ".join(experiment.name for experiment in experiments)
-    progress.log(
-        f"sweep of {result.total} runs ({names}) on {backend} with {workers} worker(s) x {threads} thread(s): "
-        f"{skipped} finished before, {len(todo)} to run"
-    )
+    progress.log(f"sweep of {result.total} runs ({names}) on {backend} {where}: {skipped} finished before, {len(todo)} to run")
 
     def on_result(config: RunConfig, summary: dict[str, Any] | None, error: str | None) -> None:
         if summary is not None:
@@ -209,6 +232,18 @@ def _run_locked_sweep(
         if backend == "local":
             run_local(
                 todo, str(results_path), on_result, workers=workers, threads=threads, verbose=run_verbose, log=progress.log
+            )
+        elif backend == "batched":
+            from sb3_maddpg.experiments.batched import run_batched
+
+            run_batched(
+                todo,
+                str(results_path),
+                on_result,
+                device=execution.device,
+                runs_per_process=execution.runs_per_process,
+                threads=threads,
+                verbose=run_verbose,
             )
         else:
             run_ray(

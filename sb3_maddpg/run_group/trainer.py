@@ -340,6 +340,8 @@ class RunGroup:
         self.num_timesteps = int(state["num_timesteps"])
         self.n_updates = int(state["n_updates"])
         self.update_rule.credit, self.update_rule.counted_at = state["update_rule"]
+        if state["worlds"] is not None:
+            self._worlds()  # built first: building them draws new episodes from the generators, set next
         for generator, generator_state in zip(self.generators, state["generators"]):
             generator.set_state(generator_state.cpu())
         saved_buffers = state["buffers"]

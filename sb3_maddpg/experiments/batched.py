@@ -1,0 +1,547 @@
+"""The batched backend: a sweep's runs trained in run groups (:class:`~sb3_maddpg.run_group.RunGroup`: the seeds of one
+setting and scheme in one process, on one device), each run's directory written as the runner writes it.
+
+A group trains to each checkpoint step; there each run is written back into its own MADDPG model, which is saved,
+and at the end every run is evaluated and summarised by the runner's own functions
+(:func:`~sb3_maddpg.experiments.runner.finish_run`), so that ``evaluate_team`` and ``sb3-maddpg report`` read the
+results as any other. A group's training state is saved at each checkpoint and every tenth of the budget, into one
+file per group (:func:`group_state_path`), which the same command resumes from.
+"""
+
+import csv
+import json
+import os
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, cast
+
+import torch as th
+from stable_baselines3.common.logger import configure
+
+from sb3_maddpg.experiments.backends import OnResult
+from sb3_maddpg.experiments.config import DEFAULT_ALGORITHM, DEFAULT_ENV, RunConfig
+from sb3_maddpg.experiments.results import CHECKPOINT_DIR, CONFIG_FILE, LOG_FILE, PROGRESS_FILE, read_json, run_directory
+from sb3_maddpg.experiments.runner import (
+    CheckpointAtSteps,
+    build_model,
+    curve_callback,
+    finish_run,
+    log_interval,
+    make_eval_env,
+    start_run_directory,
+    training_line,
+)
+from sb3_maddpg.progress import ProgressLogCallback, log_line
+from sb3_maddpg.train_logs import record_losses
+
+STATE_PREFIX = "group_seeds_"
+"""A group's state file: ``<results>/<experiment>/<scheme>/group_seeds_<seeds>.pt`` (e.g. ``group_seeds_0-30.pt``)."""
+
+STATE_FRACTION = 0.1
+"""Besides each checkpoint, a group's state is saved every this fraction of the budget (checkpoints are in the last
+20% only: without these, a process killed at 70% would lose everything)."""
+
+BATCHED_HINT = "Train such runs with --backend local (e.g. in a second sweep, leaving them out here with --schemes)."
+
+
+class BatchedRunRefused(ValueError):
+    """A run of the sweep cannot train in a run group (the message names it, the cause, and what to do)."""
+
+
+# ----- which runs train together -----
+
+
+def group_key(config: RunConfig) -> str:
+    """:return: What runs of one group have in common: their whole config but the seed (as JSON)."""
+    return json.dumps({key: value for key, value in config.to_dict().items() if key != "seed"}, sort_keys=True)
+
+
+def plan_groups(configs: Sequence[RunConfig], runs_per_process: int | None = None) -> list[list[RunConfig]]:
+    """
+    :param configs: The runs to do.
+    :param runs_per_process: The most runs in one group (``None``: all that share a setting and scheme).
+    :return: The groups, each the runs of one setting and scheme (different seeds), in the sweep's order.
+    """
+    if runs_per_process is not None and runs_per_process < 1:
+        raise ValueError(f"runs_per_process must be at least 1, got {runs_per_process}: e.g. 31 (one scheme's seeds).")
+    buckets: dict[str, list[RunConfig]] = {}
+    for config in configs:
+        buckets.setdefault(group_key(config), []).append(config)
+    groups = []
+    for runs in buckets.values():
+        size = runs_per_process or len(runs)
+        groups += [runs[start : start + size] for start in range(0, len(runs), size)]
+    return groups
+
+
+def check_batched(configs: Sequence[RunConfig]) -> None:
+    """
+    Refuse, before anything trains, the runs a run group cannot train: the first such run is named, with the cause
+    and what to do. One model of each setting and scheme is built and checked as :class:`RunGroup` checks its models.
+
+    :param configs: The runs to do.
+    :raise BatchedRunRefused: For the first run refused.
+    """
+    from sb3_maddpg.run_group import SpreadTask
+    from sb3_maddpg.run_group.checks import check_models
+
+    for group in plan_groups(configs):
+        config = group[0]
+        if config.algorithm != DEFAULT_ALGORITHM:
+            cause = f"its algorithm is {config.algorithm}, but a run group trains MADDPG ({DEFAULT_ALGORITHM}) only."
+        elif config.env != DEFAULT_ENV or config.vec_env != "batched":
+            cause = (
+                f"it trains on {config.env} (vec_env {config.vec_env!r}), but a run group steps simple_spread's batched "
+                "worlds only (env 'simple_spread', vec_env 'batched')."
+            )
+        else:
+            model = build_model(config, device="cpu")
+            try:
+                check_models([model])
+                cause = "" if SpreadTask.from_env(model.get_env()) is not None else "its env tells no simple_spread task."
+            except (TypeError, ValueError) as error:
+                cause = str(error)
+            model.get_env().close()
+        if cause:
+            raise BatchedRunRefused(
+                f"{config.run_id} (and its other seeds) cannot train in a run group (--backend batched): {cause} "
+                + BATCHED_HINT
+            )
+
+
+# ----- one group's state file -----
+
+
+def seed_ranges(seeds: Sequence[int]) -> str:
+    """:return: Sorted seeds as ranges, e.g. ``[0, 1, 2, 5]`` as ``"0-2+5"``."""
+    parts: list[str] = []
+    ordered = sorted(seeds)
+    start = previous = ordered[0]
+    for seed in [*ordered[1:], None]:
+        if seed is not None and seed == previous + 1:
+            previous = seed
+            continue
+        parts.append(str(start) if start == previous else f"{start}-{previous}")
+        if seed is not None:
+            start = previous = seed
+    return "+".join(parts)
+
+
+def parse_seed_ranges(text: str) -> set[int]:
+    """:return: The seeds of :func:`seed_ranges`' text."""
+    seeds: set[int] = set()
+    for part in text.split("+"):
+        low, _, high = part.partition("-")
+        seeds.update(range(int(low), int(high or low) + 1))
+    return seeds
+
+
+def group_state_path(results_dir: str | os.PathLike[str], configs: Sequence[RunConfig]) -> Path:
+    """
+    :param results_dir: The sweep's results directory.
+    :param configs: A group's runs (one experiment and scheme).
+    :return: The file its training state is saved in, beside its runs' directories.
+    """
+    first = configs[0]
+    return Path(results_dir) / first.experiment / first.scheme / f"{STATE_PREFIX}{seed_ranges([c.seed for c in configs])}.pt"
+
+
+def remove_stale_states(results_dir: str | os.PathLike[str], configs: Sequence[RunConfig]) -> None:
+    """Delete the state files of earlier groups that held any of these runs (they are started afresh)."""
+    seeds = {config.seed for config in configs}
+    directory = group_state_path(results_dir, configs).parent
+    for path in directory.glob(f"{STATE_PREFIX}*.pt"):
+        try:
+            overlaps = bool(parse_seed_ranges(path.stem[len(STATE_PREFIX) :]) & seeds)
+        except ValueError:  # not a name this module writes
+            continue
+        if overlaps:
+            path.unlink(missing_ok=True)
+
+
+def save_state(path: Path, state: dict[str, Any]) -> None:
+    """Write a group's state whole or not at all (a temporary file renamed over the old one)."""
+    tmp_path = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        th.save(state, tmp_path)
+        os.replace(tmp_path, path)
+    except BaseException:
+        tmp_path.unlink(missing_ok=True)
+        raise
+
+
+def load_state(path: Path, configs: Sequence[RunConfig], results_dir: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """
+    :param path: A group's state file.
+    :param configs: The group's runs.
+    :param results_dir: The sweep's results directory.
+    :return: The state, when it is readable, of these runs with these configs, and their directories still hold
+        what it was saved with (config and checkpoints); else ``None`` (the group starts afresh).
+    """
+    if not path.exists():
+        return None
+    try:
+        state = th.load(path, map_location="cpu", weights_only=True)
+    except Exception:  # a truncated or foreign file: start afresh
+        return None
+    if not isinstance(state, dict) or state.get("configs") != [config.to_dict() for config in configs]:
+        return None
+    for config, run in zip(configs, state["runs"]):
+        stored = read_json(run_directory(results_dir, config) / CONFIG_FILE)
+        if not isinstance(stored, dict) or not RunConfig.from_dict(stored).same_as(config):
+            return None
+        if not all(Path(file).exists() for _, file in run["saved"]):
+            return None
+    return state
+
+
+def read_progress_rows(path: Path, until: int) -> list[dict[str, Any]]:
+    """:return: The rows of a ``progress.csv`` up to env step ``until`` (values as numbers), to write them again."""
+    if not path.exists():
+        return []
+    rows = []
+    with open(path, newline="") as file:
+        for row in csv.DictReader(file):
+            values = {key: _number(value) for key, value in row.items() if value not in ("", None)}
+            if float(values.get("time/total_timesteps", 0)) <= until:
+                rows.append(values)
+    return rows
+
+
+def _number(text: str) -> Any:
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+# ----- what a group writes while it trains -----
+
+
+class _SummedSteps:
+    """What :class:`GroupProgress` reads as its "model": the env steps of every run of the group, summed."""
+
+    def __init__(self) -> None:
+        self.num_timesteps = 0
+
+
+class GroupProgress(ProgressLogCallback):
+    """
+    A group's progress lines: env steps summed over its runs, their rate and the time left, as
+    :class:`~sb3_maddpg.progress.ProgressLogCallback` says them for one run; each line goes to every run's
+    ``train.log`` and, once, to stdout.
+
+    :param label: The group's name in the lines.
+    :param n_runs: Runs in the group.
+    :param total_timesteps: Each run's budget.
+    :param log_paths: Each run's ``train.log``.
+    :param echo: Print the lines too.
+    """
+
+    def __init__(self, label: str, n_runs: int, total_timesteps: int, log_paths: Sequence[Path], echo: bool) -> None:
+        super().__init__(label, n_runs * total_timesteps, None, echo=echo, every_seconds=120.0)
+        self.n_runs = n_runs
+        self.log_paths = [str(path) for path in log_paths]
+        self.steps = _SummedSteps()
+        self.team_return: float | None = None
+        self.init_callback(cast(Any, self.steps))
+
+    def _recent_return(self) -> str:
+        if self.team_return is None:
+            return ""
+        return f", team return {self.team_return:.1f} (mean of the runs' last episodes)"
+
+    def log(self, line: str) -> None:
+        """
+        :param line: A line for every run's log file and, once, stdout.
+        """
+        for path in self.log_paths:
+            log_line(line, path, echo=False)
+        if self.echo:
+            print(line, flush=True)
+
+
+class GroupRecorder:
+    """
+    What a group writes while it trains (a :class:`~sb3_maddpg.run_group.GroupCallback`): each run's checkpoints
+    (:class:`~sb3_maddpg.experiments.runner.CheckpointAtSteps`), learning curve (the runner's
+    :class:`~sb3_maddpg.evaluation.TeamEvalCallback`), ``progress.csv`` rows (about as many as the runner's),
+    the group's progress lines, and its state at each save point.
+
+    :param configs: The group's runs.
+    :param models: One model per run, the group's runs are written back into.
+    :param group: The run group.
+    :param results_dir: The sweep's results directory.
+    :param state_path: The group's state file.
+    :param echo: Print the progress lines.
+    """
+
+    def __init__(
+        self,
+        configs: Sequence[RunConfig],
+        models: Sequence[Any],
+        group: Any,
+        results_dir: str | os.PathLike[str],
+        state_path: Path,
+        echo: bool,
+    ) -> None:
+        self.configs = list(configs)
+        self.models = list(models)
+        self.group = group
+        self.state_path = state_path
+        self.directories = [run_directory(results_dir, config) for config in configs]
+        first = configs[0]
+        self.total = first.total_timesteps
+        self.worlds = group.worlds_per_run
+        self.checkpoints = [
+            CheckpointAtSteps(c.checkpoint_steps(), d / CHECKPOINT_DIR) for c, d in zip(configs, self.directories)
+        ]
+        self.curve_envs = [make_eval_env(config, config.curve_eval_episodes) for config in configs]
+        curves = [curve_callback(c, env, self.worlds, d) for c, env, d in zip(configs, self.curve_envs, self.directories)]
+        self.curves = [curve for curve in curves if curve is not None]
+        for model, checkpoint, curve in zip(self.models, self.checkpoints, curves):
+            checkpoint.init_callback(model)
+            if curve is not None:
+                curve.init_callback(model)
+        seeds = seed_ranges([config.seed for config in configs])
+        self.progress = GroupProgress(
+            f"{first.experiment}/{first.scheme}/seeds {seeds} ({len(configs)} runs)",
+            len(configs),
+            self.total,
+            [directory / LOG_FILE for directory in self.directories],
+            echo,
+        )
+        self.log_interval = log_interval(first)
+        self.rounds_logged = 0
+        self.save_points = sorted({*first.checkpoint_steps(), *(round(self.total * k * STATE_FRACTION) for k in range(1, 10))})
+        self.saved_at = 0
+        self.elapsed_before = 0.0
+        self.started = time.perf_counter()
+
+    @property
+    def train_time(self) -> float:
+        """Seconds the group has trained, over every attempt."""
+        return self.elapsed_before + time.perf_counter() - self.started
+
+    def start(self, resumed: dict[str, Any] | None) -> None:
+        """
+        Begin (or go on with) training: each run's first learning-curve point, or what a saved state recorded.
+
+        :param resumed: The group's saved state, or ``None`` for a start from scratch.
+        """
+        group = self.group
+        for run, model in enumerate(self.models):
+            group.write_back(run, model)
+        if resumed is not None:
+            self.elapsed_before = float(resumed["elapsed"])
+            self.rounds_logged = int(resumed["rounds_logged"])
+            self.saved_at = group.num_timesteps
+            for checkpoint, run in zip(self.checkpoints, resumed["runs"]):
+                checkpoint.pending = list(run["pending"])
+                checkpoint.saved = [(steps, Path(file)) for steps, file in run["saved"]]
+            for curve, run in zip(self.curves, resumed["runs"]):
+                curve.history = list(run["curve"])
+                curve.n_calls = group.num_timesteps // self.worlds
+        self.progress.steps.num_timesteps = group.n_runs * group.num_timesteps
+        for callback in (*self.curves, self.progress):
+            callback.on_training_start({}, {})  # the curves' first evaluation, at step 0 only
+        if resumed is not None:
+            self.progress.log(f"{self.progress.run_id}: resumed at {group.num_timesteps:,} steps per run")
+
+    def on_step(self, group: Any) -> None:
+        """After each step of every run's worlds: checkpoints, curve points, ``progress.csv`` rows, progress lines."""
+        steps = group.num_timesteps
+        for run, (model, checkpoint) in enumerate(zip(self.models, self.checkpoints)):
+            model.num_timesteps = steps
+            if checkpoint.pending and steps >= checkpoint.pending[0]:
+                group.write_back(run, model)  # the weights of now, as SB3 saves them mid-round
+            checkpoint.on_step()
+        for run, curve in enumerate(self.curves):
+            if (curve.n_calls + 1) % curve.eval_freq == 0:
+                group.write_back(run, self.models[run])
+            curve.on_step()
+        rounds = len(group.worlds.episodes)
+        if rounds > self.rounds_logged:
+            self.rounds_logged = rounds
+            if (rounds * self.worlds) // self.log_interval > ((rounds - 1) * self.worlds) // self.log_interval:
+                self._dump(group)
+        self.progress.steps.num_timesteps = group.n_runs * steps
+        self.progress.on_step()
+
+    def _dump(self, group: Any) -> None:
+        """One ``progress.csv`` row per run, as SB3's ``_dump_logs`` writes them."""
+        last = max(1, -(-100 // self.worlds))  # SB3's ep_info_buffer: the last 100 episodes
+        rewards = th.stack(group.worlds.episodes[-last:])[:, 0].mean(0).tolist()
+        self.progress.team_return = sum(rewards) / len(rewards)
+        elapsed = max(self.train_time, 1e-9)
+        lr = group.actor_optimizer.param_groups[0]["lr"]
+        for run, model in enumerate(self.models):
+            logger = model.logger
+            logger.record("time/episodes", len(group.worlds.episodes) * self.worlds, exclude="tensorboard")
+            logger.record("time/fps", int(group.num_timesteps / elapsed))
+            logger.record("time/time_elapsed", int(elapsed), exclude="tensorboard")
+            logger.record("time/total_timesteps", group.num_timesteps, exclude="tensorboard")
+            logger.record("rollout/ep_rew_mean", rewards[run])
+            logger.record("rollout/ep_len_mean", float(self.configs[run].episode_length))
+            if group.losses:
+                record_losses(
+                    logger, model.agent_layout.agent_ids, group.n_updates, {k: v[run] for k, v in group.losses.items()}
+                )
+                logger.record("train/learning_rate", lr)
+            logger.dump(group.num_timesteps)
+
+    def on_round_end(self, group: Any) -> None:
+        """At the end of each round: the group's state, when a save point has passed since the last save."""
+        steps = group.num_timesteps
+        if any(self.saved_at < point <= steps for point in self.save_points):
+            self.save(group)
+
+    def save(self, group: Any) -> None:
+        """Write the group's state file (overwriting the last)."""
+        self.saved_at = group.num_timesteps
+        runs = [
+            {
+                "pending": list(checkpoint.pending),
+                "saved": [(steps, str(path)) for steps, path in checkpoint.saved],
+                "curve": [],
+            }
+            for checkpoint in self.checkpoints
+        ]
+        for run, curve in zip(runs, self.curves):
+            run["curve"] = list(curve.history)
+        state = {
+            "configs": [config.to_dict() for config in self.configs],
+            "group": group.state_dict(),
+            "runs": runs,
+            "elapsed": self.train_time,
+            "rounds_logged": self.rounds_logged,
+        }
+        save_state(self.state_path, state)
+
+    def close(self) -> None:
+        """Close the evaluation and training envs."""
+        for env in self.curve_envs:
+            env.close()
+        for model in self.models:
+            model.get_env().close()
+
+
+# ----- a group, and a sweep of groups -----
+
+
+def train_group(
+    configs: Sequence[RunConfig],
+    results_dir: str | os.PathLike[str],
+    device: str = "auto",
+    verbose: int = 1,
+    on_save: Callable[[int], None] | None = None,
+) -> list[dict[str, Any]]:
+    """
+    Train a group's runs together (resuming from its state file when there is one for them) and evaluate each,
+    writing every run's directory as :func:`~sb3_maddpg.experiments.runner.execute_run` does.
+
+    :param configs: The runs: one setting and scheme, different seeds (see :func:`plan_groups`).
+    :param results_dir: The sweep's results directory.
+    :param device: Where the group trains (``"auto"``: CUDA when there is a GPU).
+    :param verbose: 1 to print the group's progress lines.
+    :param on_save: Called with the env steps of each state saved during training (e.g. a test raises there, to
+        simulate a process killed right after a save).
+    :return: Each run's summary, plus ``"files"`` (as ``execute_run``'s).
+    """
+    from sb3_maddpg.run_group import GroupCallback, RunGroup
+
+    directories = [run_directory(results_dir, config) for config in configs]
+    state_path = group_state_path(results_dir, configs)
+    resumed = load_state(state_path, configs, results_dir)
+    old_rows: list[list[dict[str, Any]]] = [[] for _ in configs]
+    if resumed is None:
+        remove_stale_states(results_dir, configs)
+        for config, directory in zip(configs, directories):
+            start_run_directory(config, directory)
+    else:
+        steps = int(resumed["group"]["num_timesteps"])
+        old_rows = [read_progress_rows(directory / PROGRESS_FILE, steps) for directory in directories]
+    started = time.perf_counter()
+    models = [build_model(config, device="cpu") for config in configs]  # on the CPU: they are saved and evaluated
+    for model, directory, rows in zip(models, directories, old_rows):
+        model.set_logger(configure(str(directory), ["csv"]))
+        for row in rows:  # a resumed run's progress.csv keeps its rows up to the state
+            for key, value in row.items():
+                model.logger.record(key, value)
+            model.logger.dump(int(row.get("time/total_timesteps", 0)))
+    resolved = "cuda" if device == "auto" and th.cuda.is_available() else "cpu" if device == "auto" else device
+    group = RunGroup(models, device=resolved)
+    if resumed is not None:
+        group.load_state_dict(resumed["group"])
+    recorder = GroupRecorder(configs, models, group, results_dir, state_path, echo=verbose >= 1)
+
+    class Hooks(GroupCallback):
+        def on_step(self, group: RunGroup) -> None:
+            recorder.on_step(group)
+
+        def on_round_end(self, group: RunGroup) -> None:
+            saved_at = recorder.saved_at
+            recorder.on_round_end(group)
+            if on_save is not None and recorder.saved_at != saved_at:
+                on_save(recorder.saved_at)
+
+    try:
+        if resumed is None:
+            for config, directory in zip(configs, directories):
+                log_line(
+                    f"{training_line(config)}, in a run group of {len(configs)} on {resolved}",
+                    str(directory / LOG_FILE),
+                    False,
+                )
+        recorder.start(resumed)
+        group.learn(max(0, recorder.total - group.num_timesteps), callback=Hooks())
+        if recorder.saved_at != group.num_timesteps:  # the last state: a crash while evaluating does not retrain
+            recorder.save(group)
+        train_time = recorder.train_time
+    finally:
+        recorder.close()
+    started -= recorder.elapsed_before
+    results = [
+        finish_run(config, directory, checkpoints.saved, started, train_time, recorder.progress.log)
+        for config, directory, checkpoints in zip(configs, directories, recorder.checkpoints)
+    ]
+    state_path.unlink(missing_ok=True)
+    return results
+
+
+def run_batched(
+    configs: Sequence[RunConfig],
+    results_dir: str,
+    on_result: OnResult,
+    device: str = "auto",
+    runs_per_process: int | None = None,
+    threads: int = 1,
+    verbose: int = 1,
+) -> None:
+    """
+    Run the sweep's runs in groups (:func:`plan_groups`), one group after another in this process; a group that
+    fails fails its runs (each reported with the traceback) and the sweep goes on.
+
+    :param configs: The runs (checked with :func:`check_batched`).
+    :param results_dir: The sweep's results directory.
+    :param on_result: Called for each run as its group ends.
+    :param device: Where the groups train.
+    :param runs_per_process: The most runs in one group (``None``: all of a setting and scheme).
+    :param threads: Torch threads.
+    :param verbose: 1 to print each group's progress lines.
+    """
+    th.set_num_threads(threads)
+    for group in plan_groups(configs, runs_per_process):
+        try:
+            results = train_group(group, results_dir, device=device, verbose=verbose)
+        except Exception:
+            error = traceback.format_exc()
+            for config in group:
+                on_result(config, None, error)
+        else:
+            for config, result in zip(group, results):
+                on_result(config, result, None)

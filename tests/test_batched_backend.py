@@ -1,0 +1,182 @@
+"""Tests of the batched backend (``sb3-maddpg run --backend batched``): run groups write what the runner writes."""
+
+import csv
+import dataclasses
+import json
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.experiments import SMOKE, ExperimentConfig, make_report, run_sweep
+from sb3_maddpg.experiments.batched import (
+    BatchedRunRefused,
+    check_batched,
+    group_state_path,
+    parse_seed_ranges,
+    plan_groups,
+    seed_ranges,
+    train_group,
+)
+from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.experiments.results import DONE_FILE, load_summaries
+from sb3_maddpg.experiments.runner import make_eval_env
+
+
+def tiny(**changes: Any) -> ExperimentConfig:
+    """The smoke preset's tiny networks, one scheme, three seeds, with model files kept (to load them)."""
+    settings: dict[str, Any] = {"name": "tiny", "schemes": ("full",), "seeds": (0, 1, 2), "keep_checkpoints": True}
+    return dataclasses.replace(SMOKE, **{**settings, **changes})
+
+
+WARM_UP_ONLY = tiny(model_kwargs={**SMOKE.model_kwargs, "learning_starts": 10_000})
+"""Uniform actions only, no update (learning starts after the budget): both backends' checkpoints are the models'
+initial weights, so every evaluation must agree exactly; the training episodes agree in distribution only."""
+
+
+def read_rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as file:
+        return list(csv.DictReader(file))
+
+
+def files(directory: Path) -> set[str]:
+    return {str(path.relative_to(directory)) for path in directory.rglob("*")}
+
+
+def keys(value: Any, prefix: str = "") -> set[str]:
+    """The nested keys of a JSON value (its structure, not its numbers)."""
+    if not isinstance(value, dict):
+        return set()
+    return {f"{prefix}{key}" for key in value} | {k for key, v in value.items() for k in keys(v, f"{prefix}{key}/")}
+
+
+@pytest.fixture(scope="module")
+def warm_up_results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The warm-up-only experiment on both backends."""
+    results = {}
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "learn\\(\\) ended at step")  # the local runs: no update, on purpose
+        for backend in ("local", "batched"):
+            path = tmp_path_factory.mktemp(backend)
+            result = run_sweep([WARM_UP_ONLY], path, backend=backend, verbose=0, device="cpu")
+            assert result.ok and len(result.completed) == 3, result.failed
+            results[backend] = path
+    return results
+
+
+def test_a_group_writes_the_runners_files(warm_up_results: dict[str, Path], tmp_path: Path) -> None:
+    local, batched = warm_up_results["local"], warm_up_results["batched"]
+    for config in WARM_UP_ONLY.runs():
+        ours, theirs = batched / config.run_id, local / config.run_id
+        assert files(ours) == files(theirs), config.run_id  # the same names, checkpoints included
+        for name in ("summary.json", "config.json"):
+            assert keys(json.loads((ours / name).read_text())) == keys(json.loads((theirs / name).read_text())), name
+        for name in ("checkpoint_evals.csv", "learning_curve.csv"):
+            assert read_rows(ours / name)[0].keys() == read_rows(theirs / name)[0].keys(), name
+        progress = read_rows(ours / "progress.csv")
+        assert {"rollout/ep_rew_mean", "eval/min_dist_sum", "time/total_timesteps"} <= progress[0].keys()
+        assert "in a run group of 3 on cpu" in (ours / "train.log").read_text()
+        # Every checkpoint is a MADDPG file at its step, which evaluate_team scores.
+        for path in sorted((ours / "checkpoints").iterdir()):
+            model = MADDPG.load(path, device="cpu")
+            assert path.name == f"model_{model.num_timesteps}_steps.zip"
+        result = evaluate_team(model, make_eval_env(config, 2), n_episodes=2, seed=config.eval_seed)
+        assert np.isfinite(result["min_dist_sum"])
+        assert not list(ours.parent.glob("group_seeds_*.pt"))  # a finished group's state is deleted
+    written = make_report(batched, tmp_path / "report", plots=False)
+    assert any(path.name == "table_min_dist_sum.md" for path in written)
+    assert len(load_summaries(batched)) == 3
+
+
+def test_same_scores_as_the_local_backend(warm_up_results: dict[str, Path]) -> None:
+    local, batched = warm_up_results["local"], warm_up_results["batched"]
+    finals = {"local": [], "batched": []}
+    for config in WARM_UP_ONLY.runs():
+        # The same seed's initial team, written back from its run of the group: the same evaluations, exactly.
+        for name in ("checkpoint_evals.csv", "learning_curve.csv"):
+            assert read_rows(batched / config.run_id / name) == read_rows(local / config.run_id / name), name
+        for backend, path in warm_up_results.items():
+            rows = read_rows(path / config.run_id / "progress.csv")
+            finals[backend] += [float(row["rollout/ep_rew_mean"]) for row in rows if row["rollout/ep_rew_mean"]][-1:]
+    # The training episodes (uniform actions) come from another random stream (torch's, not mpe2's): the same
+    # distribution, checked loosely: the runs' mean team return over their last episodes, within 15%.
+    assert np.mean(finals["batched"]) == pytest.approx(np.mean(finals["local"]), rel=0.15)
+
+
+def test_an_interrupted_group_resumes_from_its_last_checkpoint(tmp_path: Path) -> None:
+    experiment = tiny(seeds=(0, 1))
+    configs = experiment.runs()
+    whole = train_group(configs, tmp_path / "whole", device="cpu", verbose=0)
+
+    class Killed(Exception):
+        pass
+
+    def kill_after_first_checkpoint(steps: int) -> None:
+        if steps >= configs[0].checkpoint_steps()[0]:
+            raise Killed
+
+    results = tmp_path / "resumed"
+    with pytest.raises(Killed):
+        train_group(configs, results, device="cpu", verbose=0, on_save=kill_after_first_checkpoint)
+    state = group_state_path(results, configs)
+    assert state.exists() and state.name == "group_seeds_0-1.pt"
+    first = results / configs[0].run_id / "checkpoints" / f"model_{configs[0].checkpoint_steps()[0]}_steps.zip"
+    stamp = first.stat().st_mtime_ns
+    assert not (results / configs[0].run_id / DONE_FILE).exists()
+
+    resumed = train_group(configs, results, device="cpu", verbose=0)
+    assert first.stat().st_mtime_ns == stamp  # the finished checkpoint is kept, not trained again
+    assert not state.exists()
+    for config, ours, theirs in zip(configs, resumed, whole):
+        # An exact resume (weights, optimisers, buffers, generators, worlds): the same checkpoints' evaluations.
+        assert ours["files"]["checkpoint_evals.csv"] == theirs["files"]["checkpoint_evals.csv"], config.run_id
+        assert ours["files"]["learning_curve.csv"] == theirs["files"]["learning_curve.csv"], config.run_id
+        directory = results / config.run_id
+        curve = [row["rollout/ep_rew_mean"] for row in read_rows(directory / "progress.csv")]
+        whole_curve = [row["rollout/ep_rew_mean"] for row in read_rows(tmp_path / "whole" / config.run_id / "progress.csv")]
+        assert curve == whole_curve
+        assert "resumed at" in (directory / "train.log").read_text()
+    # A finished group is skipped by the sweep, as finished runs are.
+    again = run_sweep([experiment], results, backend="batched", verbose=0, device="cpu")
+    assert again.ok and again.skipped == 2 and not again.completed
+
+
+def test_runs_a_group_cannot_train_are_refused_first(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    status = main(["run", "--config", "smoke", "--schemes", "attention", "--results", str(tmp_path), "--backend", "batched"])
+    error = capsys.readouterr().err
+    assert status == 2
+    assert error.startswith(
+        "sb3-maddpg run: smoke/attention/seed_000 (and its other seeds) cannot train in a run group (--backend batched): "
+        "Model 0's critics use a learned scheme"
+    )
+    assert "--backend local" in error
+    assert not (tmp_path / "smoke").exists()  # nothing trained, nothing written
+    for changes, cause in (
+        ({"vec_env": "mpe2"}, "steps simple_spread's batched worlds only"),
+        ({"algorithm": "sb3_maddpg:MATD3"}, "trains MADDPG"),
+        ({"env_kwargs": {"continuous_actions": False}}, "discrete agents"),
+    ):
+        with pytest.raises(BatchedRunRefused, match=cause):
+            check_batched(dataclasses.replace(tiny(), **changes).runs())
+    with pytest.raises(ValueError, match="runs_per_process must be at least 1"):
+        plan_groups([], 0)
+
+
+def test_groups_are_one_setting_and_scheme() -> None:
+    runs = dataclasses.replace(SMOKE, seeds=(0, 1, 2, 3, 4), schemes=("full", "selected")).runs()
+    groups = plan_groups(runs, runs_per_process=2)
+    assert [[(c.scheme, c.seed) for c in group] for group in groups] == [
+        [("full", 0), ("full", 1)],
+        [("full", 2), ("full", 3)],
+        [("full", 4)],
+        [("selected", 0), ("selected", 1)],
+        [("selected", 2), ("selected", 3)],
+        [("selected", 4)],
+    ]
+    assert len(plan_groups(runs)) == 2
+    assert seed_ranges([5, 0, 1, 2, 9, 10]) == "0-2+5+9-10"
+    assert parse_seed_ranges("0-2+5+9-10") == {0, 1, 2, 5, 9, 10}
