@@ -62,9 +62,9 @@ def main() -> None:
     # Train: the two nearest agents are selected when each transition is stored, and kept with it.
     # One world per evaluation episode: they run side by side (mpe2: one env, episode after episode).
     eval_env = make_partial_env(1 if args.mpe2 else eval_episodes)
-    for scheme, selection in (("selected", NearestAgents(k=2)), ("full", None)):
+    for scheme, selector in (("selected", NearestAgents(k=2)), ("full", None)):
         env = make_partial_env(args.n_envs)
-        model = MADDPG("MlpPolicy", env, critic_sharing=scheme, selector=selection, seed=args.seed, **overrides)
+        model = MADDPG("MlpPolicy", env, critic_sharing=scheme, selector=selector, seed=args.seed, **overrides)
         with ctrl_c_ends_quietly(model):
             model.learn(total_timesteps=args.steps)
         result = evaluate_team(model, eval_env, n_episodes=eval_episodes, seed=10_000)

@@ -16,6 +16,7 @@ from typing import Any
 from stable_baselines3.common.save_util import json_to_data, open_path
 
 from sb3_maddpg.update_schedule import UpdateSchedule
+from sb3_maddpg.user_code import user_stacklevel
 
 SAVED_BEFORE_0_2: dict[str, Callable[[], Any]] = {
     "update_rule": UpdateSchedule.sb3_semantics,  # SB3's train_freq counted vectorised steps
@@ -32,19 +33,33 @@ RENAMED_IN_0_3 = {"selection": "selector"}
 """Attributes of models saved by sb3-maddpg < 0.3 that 0.3 renamed: old name -> new name."""
 
 
-def rename_0_2_attributes(attributes: dict[str, Any]) -> None:
+def drop_names_before_0_3(attributes: dict[str, Any]) -> None:
     """
-    Give a loaded model's attributes saved under a name of sb3-maddpg < 0.3 (:data:`RENAMED_IN_0_3`) their new name.
+    Remove the attributes a save of sb3-maddpg < 0.3 holds under an old name (:data:`RENAMED_IN_0_3`) from a loaded
+    model: :meth:`~sb3_maddpg.team_algorithm.TeamOffPolicyAlgorithm.load` passed their values under the new name.
 
-    :param attributes: A loaded model's ``__dict__``; the save's value replaces the constructor's default.
+    :param attributes: A loaded model's ``__dict__``.
     """
+    for old in RENAMED_IN_0_3:
+        attributes.pop(old, None)
+
+
+def renamed_in_0_3(kwargs: dict[str, Any]) -> dict[str, Any]:
+    """
+    :param kwargs: Keyword arguments of the algorithm written before 0.3, e.g. a stored run's ``model_kwargs``.
+    :return: A copy with the arguments of :data:`RENAMED_IN_0_3` under their new names (the new name wins if both).
+    """
+    renamed = dict(kwargs)
     for old, new in RENAMED_IN_0_3.items():
-        if old in attributes:
-            attributes[new] = attributes.pop(old)
+        if old in renamed:
+            renamed.setdefault(new, renamed.pop(old))
+    return renamed
 
 
 def renamed_argument(value: Any, old_value: Any, old: str, new: str) -> Any:
     """
+    An argument that sb3-maddpg 0.3 renamed, given under either name.
+
     :param value: The argument given under its new name (None when not given).
     :param old_value: The argument given under the name it had before 0.3 (None when not given); it warns.
     :param old: The old name.
@@ -56,7 +71,9 @@ def renamed_argument(value: Any, old_value: Any, old: str, new: str) -> Any:
     if value is not None:
         raise TypeError(f"Got both {new}= and {old}=: {old} is the name {new} had before sb3-maddpg 0.3; give {new} only.")
     warnings.warn(
-        f"{old}= is renamed {new}= in sb3-maddpg 0.3: use {new}= (the old name will go).", FutureWarning, stacklevel=3
+        f"{old}= is renamed {new}= in sb3-maddpg 0.3: use {new}= (the old name will go).",
+        FutureWarning,
+        stacklevel=user_stacklevel(),
     )
     return old_value
 

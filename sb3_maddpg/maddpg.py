@@ -1,14 +1,14 @@
 """MADDPG on SB3's off-policy base, with the critic's information sharing as a swappable part."""
 
 from collections.abc import Sequence
-from typing import Any, ClassVar, TypeVar
+from typing import Any, ClassVar
 
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.common.utils import polyak_update
 
 from sb3_maddpg.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
@@ -28,14 +28,10 @@ from sb3_maddpg.losses import ActorLossTerms as ActorLossTerms
 from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.selection import Selector
 from sb3_maddpg.sharing import CriticSharing, validate_critic_sharing
+from sb3_maddpg.team_algorithm import LOG_INTERVAL as LOG_INTERVAL  # import path of 0.2
 from sb3_maddpg.team_algorithm import TeamOffPolicyAlgorithm
 from sb3_maddpg.train_logs import record_critic_diagnostics, record_losses
 from sb3_maddpg.update_schedule import UpdateSchedule
-
-SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
-
-LOG_INTERVAL = 1000
-"""Default ``log_interval`` of :meth:`MADDPG.learn`, in finished episodes: 40 log tables per 1M steps of 25-step episodes."""
 
 
 class MADDPG(TeamOffPolicyAlgorithm):
@@ -185,7 +181,7 @@ class MADDPG(TeamOffPolicyAlgorithm):
 
     def _team_policy_kwargs(self) -> dict[str, Any]:
         return {
-            "agent_layout": self.agent_layout,
+            **super()._team_policy_kwargs(),
             "critic_sharing": self.critic_sharing,
             "critic_sharing_kwargs": self.critic_sharing_kwargs,
             "selection_size": self.selection_size,
@@ -262,41 +258,6 @@ class MADDPG(TeamOffPolicyAlgorithm):
         """Each critic's extractor's diagnostics (e.g. whom an attention critic listens to), of the last critic batch."""
         assert self.agent_layout is not None
         record_critic_diagnostics(self.logger, self.agent_layout.agent_ids, self.critic.diagnostics())
-
-    def learn(
-        self: SelfMADDPG,
-        total_timesteps: int,
-        callback: MaybeCallback = None,
-        log_interval: int = LOG_INTERVAL,
-        tb_log_name: str = "MADDPG",
-        reset_num_timesteps: bool = True,
-        progress_bar: bool = False,
-    ) -> SelfMADDPG:
-        """
-        Train the model. The first ``learning_starts`` steps (25,600 by default) are uniformly random actions that
-        fill the replay buffer, with no gradient update: a ``learn()`` that ends before the first update says so in
-        a warning.
-
-        :param total_timesteps: Env steps to train for (all envs counted); a lower bound, as in SB3.
-        :param callback: Callback(s) called at every step.
-        :param log_interval: Finished episodes (all envs counted) between two writes of the logs (the table that
-            ``verbose=1`` prints). The default, 1000, is every 25,000 steps of simple_spread's 25-step episodes:
-            40 tables for 1M steps, whatever the number of envs (SB3's default of 4 would print 10,000).
-        :param tb_log_name: The name of the run for TensorBoard logging.
-        :param reset_num_timesteps: Whether to count timesteps from 0 again (False to continue a run).
-        :param progress_bar: Display a progress bar (needs tqdm and rich).
-        :return: The trained model.
-        """
-        result = super().learn(
-            total_timesteps=total_timesteps,
-            callback=callback,
-            log_interval=log_interval,
-            tb_log_name=tb_log_name,
-            reset_num_timesteps=reset_num_timesteps,
-            progress_bar=progress_bar,
-        )
-        self._warn_if_never_updated()
-        return result
 
     def _excluded_save_params(self) -> list[str]:
         return [

@@ -1,24 +1,22 @@
 """MATD3: SB3's TD3 choices (twin critics, target policy smoothing, delayed policy updates) on MADDPG's base."""
 
 from collections.abc import Sequence
-from typing import Any, ClassVar, TypeVar, cast
+from typing import Any, ClassVar, cast
 
 import torch as th
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.common.utils import polyak_update
 
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.compat import renamed_argument
 from sb3_maddpg.losses import TeamNetworks, actor_loss_terms, critic_losses, critic_targets, one_member
-from sb3_maddpg.maddpg import LOG_INTERVAL, MADDPG
+from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.matd3_policies import MATD3Policy, MlpPolicy, TwinMultiAgentCritic
 from sb3_maddpg.selection import Selector
 from sb3_maddpg.sharing import CriticSharing
-
-SelfMATD3 = TypeVar("SelfMATD3", bound="MATD3")
 
 
 def smooth_target_actions(actions: th.Tensor, noise_std: float, noise_clip: float, continuous: th.Tensor) -> th.Tensor:
@@ -252,25 +250,3 @@ class MATD3(MADDPG):
     def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
         """The team's critic targets (smoothed target actions, min of the twins) on a replay batch, ``[batch, n_agents]``."""
         return critic_targets(self._smoothed_target_actions, self._team.target_q_min, one_member(data), self.gamma)[0]
-
-    def learn(
-        self: SelfMATD3,
-        total_timesteps: int,
-        callback: MaybeCallback = None,
-        log_interval: int = LOG_INTERVAL,
-        tb_log_name: str = "MATD3",
-        reset_num_timesteps: bool = True,
-        progress_bar: bool = False,
-    ) -> SelfMATD3:
-        """
-        Train the model (see :meth:`MADDPG.learn <sb3_maddpg.MADDPG.learn>`).
-
-        :param total_timesteps: Env steps to train for (all envs counted); a lower bound, as in SB3.
-        :param callback: Callback(s) called at every step.
-        :param log_interval: Finished episodes (all envs counted) between two writes of the logs.
-        :param tb_log_name: The name of the run for TensorBoard logging.
-        :param reset_num_timesteps: Whether to count timesteps from 0 again (False to continue a run).
-        :param progress_bar: Display a progress bar (needs tqdm and rich).
-        :return: The trained model.
-        """
-        return super().learn(total_timesteps, callback, log_interval, tb_log_name, reset_num_timesteps, progress_bar)

@@ -13,6 +13,7 @@ from collections.abc import Callable, Hashable, Sequence
 import numpy as np
 
 from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.user_code import user_stacklevel
 
 SelectionFn = Callable[[np.ndarray, AgentLayout], np.ndarray]
 """``fn(observations [n_envs, obs_dim], layout) -> int array [n_envs, n_agents, k]``."""
@@ -228,5 +229,5 @@ def warn_if_selecting_everyone(selector: Selector, layout: AgentLayout) -> None:
             f"team: each critic sees what 'full' sees, in another order. Select fewer (e.g. selector=1, the nearest "
             "agent) for a critic that selects.",
             UserWarning,
-            stacklevel=4,  # the caller of MADDPG(...): through _set_up_team and the constructor
+            stacklevel=user_stacklevel(),
         )

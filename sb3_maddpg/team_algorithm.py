@@ -22,7 +22,14 @@ from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Rollout
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_maddpg.buffers import MultiAgentReplayBuffer, refuse_buffer_of_another_team
-from sb3_maddpg.compat import attributes_missing_from, pop_0_2_dev_schedule, read_saved_data, rename_0_2_attributes
+from sb3_maddpg.compat import (
+    RENAMED_IN_0_3,
+    attributes_missing_from,
+    drop_names_before_0_3,
+    pop_0_2_dev_schedule,
+    read_saved_data,
+    renamed_argument,
+)
 from sb3_maddpg.env_checks import check_same_layout, layout_of, refuse_env_of_another_team, refuse_reward_normalization
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.noise import add_noise, default_noise, fit_noise_to_envs
@@ -30,8 +37,12 @@ from sb3_maddpg.policies import MADDPGPolicy
 from sb3_maddpg.selection import Selector, resolve_selector, warn_if_selecting_everyone
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent
 from sb3_maddpg.update_schedule import UpdateSchedule
+from sb3_maddpg.user_code import user_stacklevel
 
 SelfTeamAlgorithm = TypeVar("SelfTeamAlgorithm", bound="TeamOffPolicyAlgorithm")
+
+LOG_INTERVAL = 1000
+"""Default ``log_interval`` of ``learn``, in finished episodes: 40 log tables per 1M steps of 25-step episodes."""
 
 
 class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
@@ -98,7 +109,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         if self.env is not None:  # on load(path, env=...), SB3 compares only the spaces
             check_same_layout(layout_of(self.env), self.agent_layout)
         # Older saves' attributes, read by load(): renamed ones, and a 0.2.0 development save's schedule.
-        rename_0_2_attributes(self.__dict__)
+        drop_names_before_0_3(self.__dict__)
         pop_0_2_dev_schedule(self.__dict__)
         # A new dict: SB3 keeps the caller's, which must not change under them.
         if self.replay_buffer_class is not None and issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
@@ -111,6 +122,16 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
     def _team_policy_kwargs(self) -> dict[str, Any]:
         """:return: What the policy needs to know of the team, over the caller's ``policy_kwargs``."""
         return {"agent_layout": self.agent_layout}
+
+    @property
+    def selection(self) -> Selector | None:
+        """The name :attr:`selector` had before sb3-maddpg 0.3 (it warns)."""
+        warnings.warn(
+            "model.selection is renamed model.selector in sb3-maddpg 0.3: use model.selector (the old name will go).",
+            FutureWarning,
+            stacklevel=user_stacklevel(),
+        )
+        return self.selector
 
     @property
     def selection_size(self) -> int:
@@ -202,6 +223,41 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
     def _record_diagnostics(self) -> None:
         """Record what is worth computing only when the logs are written (none here)."""
 
+    def learn(  # type: ignore[override]  # tb_log_name defaults to the class's name
+        self: SelfTeamAlgorithm,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        log_interval: int = LOG_INTERVAL,
+        tb_log_name: str | None = None,
+        reset_num_timesteps: bool = True,
+        progress_bar: bool = False,
+    ) -> SelfTeamAlgorithm:
+        """
+        Train the model. The first ``learning_starts`` steps (25,600 by default) are uniformly random actions that
+        fill the replay buffer, with no gradient update: a ``learn()`` that ends before the first update says so in
+        a warning.
+
+        :param total_timesteps: Env steps to train for (all envs counted); a lower bound, as in SB3.
+        :param callback: Callback(s) called at every step.
+        :param log_interval: Finished episodes (all envs counted) between two writes of the logs (the table that
+            ``verbose=1`` prints). The default, 1000, is every 25,000 steps of simple_spread's 25-step episodes:
+            40 tables for 1M steps, whatever the number of envs (SB3's default of 4 would print 10,000).
+        :param tb_log_name: The name of the run for TensorBoard logging (default: the algorithm's, e.g. ``"MADDPG"``).
+        :param reset_num_timesteps: Whether to count timesteps from 0 again (False to continue a run).
+        :param progress_bar: Display a progress bar (needs tqdm and rich).
+        :return: The trained model.
+        """
+        result = super().learn(
+            total_timesteps=total_timesteps,
+            callback=callback,
+            log_interval=log_interval,
+            tb_log_name=type(self).__name__ if tb_log_name is None else tb_log_name,
+            reset_num_timesteps=reset_num_timesteps,
+            progress_bar=progress_bar,
+        )
+        self._warn_if_never_updated()
+        return result
+
     def _warn_if_never_updated(self) -> None:
         """Say once, naming learning_starts, that the model has not been trained at all: a short run is otherwise silent."""
         explicitly_no_updates = not self.update_rule.earns_gradient_steps and self.gradient_steps == 0
@@ -214,7 +270,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             f"the replay buffer, and then the model takes {self.update_schedule}. Train for longer, or lower "
             f"learning_starts for a short test (e.g. {type(self).__name__}(..., learning_starts=2_000)).",
             UserWarning,
-            stacklevel=3,
+            stacklevel=user_stacklevel(),
         )
 
     def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
@@ -255,9 +311,15 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         data = read_saved_data(path, custom_objects)  # read once: for the team check and for older saves
         if env is not None:
             refuse_env_of_another_team(data, env)
-        # What an older save lacks, filled with what its version implies; the caller's kwargs over it.
+        # What an older save lacks, filled with what its version implies, and what it holds under an old name under
+        # the new one; the caller's kwargs over both (under the new names too, with a warning).
         missing = {} if data is None else attributes_missing_from(data)
-        return super().load(path, env, device, custom_objects, print_system_info, force_reset, **{**missing, **kwargs})
+        renamed = {} if data is None else {new: data[old] for old, new in RENAMED_IN_0_3.items() if old in data}
+        for old, new in RENAMED_IN_0_3.items():
+            if old in kwargs:
+                kwargs[new] = renamed_argument(kwargs.get(new), kwargs.pop(old), old, new)
+        attributes = {**missing, **renamed, **kwargs}
+        return super().load(path, env, device, custom_objects, print_system_info, force_reset, **attributes)
 
     def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
         """

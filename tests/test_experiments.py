@@ -489,3 +489,15 @@ def test_a_setting_of_another_algorithm_is_labelled_with_its_name() -> None:
     assert setting_label("exp1", matd3) == "exp1 (MATD3, N=5, full obs., 100,000 ep.)"
     other_task = {**matd3, "env": "simple_tag"}
     assert setting_label("tag", other_task) == "tag (MATD3, simple_tag, 100,000 ep.)"
+
+
+def test_configs_written_before_0_3_name_the_selector_as_0_3_does() -> None:
+    # Results stored before 0.3 say "selection" in model_kwargs: the same command must still resume them.
+    experiment = SMOKE.replace(scheme_model_kwargs={"selected": {"selector": 1}})
+    stored = experiment.to_dict()
+    stored["scheme_model_kwargs"] = {"selected": {"selection": 1}}
+    assert ExperimentConfig.from_dict(stored) == experiment
+    run = next(run for run in experiment.runs() if run.scheme == "selected")
+    stored_run = run.to_dict()
+    stored_run["model_kwargs"] = {**{k: v for k, v in run.model_kwargs.items() if k != "selector"}, "selection": 1}
+    assert RunConfig.from_dict(stored_run).same_as(run)

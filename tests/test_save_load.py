@@ -14,7 +14,7 @@ from stable_baselines3.common.save_util import save_to_pkl
 from sb3_maddpg import MADDPG, AgentLayout
 from sb3_maddpg.envs import make_simple_spread
 from sb3_maddpg.policies import MADDPGPolicy
-from sb3_maddpg.selection import CallableSelector, NearestAgents
+from sb3_maddpg.selection import CallableSelector, FixedGraph, NearestAgents
 
 SCHEMES = ("independent", "full", "observations", "actions", "selected")
 N_AGENTS = 3
@@ -245,12 +245,21 @@ def test_a_model_saved_by_0_2_keeps_its_selector_under_the_new_name() -> None:
     updates = model._n_updates
     model.learn(200, reset_num_timesteps=False)
     assert model._n_updates > updates and model.replay_buffer.selections.shape[-1] == 1  # its rows select k=1
+    # A selector the caller passes to load wins over the save's, under either name (the old one warns).
+    graph = FixedGraph([[2], [0], [1]])
+    chosen = MADDPG.load(Path(__file__).parent / "data" / "maddpg_0.2.0_selected.zip", env=make_team(), selector=graph)
+    assert chosen.selector is graph and chosen.replay_buffer.selector is graph
+    with pytest.warns(FutureWarning, match=r"selection= is renamed selector="):
+        old_name = MADDPG.load(Path(__file__).parent / "data" / "maddpg_0.2.0_selected.zip", selection=graph)
+    assert old_name.selector is graph and "selection" not in old_name.__dict__
 
 
 def test_the_old_name_of_selector_still_works_and_warns() -> None:
     with pytest.warns(FutureWarning, match=r"selection= is renamed selector="):
         model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selection=1, **FAST)
     assert isinstance(model.selector, NearestAgents) and model.selector.k == 1
+    with pytest.warns(FutureWarning, match=r"model.selection is renamed model.selector"):
+        assert model.selection is model.selector
     with pytest.raises(TypeError, match=r"Got both selector= and selection="):
         MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=1, selection=1, **FAST)
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import optuna
 import pytest
-from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import IntegrityError, OperationalError
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread
@@ -177,6 +177,14 @@ def test_opening_a_storage_retries_only_the_race_of_creating_its_tables() -> Non
         return "storage"
 
     assert open_storage(created_by_another_worker_twice, wait_seconds=0) == "storage" and len(calls) == 3
+
+    def version_row_written_by_another_worker() -> str:
+        calls.append(1)
+        if len(calls) <= 4:
+            raise IntegrityError("INSERT INTO alembic_version", {}, Exception("UNIQUE constraint failed: alembic_version"))
+        return "storage"
+
+    assert open_storage(version_row_written_by_another_worker, wait_seconds=0) == "storage" and len(calls) == 5
 
     def locked() -> str:
         raise OperationalError("SELECT", {}, Exception("database is locked"))

@@ -7,6 +7,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+from sb3_maddpg.compat import renamed_in_0_3
+
 EPISODE_LENGTH = 25
 """Steps per simple_spread episode in the paper (``max_cycles``)."""
 
@@ -212,7 +214,10 @@ class RunConfig:
             no ``vec_env`` and ``n_envs``: those runs stepped one mpe2 env.
         :return: The config.
         """
-        return cls(**{"vec_env": "mpe2", "n_envs": 1, **data})
+        data = {"vec_env": "mpe2", "n_envs": 1, **data}
+        if isinstance(data.get("model_kwargs"), dict):  # a run stored before 0.3 resumes
+            data["model_kwargs"] = renamed_in_0_3(data["model_kwargs"])
+        return cls(**data)
 
     def same_as(self, other: "RunConfig") -> bool:
         """
@@ -326,6 +331,13 @@ class ExperimentConfig:
         :return: The config.
         """
         data = {"vec_env": "mpe2", "n_envs": 1, **data}
+        if isinstance(data.get("model_kwargs"), dict):  # files written before 0.3
+            data["model_kwargs"] = renamed_in_0_3(data["model_kwargs"])
+        if isinstance(data.get("scheme_model_kwargs"), dict):
+            data["scheme_model_kwargs"] = {
+                scheme: renamed_in_0_3(kwargs) if isinstance(kwargs, dict) else kwargs
+                for scheme, kwargs in data["scheme_model_kwargs"].items()
+            }
         for key in ("schemes", "seeds", "score_agents"):
             if key in data:
                 data[key] = tuple(data[key])

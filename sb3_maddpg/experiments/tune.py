@@ -220,22 +220,24 @@ def open_storage(open_once: Callable[[], Any], attempts: int = STORAGE_ATTEMPTS,
     """
     Open an Optuna database storage that other workers may be creating at the same moment.
 
-    Two processes that open a new SQLite file together both create its tables, and the later one fails with
-    "table ... already exists" (``--workers 2`` does that on a new study). The tables exist by then, so
-    opening it again succeeds.
+    Two processes that open a new SQLite file together both create its tables (and the schema's version row), and the
+    later one fails with "table ... already exists" (or a UNIQUE constraint on that row); ``--workers 2`` does that on
+    a new study. The tables exist by then, so opening it again succeeds. Other errors (e.g. a locked database) are
+    raised at once.
 
     :param open_once: Opens the storage once (e.g. builds an ``optuna.storages.RDBStorage``).
     :param attempts: How many times to try before the error is raised.
     :param wait_seconds: The wait after the first failure; it grows by that much after each one.
     :return: The storage.
     """
-    from sqlalchemy.exc import OperationalError
+    from sqlalchemy.exc import IntegrityError, OperationalError
 
     for attempt in range(1, attempts):
         try:
             return open_once()
-        except OperationalError as error:
-            if "already exists" not in str(error):
+        except (OperationalError, IntegrityError) as error:
+            # The tables, or the schema's version row, created by another worker in between.
+            if not any(sign in str(error) for sign in ("already exists", "UNIQUE constraint failed")):
                 raise
             time.sleep(wait_seconds * attempt)
     return open_once()  # the last attempt's error, if any, is the caller's

@@ -1,0 +1,27 @@
+"""The package's warnings point at the user's line, whichever algorithm and however many of the package's frames."""
+
+import warnings
+
+import pytest
+
+from sb3_maddpg import MADDPG, MATD3
+from sb3_maddpg.envs import make_simple_spread
+
+FAST = dict(learning_starts=1_000, buffer_size=500, batch_size=16, policy_kwargs=dict(net_arch=[8]), seed=0)
+
+
+@pytest.mark.parametrize("algorithm", [MADDPG, MATD3])
+def test_warnings_point_at_the_line_that_called_the_package(algorithm: type[MADDPG]) -> None:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        # k=2 of 3 selects everyone, under the name of 0.2: two warnings from the constructor
+        model = algorithm("MlpPolicy", make_simple_spread(n_agents=3), critic_sharing="selected", selection=2, **FAST)
+        model.learn(50)  # ends before learning_starts: the never-updated warning
+    messages = {
+        "selects every other agent": UserWarning,
+        "selection= is renamed selector=": FutureWarning,
+        "without a single gradient update": UserWarning,
+    }
+    for text, category in messages.items():
+        (warning,) = [w for w in caught if text in str(w.message)]
+        assert warning.category is category and warning.filename == __file__, (text, warning.filename)
