@@ -27,7 +27,6 @@ from sb3_maddpg.selection import FixedGraph, NearestAgents
 
 N_AGENTS = 3
 SMALL = {"net_arch": [16, 16]}
-SELECTOR = "selector" if "selector" in MADDPG.__init__.__code__.co_varnames else "selection"  # renamed in 0.3
 
 
 def make_model(seed: int | None = 0, n_agents: int = N_AGENTS, n_envs: int = 2, **kwargs: Any) -> MADDPG:
@@ -107,7 +106,7 @@ def model_state(model: MADDPG) -> dict[str, th.Tensor]:
         ("independent", {}),
         ("observations", {}),
         ("actions", {}),
-        ("selected", {SELECTOR: 1}),
+        ("selected", {"selector": 1}),
         ("full", {"policy_kwargs": {**SMALL, "share_parameters": True}}),
     ],
 )
@@ -147,7 +146,7 @@ def three_runs(**kwargs: Any) -> list[MADDPG]:
 def test_perturbing_one_run_leaves_the_others_bit_identical(scheme: str, perturb: str) -> None:
     extra: dict[str, Any] = {"critic_sharing": scheme, "max_grad_norm": 0.05}
     if scheme == "selected":
-        extra[SELECTOR] = 1
+        extra["selector"] = 1
     models = three_runs(**extra)
     generator = th.Generator().manual_seed(3)
     batches = [stack_batches([random_batch(models[0], 32, generator) for _ in models]) for _ in range(2)]
@@ -369,7 +368,7 @@ def test_an_empty_group_and_worlds_of_another_team_are_refused() -> None:
 
 @pytest.mark.skipif(not th.cuda.is_available(), reason="needs a CUDA device")
 def test_a_group_on_cuda_updates_as_on_the_cpu_and_learns() -> None:
-    models = three_runs(critic_sharing="selected", **{SELECTOR: 1})
+    models = three_runs(critic_sharing="selected", **{"selector": 1})
     generator = th.Generator().manual_seed(8)
     batch = stack_batches([random_batch(models[0], 32, generator) for _ in models])
     on_cpu, on_cuda = RunGroup(models), RunGroup(models, device="cuda")

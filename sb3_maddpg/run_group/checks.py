@@ -94,7 +94,7 @@ def settings(model: MADDPG) -> dict[str, Any]:
         "agent_layout": model.agent_layout,
         "critic_sharing": model.critic_sharing,
         "critic_sharing_kwargs": model.critic_sharing_kwargs,
-        "selection": describe_selection(model_selector(model)),
+        "selector": describe_selector(model_selector(model)),
         "learning_rate": model.learning_rate,
         "buffer_size": model.buffer_size,
         "learning_starts": model.learning_starts,
@@ -116,19 +116,19 @@ def settings(model: MADDPG) -> dict[str, Any]:
 
 
 def model_selector(model: MADDPG) -> Selector | None:
-    """:return: A model's selection rule (``selector`` since sb3-maddpg 0.3, ``selection`` before), None without one."""
-    return getattr(model, "selector", getattr(model, "selection", None))
+    """:return: A model's selection rule, None without one."""
+    return model.selector
 
 
-def describe_selection(selection: Selector | None) -> tuple[Any, ...] | None:
+def describe_selector(selector: Selector | None) -> tuple[Any, ...] | None:
     """:return: The selection rule as comparable values (its class, ``k`` and its settings)."""
-    if selection is None:
+    if selector is None:
         return None
-    if isinstance(selection, NearestAgents):
-        return ("NearestAgents", selection.k, selection.position_slice)
-    if isinstance(selection, FixedGraph):
-        return ("FixedGraph", selection.k, selection.neighbors.tolist())
-    return (type(selection).__name__, selection.k, id(selection))  # a user's rule: the same object in every model
+    if isinstance(selector, NearestAgents):
+        return ("NearestAgents", selector.k, selector.position_slice)
+    if isinstance(selector, FixedGraph):
+        return ("FixedGraph", selector.k, selector.neighbors.tolist())
+    return (type(selector).__name__, selector.k, id(selector))  # a user's rule: the same object in every model
 
 
 def _normal_noise(noise: Any) -> tuple[list[float], list[float]]:

@@ -109,7 +109,7 @@ class RunGroup:
         self.lr_schedule = first.lr_schedule
         self.parts = ActionParts.of(self.layout, self.device)
         self.update_rule = UpdateSchedule.from_arguments(first.transitions_per_update, None, None)
-        self.selection = model_selector(first)
+        self.selector = model_selector(first)
         self.num_timesteps = first.num_timesteps
         """Env steps of each run (all its worlds counted)."""
         self.n_updates = first._n_updates
@@ -128,7 +128,7 @@ class RunGroup:
             self.layout.obs_dim,
             self.layout.action_dim,
             self.layout.n_agents,
-            0 if self.selection is None else self.selection.k,
+            0 if self.selector is None else self.selector.k,
             self.device,
         )
         self.world_dtype = world_dtype
@@ -206,7 +206,7 @@ class RunGroup:
         observations = worlds.observations
         actions = self.explore(observations)
         step = worlds.step(actions)
-        selections = None if self.selection is None else select_on_device(self.selection, observations, self.layout)
+        selections = None if self.selector is None else select_on_device(self.selector, observations, self.layout)
         dones = th.zeros_like(step.rewards)  # simple_spread never terminates: its truncations bootstrap
         self.buffers.add(observations, actions, step.next_observations, step.rewards, dones, selections)
         self.num_timesteps += self.worlds_per_run
