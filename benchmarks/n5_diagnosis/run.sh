@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Issue 21's diagnosis at N=5 (exp1 setting: full observability, `full` sharing, batched env with 100 worlds):
-# each factor against the paper's configuration in one sweep, 3 seeds x 1M steps, configs in priority order.
+# each factor against the paper's configuration in one sweep, 3 seeds x 1M steps, configs in priority order
+# (four gradient steps per 100 transitions moved ahead on 2026-12-02: learning followed gradient steps, not env steps).
 # Resumable: run it again and finished runs are skipped. Usage: bash benchmarks/n5_diagnosis/run.sh
 # Then: python benchmarks/n5_diagnosis/summarize.py
 set -u
@@ -9,7 +10,7 @@ RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-2}"
 export SDL_VIDEODRIVER=dummy
 configs=()
-for factor in paper sorted_obs utd400 lr1e-3 shared_params batch256 utd25 sorted_obs_utd25; do
+for factor in paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 utd25 shared_params batch256; do
     configs+=(--config "benchmarks/n5_diagnosis/$factor.json")
 done
 nice -n 19 python -m sb3_maddpg.experiments run "${configs[@]}" --results "$RESULTS_ROOT/n5_diagnosis/results" \
