@@ -55,7 +55,7 @@ class DistanceMaskedCriticFeatures(CriticFeaturesExtractor):
         self.position_slice = position_slice
         self.order = [agent_index] + [j for j in range(layout.n_agents) if j != agent_index]
 
-    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
         own_position = self.agent_observation(observations, self.agent_index)[:, self.position_slice]
         seen_obs = [self.agent_observation(observations, j) for j in self.order]
         seen_actions = [self.agent_action(actions, self.agent_index)]

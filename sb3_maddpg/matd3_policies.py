@@ -48,13 +48,13 @@ class TwinMultiAgentCritic(MultiAgentCritic):
         )
         """The second critic of every agent, Q_i2."""
 
-    def twins(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+    def twins(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
         """
         Both twins on a joint batch (arguments as :meth:`forward`).
 
         :return: ``[2, batch, n_agents]``: Q_i1 in ``[0]``, Q_i2 in ``[1]``.
         """
-        return th.stack((self(observations, actions, selection), self.twin(observations, actions, selection)))
+        return th.stack((self(observations, actions, selections), self.twin(observations, actions, selections)))
 
     def clip_grad_norm_per_agent(self, max_norm: float) -> None:
         """

@@ -169,17 +169,17 @@ class MultiAgentCritic(nn.Module):
         )
         self.optimizer: th.optim.Optimizer
 
-    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
         """
         :param observations: Joint observations ``[batch, obs_dim]``.
         :param actions: Joint actions in [-1, 1]: ``[batch, action_dim]`` for all critics, or
             ``[n_agents, batch, action_dim]`` to give critic i its own joint action ``actions[i]``.
-        :param selection: Selected agents ``[batch, n_agents, k]``, for schemes that use one.
+        :param selections: Selected agents ``[batch, n_agents, k]``, for schemes that use one.
         :return: Q-values ``[batch, n_agents]``.
         """
         per_critic = actions.dim() == 3
         features = [
-            extractor(observations, actions[i] if per_critic else actions, selection)
+            extractor(observations, actions[i] if per_critic else actions, selections)
             for i, extractor in enumerate(self.extractors)
         ]
         return self.mlp(stack_padded(features, self.mlp.max_in_dim)).squeeze(-1).transpose(0, 1)
@@ -260,14 +260,14 @@ class AgentCritic(nn.Module):
         """The extractor that builds this critic's input."""
         return self._team[0].extractors[self.agent_index]  # type: ignore[return-value]
 
-    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
         """
         :param observations: Joint observations ``[batch, obs_dim]``.
         :param actions: Joint actions in [-1, 1], ``[batch, action_dim]``.
-        :param selection: Selected agents ``[batch, n_agents, k]``, for schemes that use one.
+        :param selections: Selected agents ``[batch, n_agents, k]``, for schemes that use one.
         :return: Q_i ``[batch, 1]``.
         """
-        features = self.features_extractor(observations, actions, selection)
+        features = self.features_extractor(observations, actions, selections)
         return self._team[0].mlp.forward_agent(self.agent_index, features)
 
 
@@ -385,20 +385,20 @@ class MADDPGPolicy(BasePolicy):
 
     @property
     def critics(self) -> list[AgentCritic]:
-        """Agent i's critic, ``critics[i](obs, actions, selection) -> Q_i`` (views into the team's critic)."""
+        """Agent i's critic, ``critics[i](obs, actions, selections) -> Q_i`` (views into the team's critic)."""
         return self._critic_views
 
-    def q_values(self, obs: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+    def q_values(self, obs: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
         """
         Every agent's critic on a joint batch.
 
         :param obs: Joint observations ``[batch, obs_dim]``.
         :param actions: Joint actions in the policy's [-1, 1] space ``[batch, action_dim]``.
-        :param selection: LongTensor ``[batch, n_agents, k]`` of the agents each agent selected (itself
+        :param selections: LongTensor ``[batch, n_agents, k]`` of the agents each agent selected (itself
             excluded); needed by schemes that use a selection.
         :return: ``[batch, n_agents]``.
         """
-        return self.critic(obs, actions, selection)
+        return self.critic(obs, actions, selections)
 
     def forward(self, observation: th.Tensor, deterministic: bool = False) -> th.Tensor:
         return self._predict(observation, deterministic=deterministic)

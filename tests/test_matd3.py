@@ -375,4 +375,4 @@ def test_the_experiments_runner_trains_matd3_with_algo(tmp_path: Path, capsys: p
     assert json.loads((run / "config.json").read_text())["algorithm"] == "sb3_maddpg:MATD3"
     assert (run / "summary.json").exists()  # trained, checkpoints loaded by MATD3.load and evaluated
     assert main(["report", str(tmp_path), "--no-plots"]) == 0
-    assert "| smoke_matd3 (N=3" in (tmp_path / "report" / "table_min_dist_sum.md").read_text()
+    assert "| smoke_matd3 (MATD3, N=3" in (tmp_path / "report" / "table_min_dist_sum.md").read_text()

@@ -63,11 +63,11 @@ class CriticFeaturesExtractor(nn.Module):
         """
         return {}
 
-    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
         """
         :param observations: Joint observations ``[batch, obs_dim]``.
         :param actions: Joint actions in the policy's [-1, 1] space ``[batch, action_dim]``.
-        :param selection: Selected agents ``[batch, n_agents, k]`` (LongTensor), for schemes that use it.
+        :param selections: Selected agents ``[batch, n_agents, k]`` (LongTensor), for schemes that use it.
         :return: Critic input ``[batch, features_dim]``.
         """
         raise NotImplementedError

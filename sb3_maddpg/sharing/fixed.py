@@ -49,7 +49,7 @@ class _FixedAgentsCriticFeatures(CriticFeaturesExtractor):
         self.register_buffer("_obs_index", th.tensor(obs_index, dtype=th.long), persistent=False)
         self.register_buffer("_action_index", th.tensor(action_index, dtype=th.long), persistent=False)
 
-    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
         return th.cat((observations.index_select(1, self._obs_index), actions.index_select(1, self._action_index)), dim=1)
 
 
@@ -110,11 +110,11 @@ class SelectedCriticFeatures(CriticFeaturesExtractor):
         super().__init__(layout, agent_index, (1 + selection_size) * (obs_size + action_size), selection_size)
         self._obs_size, self._action_size = obs_size, action_size
 
-    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
-        if selection is None:
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
+        if selections is None:
             raise ValueError("critic_sharing='selected' needs the selection [batch, n_agents, k] of each transition.")
         batch, n_agents, k = observations.shape[0], self.layout.n_agents, self.selection_size
-        chosen = selection[:, self.agent_index, :]
+        chosen = selections[:, self.agent_index, :]
         # Own agent first, then the selected ones, for observations and for actions alike.
         agents = th.cat((th.full_like(chosen[:, :1], self.agent_index), chosen), dim=1)
         if self.layout.is_homogeneous:

@@ -230,7 +230,7 @@ class AttentionCriticFeatures(_ListeningExtractor):
         attended, heads = self.attention(own.unsqueeze(1), others, others, need_weights=True, average_attn_weights=False)
         return own, attended.squeeze(1), heads.squeeze(2)
 
-    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
         own, attended, heads = self._attend(observations, actions)
         if self.recording:  # the mean only for a recorded batch, not in every forward pass
             self._remember(observations, heads.mean(dim=1))
@@ -310,7 +310,7 @@ class LearnedSelectionCriticFeatures(_ListeningExtractor):
         act = stack_padded([actions[:, layout.action_slices[j]] for j in others], self._slot_action_size)
         return th.cat((obs, act), dim=-1).transpose(0, 1)
 
-    def forward(self, observations: th.Tensor, actions: th.Tensor, selection: th.Tensor | None = None) -> th.Tensor:
+    def forward(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
         own_input, scores = self._scores(observations, actions)
         slots = self._slots(observations, actions)
         soft = th.softmax(scores, dim=1)
