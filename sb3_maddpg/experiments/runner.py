@@ -244,7 +244,8 @@ def finish_run(
     eval_started = time.perf_counter()
     eval_env = make_eval_env(config, config.eval_episodes)
     rows = []
-    keys = eval_keys(task_metrics(config), config.score_agents)
+    metrics = task_metrics(config)  # the task's metrics, once for every checkpoint
+    keys = eval_keys(metrics, config.score_agents)
     for steps, path in saved:
         checkpoint = algorithm.load(path, device="cpu")
         result = evaluate_team(
@@ -252,7 +253,7 @@ def finish_run(
             eval_env,
             n_episodes=config.eval_episodes,
             seed=config.eval_seed,
-            task_metrics=task_metrics(config),
+            task_metrics=metrics,
             score_agents=config.score_agents,
         )
         rows.append({"timesteps": steps, "episodes": steps // config.episode_length, **{k: result[k] for k in keys}})
