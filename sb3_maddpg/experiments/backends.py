@@ -13,9 +13,10 @@ import threading
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ALL_COMPLETED, FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from multiprocessing import get_context
 from typing import Any
 
@@ -207,6 +208,25 @@ def run_ray(
     :param on_parallel: Called once Ray is up with the number of runs that execute at once (the cluster's CPUs
         // ``threads``), e.g. for a time-left estimate.
     """
+    with ray_session(address, num_cpus, verbose) as ray:
+        if on_parallel is not None:
+            on_parallel(ray_parallel_runs(ray.cluster_resources(), threads))
+        remote = ray.remote(**ray_task_options(threads))(_ray_task)
+        tasks = {remote.remote(config, results_dir, threads, verbose): [config] for config in configs}
+        collect_ray_tasks(ray, tasks, results_dir, on_result)
+
+
+@contextmanager
+def ray_session(address: str | None, num_cpus: int | None, verbose: int) -> Iterator[Any]:
+    """
+    Ray, connected for a sweep: to the cluster at ``address``, or to a local instance started here (and shut down
+    on leaving) when ``address`` is ``None``; a Ray already initialised in this process is used as it is.
+
+    :param address: The Ray cluster's address, or ``None`` to start a local instance.
+    :param num_cpus: CPUs of a local instance (``None``: all of this machine's).
+    :param verbose: 1 to forward the workers' output.
+    :return: The ``ray`` module.
+    """
     try:
         import ray
     except ImportError as error:
@@ -229,32 +249,76 @@ def run_ray(
             configure_logging=False,
             _system_config=system_config,
         )
-    pending: list[Any] = []
     try:
-        if on_parallel is not None:
-            on_parallel(ray_parallel_runs(ray.cluster_resources(), threads))
-        remote = ray.remote(num_cpus=threads, max_retries=RAY_MAX_RETRIES)(_ray_task)
-        refs = {remote.remote(config, results_dir, threads, verbose): config for config in configs}
-        pending = list(refs)
+        yield ray
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+def ray_task_options(threads: int, device: str = "cpu") -> dict[str, Any]:
+    """
+    :param threads: Torch threads of the task (its Ray CPUs).
+    :param device: Where the task trains: a CUDA device asks Ray for one GPU as well, so that each GPU of a
+        cluster runs one such task at a time.
+    :return: The options of ``ray.remote`` for one task (resources, and :data:`RAY_MAX_RETRIES` retries).
+    """
+    options: dict[str, Any] = {"num_cpus": threads, "max_retries": RAY_MAX_RETRIES}
+    if device.split(":")[0] == "cuda":
+        options["num_gpus"] = 1
+    return options
+
+
+def collect_ray_tasks(ray: Any, tasks: dict[Any, list[RunConfig]], results_dir: str, on_result: OnResult) -> None:
+    """
+    Wait for submitted Ray tasks, each returning the results of its runs (as many as its configs, in their order),
+    and report every run as its task ends: its result files written here (for a cluster without shared storage),
+    then ``on_result``. A task lost with its worker or node after Ray's retries fails its runs with
+    :data:`RAY_LOST_RUN_ERROR`, one that raised with its traceback; Ctrl-C cancels the tasks left.
+
+    :param ray: The ``ray`` module (connected, see :func:`ray_session`).
+    :param tasks: Each task's object reference and its runs.
+    :param results_dir: The sweep's results directory here.
+    :param on_result: Called for each run.
+    """
+    pending = list(tasks)
+    try:
         while pending:
             finished, pending = ray.wait(pending, num_returns=1)
             for ref in finished:
+                configs = tasks[ref]
                 try:
-                    result = ray.get(ref)
+                    results = ray.get(ref)
                 except (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError, ray.exceptions.OutOfMemoryError):
-                    on_result(refs[ref], None, f"{RAY_LOST_RUN_ERROR}\n{traceback.format_exc()}")
+                    error = f"{RAY_LOST_RUN_ERROR}\n{traceback.format_exc()}"
+                    for config in configs:
+                        on_result(config, None, error)
                 except Exception:
-                    on_result(refs[ref], None, traceback.format_exc())
+                    error = traceback.format_exc()
+                    for config in configs:
+                        on_result(config, None, error)
                 else:
-                    write_result_files(results_dir, result)
-                    on_result(refs[ref], result, None)
+                    for config, result in zip(configs, results, strict=True):
+                        write_result_files(results_dir, result)
+                        on_result(config, result, None)
     except KeyboardInterrupt:
         for ref in pending:  # on a cluster, tasks would go on without the sweep
             ray.cancel(ref, force=True)
         raise
-    finally:
-        if started_here:
-            ray.shutdown()
+
+
+def ray_parallel_tasks(resources: dict[str, float], options: dict[str, Any]) -> int:
+    """
+    :param resources: A Ray cluster's resources (``ray.cluster_resources()``).
+    :param options: One task's options (:func:`ray_task_options`).
+    :return: The tasks that execute at once: the fewest the cluster's CPUs and GPUs hold (at least 1).
+    """
+    slots = [int(resources.get(name, 0)) // max(1, int(options[key])) for key, name in RAY_RESOURCES.items() if key in options]
+    return max(1, min(slots, default=1))
+
+
+RAY_RESOURCES = {"num_cpus": "CPU", "num_gpus": "GPU"}
+"""The options of :func:`ray_task_options` and the cluster resources they ask for."""
 
 
 def ray_parallel_runs(resources: dict[str, float], threads: int) -> int:
@@ -263,9 +327,9 @@ def ray_parallel_runs(resources: dict[str, float], threads: int) -> int:
     :param threads: CPUs per run.
     :return: The runs that execute at once: the cluster's CPUs // ``threads`` (at least 1).
     """
-    return max(1, int(resources.get("CPU", 0)) // max(1, threads))
+    return ray_parallel_tasks(resources, ray_task_options(threads))
 
 
-def _ray_task(config: RunConfig, results_dir: str, threads: int, verbose: int) -> dict[str, Any]:
+def _ray_task(config: RunConfig, results_dir: str, threads: int, verbose: int) -> list[dict[str, Any]]:
     set_worker_threads(threads)
-    return execute_run(config, results_dir, threads=threads, verbose=verbose)
+    return [execute_run(config, results_dir, threads=threads, verbose=verbose)]

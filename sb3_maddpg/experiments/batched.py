@@ -20,7 +20,14 @@ from typing import Any, cast
 import torch as th
 from stable_baselines3.common.logger import configure
 
-from sb3_maddpg.experiments.backends import OnResult
+from sb3_maddpg.experiments.backends import (
+    OnResult,
+    collect_ray_tasks,
+    ray_parallel_tasks,
+    ray_session,
+    ray_task_options,
+    set_worker_threads,
+)
 from sb3_maddpg.experiments.config import DEFAULT_ALGORITHM, DEFAULT_ENV, RunConfig
 from sb3_maddpg.experiments.results import CHECKPOINT_DIR, CONFIG_FILE, LOG_FILE, PROGRESS_FILE, read_json, run_directory
 from sb3_maddpg.experiments.runner import (
@@ -545,3 +552,65 @@ def run_batched(
         else:
             for config, result in zip(group, results):
                 on_result(config, result, None)
+
+
+def run_batched_ray(
+    configs: Sequence[RunConfig],
+    results_dir: str,
+    on_result: OnResult,
+    device: str = "auto",
+    runs_per_process: int | None = None,
+    threads: int = 1,
+    address: str | None = None,
+    num_cpus: int | None = None,
+    verbose: int = 1,
+    on_parallel: Callable[[int, str], None] | None = None,
+) -> None:
+    """
+    Run the sweep's groups (:func:`plan_groups`) as Ray tasks, one task per group: on a CUDA device each asks Ray
+    for one GPU (so each GPU of a cluster trains one group at a time), else for ``threads`` CPUs. Ray is reached as
+    by :func:`~sb3_maddpg.experiments.backends.run_ray` (``address``, or a local instance), and its tasks are
+    collected by the same code: a group lost with its worker or node is run again, up to
+    :data:`~sb3_maddpg.experiments.backends.RAY_MAX_RETRIES` times, and resumes from its state file when it sees
+    it (the results directory shared by the nodes); a group's runs are reported when the group ends.
+
+    :param configs: The runs (checked with :func:`check_batched` before: this submits them as they are).
+    :param results_dir: The sweep's results directory (on a cluster, an absolute path on shared storage).
+    :param on_result: Called for each run as its group ends.
+    :param device: Where the groups train: ``"cuda"`` (each task on the GPU Ray gives it), ``"cpu"``, or ``"auto"``
+        (CUDA when the cluster has GPUs).
+    :param runs_per_process: The most runs in one group (``None``: all of a setting and scheme).
+    :param threads: Torch threads (and Ray CPUs) per group.
+    :param address: The Ray cluster's address, or ``None`` to start a local instance.
+    :param num_cpus: CPUs of a local instance (``None``: all of this machine's).
+    :param verbose: 1 to print each group's progress lines (Ray forwards the workers' output).
+    :param on_parallel: Called once Ray is up with the groups that train at once and the device they train on.
+    :raise BatchedRunRefused: For a CUDA device on a cluster without GPUs (its tasks would wait forever), before any
+        task.
+    """
+    groups = plan_groups(configs, runs_per_process)
+    with ray_session(address, num_cpus, verbose) as ray:
+        resources = ray.cluster_resources()
+        gpus = resources.get("GPU", 0)
+        if device == "auto":
+            device = "cuda" if gpus > 0 else "cpu"
+        elif device.split(":")[0] == "cuda":
+            if gpus < 1:
+                raise BatchedRunRefused(
+                    f"The run groups cannot train on {device} under Ray: the Ray cluster has no GPU, so a task asking "
+                    "for one would wait forever. Use --device cpu (or auto), or a cluster with GPU nodes."
+                )
+            device = "cuda"  # Ray picks each task's GPU (its CUDA_VISIBLE_DEVICES): "cuda:1" would name another
+        options = ray_task_options(threads, device)
+        if on_parallel is not None:
+            on_parallel(ray_parallel_tasks(resources, options), device)
+        remote = ray.remote(**options)(_ray_group_task)
+        tasks = {remote.remote(group, results_dir, device, threads, verbose): group for group in groups}
+        collect_ray_tasks(ray, tasks, results_dir, on_result)
+
+
+def _ray_group_task(
+    configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int
+) -> list[dict[str, Any]]:
+    set_worker_threads(threads)
+    return train_group(configs, results_dir, device=device, verbose=verbose)

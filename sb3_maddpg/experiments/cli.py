@@ -113,14 +113,22 @@ def build_parser() -> argparse.ArgumentParser:
         help="batched: the most runs in one group (default: all seeds of a setting and scheme; fewer use less memory)",
     )
     execution.add_argument(
+        "--ray",
+        action="store_true",
+        help="batched: each run group a Ray task (one GPU each with --device cuda, else --threads CPUs), on a local "
+        "Ray instance or the cluster at --ray-address",
+    )
+    execution.add_argument(
         "--workers",
         type=int,
         default=None,
-        help="parallel runs (local, default 1); CPUs of a local Ray instance (ray, default 0: all of this machine's)",
+        help="parallel runs (local, default 1); CPUs of a local Ray instance (ray, batched --ray; default 0: all of "
+        "this machine's)",
     )
     execution.add_argument("--threads", type=int, default=1, help="torch threads per run (default: 1)")
     execution.add_argument(
-        "--ray-address", help="Ray cluster address (e.g. auto, ray://head:10001); default: start a local one"
+        "--ray-address",
+        help="Ray cluster address for ray or batched --ray (e.g. auto, ray://head:10001); default: start a local one",
     )
     execution.add_argument("--dry-run", action="store_true", help="list the runs and exit")
     execution.add_argument("--quiet", action="store_true", help="print only the sweep's progress, not each run's")
@@ -309,6 +317,20 @@ def run_command(args: argparse.Namespace) -> int:
     from sb3_maddpg.experiments.results import ResultsDirectoryLocked
     from sb3_maddpg.experiments.sweep import SweepInterrupted, plan_sweep, run_sweep  # torch: imported for runs only
 
+    if args.ray and args.backend != "batched":
+        print(
+            f"sb3-maddpg run: --ray runs the batched backend's run groups as Ray tasks, but the backend is {args.backend}: "
+            "use --backend batched --ray, or --backend ray for one Ray task per run.",
+            file=sys.stderr,
+        )
+        return 2
+    if args.ray_address and args.backend == "batched" and not args.ray:
+        print(
+            "sb3-maddpg run: --ray-address is Ray's, but --backend batched without --ray trains in this process: add "
+            "--ray to run the groups as Ray tasks there.",
+            file=sys.stderr,
+        )
+        return 2
     experiments = experiments_from_args(args)
     if args.dry_run:
         todo, finished = plan_sweep(experiments, args.results)
@@ -329,6 +351,7 @@ def run_command(args: argparse.Namespace) -> int:
             verbose=1 if args.quiet else 2,
             device=args.device,
             runs_per_process=args.runs_per_process,
+            on_ray=args.ray,
         )
     except BatchedRunRefused as error:  # said before anything trained
         print(f"sb3-maddpg run: {error}", file=sys.stderr)

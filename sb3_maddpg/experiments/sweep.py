@@ -132,6 +132,7 @@ def run_sweep(
     verbose: int = 2,
     device: str = "auto",
     runs_per_process: int | None = None,
+    on_ray: bool = False,
 ) -> SweepResult:
     """
     Run every (scheme, seed) of the experiments, skipping runs finished before (resume an
@@ -152,17 +153,24 @@ def run_sweep(
     :param verbose: 0 quiet, 1 the sweep's progress (a line per finished run), 2 also each run's progress.
     :param device: The batched backend's device (``"auto"``: CUDA when there is a GPU).
     :param runs_per_process: The batched backend's most runs per group (``None``: all of a setting and scheme).
+    :param on_ray: The batched backend's groups as Ray tasks, one per group (a GPU each on a CUDA device; at
+        ``ray_address``, or on a local instance of ``workers`` CPUs), instead of one after another in this process.
     :return: What the sweep did.
     :raise ResultsDirectoryLocked: When another sweep is running in ``results_dir``.
     :raise BatchedRunRefused: When the batched backend cannot train a run (nothing has trained then).
     """
     if backend not in BACKENDS:
         raise ValueError(f"Unknown backend {backend!r}; use one of {BACKENDS}.")
+    if on_ray and backend != "batched":
+        raise ValueError(
+            f"on_ray runs the batched backend's groups as Ray tasks, but the backend is {backend!r}: use "
+            "backend='batched' with on_ray=True, or backend='ray' for one task per run."
+        )
     results_path = Path(results_dir).resolve()
     names = [experiment.name for experiment in experiments]
     if len(set(names)) != len(names):
         raise ValueError(f"Experiment names must be unique, got {names}.")
-    execution = Execution(backend, workers, threads, ray_address, device, runs_per_process)
+    execution = Execution(backend, workers, threads, ray_address, device, runs_per_process, on_ray)
     if backend == "batched":
         from sb3_maddpg.experiments.batched import check_batched, plan_groups
 
@@ -182,6 +190,7 @@ class Execution:
     ray_address: str | None
     device: str
     runs_per_process: int | None
+    on_ray: bool = False
 
 
 def _run_locked_sweep(
@@ -203,6 +212,9 @@ def _run_locked_sweep(
         groups = plan_groups(todo, execution.runs_per_process)
         parallel = max((len(group) for group in groups), default=1)  # a group's runs finish together
         where = f"in {len(groups)} run group(s) of up to {parallel} run(s) on {execution.device}"
+        if execution.on_ray:
+            where += ", a Ray task each"
+    group_size = parallel
     progress = SweepProgress(result.total, skipped, parallel, str(results_path / SWEEP_LOG), echo=verbose >= 1)
     names = ", ".join(experiment.name for experiment in experiments)
     progress.log(f"sweep of {result.total} runs ({names}) on {backend} {where}: {skipped} finished before, {len(todo)} to run")
@@ -226,12 +238,32 @@ def _run_locked_sweep(
         progress.parallel = slots
         progress.log(f"Ray: {slots} run(s) at once ({threads} CPU(s) each)")
 
+    def on_parallel_groups(slots: int, device: str) -> None:
+        progress.parallel = slots * group_size  # a group's runs finish together
+        each = "a GPU" if device == "cuda" else f"{threads} CPU(s)"
+        progress.log(f"Ray: {slots} run group(s) at once ({each} each) on {device}; a group's runs are reported as it ends")
+
     started = time.perf_counter()
     run_verbose = 1 if verbose >= 2 else 0
     try:
         if backend == "local":
             run_local(
                 todo, str(results_path), on_result, workers=workers, threads=threads, verbose=run_verbose, log=progress.log
+            )
+        elif backend == "batched" and execution.on_ray:
+            from sb3_maddpg.experiments.batched import run_batched_ray
+
+            run_batched_ray(
+                todo,
+                str(results_path),
+                on_result,
+                device=execution.device,
+                runs_per_process=execution.runs_per_process,
+                threads=threads,
+                address=ray_address,
+                num_cpus=workers if workers > 0 else None,
+                verbose=run_verbose,
+                on_parallel=on_parallel_groups,
             )
         elif backend == "batched":
             from sb3_maddpg.experiments.batched import run_batched
