@@ -5,7 +5,8 @@ A group trains to each checkpoint step; there each run is written back into its 
 and at the end every run is evaluated and summarised by the runner's own functions
 (:func:`~sb3_maddpg.experiments.runner.finish_run`), so that ``evaluate_team`` and ``sb3-maddpg report`` read the
 results as any other. A group's training state is saved at each checkpoint and every tenth of the budget, into one
-file per group (:func:`group_state_path`), which the same command resumes from.
+file per group (:func:`group_state_path`), which the same command resumes from. The groups train one after
+another in the sweep's process (:func:`run_batched`), or as Ray tasks, one per group (:func:`run_batched_ray`).
 """
 
 import csv

@@ -101,7 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("local", "ray", "batched"),
         default="local",
         help="local process pool, Ray, or batched: a setting and scheme's seeds trained together in one process (run "
-        "groups, fixed schemes on the batched simple_spread env; see --device, --runs-per-process)",
+        "groups, fixed schemes on the batched simple_spread env; see --device, --runs-per-process, --ray)",
     )
     execution.add_argument(
         "--device", default="auto", help="batched: where the run groups train, cpu or cuda (default auto: cuda if there)"
