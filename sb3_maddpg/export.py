@@ -16,7 +16,7 @@ import torch as th
 from torch import nn
 
 from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.networks import AgentEnsembleMLP
+from sb3_maddpg.networks import LAYER_NORM_EPS, AgentEnsembleMLP
 from sb3_maddpg.version import __version__
 
 FORMATS = {"onnx": ".onnx", "torchscript": ".pt"}
@@ -47,6 +47,7 @@ class AgentActor(nn.Module):
         member = 0 if mlp.share_parameters else agent
         in_dim, out_dim = layout.obs_sizes[agent], layout.action_sizes[agent]
         layers: list[nn.Module] = []
+        norms = mlp.norms
         for index, (weight, bias) in enumerate(zip(mlp.weights, mlp.biases)):
             rows = weight[member, :in_dim] if index == 0 else weight[member]
             columns = slice(None) if index < mlp.n_layers - 1 else slice(0, out_dim)
@@ -56,6 +57,12 @@ class AgentActor(nn.Module):
                 linear.bias.copy_(bias[member, 0, columns])
             layers.append(linear)
             if index < mlp.n_layers - 1:
+                if norms:  # the ensemble's layer normalisation, with this agent's scale and shift
+                    norm = nn.LayerNorm(linear.out_features, eps=LAYER_NORM_EPS)
+                    with th.no_grad():
+                        norm.weight.copy_(norms[index][0][member, 0])
+                        norm.bias.copy_(norms[index][1][member, 0])
+                    layers.append(norm)
                 layers.append(type(mlp.activation)())
         self.net = nn.Sequential(*layers)
         self.discrete = layout.is_discrete(agent)

@@ -28,6 +28,7 @@ class TwinMultiAgentCritic(MultiAgentCritic):
     :param hidden_sizes: Hidden layer sizes.
     :param activation_fn: Activation function.
     :param share_parameters: One critic network per twin for all agents (needs equal feature sizes).
+    :param layer_norm: Layer normalisation of every hidden layer (see :class:`~sb3_maddpg.networks.AgentEnsembleMLP`).
     """
 
     def __init__(
@@ -39,13 +40,11 @@ class TwinMultiAgentCritic(MultiAgentCritic):
         hidden_sizes: list[int],
         activation_fn: type[nn.Module],
         share_parameters: bool = False,
+        layer_norm: bool = False,
     ) -> None:
-        super().__init__(
-            layout, extractor_class, extractor_kwargs, selection_size, hidden_sizes, activation_fn, share_parameters
-        )
-        self.twin = MultiAgentCritic(
-            layout, extractor_class, extractor_kwargs, selection_size, hidden_sizes, activation_fn, share_parameters
-        )
+        arguments = (layout, extractor_class, extractor_kwargs, selection_size, hidden_sizes, activation_fn)
+        super().__init__(*arguments, share_parameters, layer_norm)
+        self.twin = MultiAgentCritic(*arguments, share_parameters, layer_norm)
         """The second critic of every agent, Q_i2."""
 
     def twins(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:

@@ -22,13 +22,15 @@ TEAMS = {
     "shared_parameters": lambda: make_simple_spread(n_agents=3),
     "heterogeneous": lambda: make_mpe_env("simple_speaker_listener"),  # observations of 3 and 11, actions of 3 and 5
     "mixed": lambda: PettingZooToGym(MixedTeam()),  # a Box(-1, 1) agent and a Discrete(3) one
+    "layer_norm": lambda: make_mpe_env("simple_speaker_listener"),  # heterogeneous, with layer normalisation
 }
 
 
 def trained(team: str) -> MADDPG:
     kwargs = dict(FAST)
-    if team == "shared_parameters":
-        kwargs["policy_kwargs"] = {**FAST["policy_kwargs"], "share_parameters": True}
+    options = {"shared_parameters": "share_parameters", "layer_norm": "layer_norm"}
+    if team in options:
+        kwargs["policy_kwargs"] = {**FAST["policy_kwargs"], options[team]: True}
     model = MADDPG("MlpPolicy", TEAMS[team](), seed=0, **kwargs)
     model.learn(300)  # trained weights, not the initial ones
     return model

@@ -108,6 +108,7 @@ def model_state(model: MADDPG) -> dict[str, th.Tensor]:
         ("actions", {}),
         ("selected", {"selector": 1}),
         ("full", {"policy_kwargs": {**SMALL, "share_parameters": True}}),
+        ("full", {"policy_kwargs": {**SMALL, "layer_norm": True}}),
     ],
 )
 def test_one_update_of_a_group_of_one_equals_maddpg_train(
@@ -129,8 +130,11 @@ def test_one_update_of_a_group_of_one_equals_maddpg_train(
     assert expected.keys() == actual.keys()
     moved = model.actor.mlp.weights[0] - make_model(**settings).actor.mlp.weights[0]
     assert moved.abs().max() > 1e-3  # the updates did something
+    # Layer normalisation leaves some gradient components at rounding-noise size, which Adam's first steps scale up
+    # to a good part of the learning rate: there the two orders of float operations differ by ~5e-6 (1e-7 without).
+    atol = 1e-5 if settings.get("policy_kwargs", {}).get("layer_norm") else 1e-6
     for name, value in expected.items():
-        th.testing.assert_close(actual[name], value, atol=1e-6, rtol=1e-5, msg=name)
+        th.testing.assert_close(actual[name], value, atol=atol, rtol=1e-5, msg=name)
     assert model._n_updates == reference._n_updates == 3
 
 

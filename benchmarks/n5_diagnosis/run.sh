@@ -10,7 +10,7 @@ RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-2}"
 export SDL_VIDEODRIVER=dummy
 configs=()
-for factor in paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 utd25 shared_params batch256; do
+for factor in paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 utd25 shared_params batch256 sorted_obs_utd25_layer_norm; do
     configs+=(--config "benchmarks/n5_diagnosis/$factor.json")
 done
 nice -n 19 python -m sb3_maddpg.experiments run "${configs[@]}" --results "$RESULTS_ROOT/n5_diagnosis/results" \
