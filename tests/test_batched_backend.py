@@ -12,7 +12,7 @@ import pytest
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.evaluation import evaluate_team
-from sb3_maddpg.experiments import SMOKE, ExperimentConfig, make_report, run_sweep
+from sb3_maddpg.experiments import SMOKE, ExperimentConfig, make_report, run_sweep, runner
 from sb3_maddpg.experiments.batched import (
     BatchedRunRefused,
     check_batched,
@@ -25,6 +25,7 @@ from sb3_maddpg.experiments.batched import (
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.results import DONE_FILE, load_summaries
 from sb3_maddpg.experiments.runner import make_eval_env
+from sb3_maddpg.run_group import RunGroup
 
 
 def tiny(**changes: Any) -> ExperimentConfig:
@@ -36,6 +37,10 @@ def tiny(**changes: Any) -> ExperimentConfig:
 WARM_UP_ONLY = tiny(model_kwargs={**SMOKE.model_kwargs, "learning_starts": 10_000})
 """Uniform actions only, no update (learning starts after the budget): both backends' checkpoints are the models'
 initial weights, so every evaluation must agree exactly; the training episodes agree in distribution only."""
+
+
+TIMES = ("time/fps", "time/time_elapsed")
+"""The ``progress.csv`` keys of wall time (the rest of a group's rows are the same in every attempt)."""
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:
@@ -94,7 +99,7 @@ def test_a_group_writes_the_runners_files(warm_up_results: dict[str, Path], tmp_
 
 def test_same_scores_as_the_local_backend(warm_up_results: dict[str, Path]) -> None:
     local, batched = warm_up_results["local"], warm_up_results["batched"]
-    finals = {"local": [], "batched": []}
+    finals: dict[str, list[float]] = {"local": [], "batched": []}
     for config in WARM_UP_ONLY.runs():
         # The same seed's initial team, written back from its run of the group: the same evaluations, exactly.
         for name in ("checkpoint_evals.csv", "learning_curve.csv"):
@@ -143,6 +148,54 @@ def test_an_interrupted_group_resumes_from_its_last_checkpoint(tmp_path: Path) -
     # A finished group is skipped by the sweep, as finished runs are.
     again = run_sweep([experiment], results, backend="batched", verbose=0, device="cpu")
     assert again.ok and again.skipped == 2 and not again.completed
+
+
+def test_a_crash_while_the_runs_are_evaluated_evaluates_them_again_without_training(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Checkpoints not kept: the crash comes where the runner has deleted them before its done marker.
+    experiment = tiny(seeds=(0, 1), keep_checkpoints=False)
+    whole = tmp_path / "whole"
+    assert run_sweep([experiment], whole, backend="batched", verbose=0, device="cpu").ok
+
+    class Killed(BaseException):
+        pass
+
+    marked: list[Path] = []
+    original_mark_done = runner.mark_done
+
+    def killed_at_the_second_run(directory: Path) -> None:
+        marked.append(directory)
+        if len(marked) == 2:
+            raise Killed
+        original_mark_done(directory)
+
+    results = tmp_path / "crashed"
+    monkeypatch.setattr(runner, "mark_done", killed_at_the_second_run)
+    with pytest.raises(Killed):
+        run_sweep([experiment], results, backend="batched", verbose=0, device="cpu")
+    monkeypatch.setattr(runner, "mark_done", original_mark_done)
+    configs = experiment.runs()
+    assert (results / configs[0].run_id / DONE_FILE).exists() and not (results / configs[1].run_id / DONE_FILE).exists()
+
+    def no_training(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("a run whose training is over is trained again")
+
+    monkeypatch.setattr(RunGroup, "learn", no_training)
+    again = run_sweep([experiment], results, backend="batched", verbose=0, device="cpu")
+    assert again.ok and again.skipped == 1 and len(again.completed) == 1, again.failed
+    for config in configs:
+        ours, theirs = results / config.run_id, whole / config.run_id
+        assert files(ours) == files(theirs), config.run_id  # no checkpoints, no record left
+        for name in ("checkpoint_evals.csv", "learning_curve.csv"):
+            assert (ours / name).read_text() == (theirs / name).read_text(), (config.run_id, name)
+        untimed = [[v for k, v in row.items() if k not in TIMES] for row in read_rows(ours / "progress.csv")]
+        assert untimed == [[v for k, v in row.items() if k not in TIMES] for row in read_rows(theirs / "progress.csv")]
+        log = (ours / "train.log").read_text()
+        assert log.count("in a run group of 2") == 1, log  # trained once
+        done_lines = [line for line in log.splitlines() if ": done in" in line]
+        assert done_lines and all(f"{config.run_id}: done in" in line for line in done_lines), log  # its own only
+    assert not list((results / configs[0].run_id).parent.glob("group_seeds_*"))
 
 
 def test_runs_a_group_cannot_train_are_refused_first(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -10,8 +10,10 @@ another in the sweep's process (:func:`run_batched`), or as Ray tasks, one per g
 """
 
 import csv
+import dataclasses
 import json
 import os
+import shutil
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -30,7 +32,15 @@ from sb3_maddpg.experiments.backends import (
     set_worker_threads,
 )
 from sb3_maddpg.experiments.config import DEFAULT_ALGORITHM, DEFAULT_ENV, RunConfig
-from sb3_maddpg.experiments.results import CHECKPOINT_DIR, CONFIG_FILE, LOG_FILE, PROGRESS_FILE, read_json, run_directory
+from sb3_maddpg.experiments.results import (
+    CHECKPOINT_DIR,
+    CONFIG_FILE,
+    LOG_FILE,
+    PROGRESS_FILE,
+    read_json,
+    run_directory,
+    write_json_atomic,
+)
 from sb3_maddpg.experiments.runner import (
     CheckpointAtSteps,
     build_model,
@@ -46,6 +56,11 @@ from sb3_maddpg.train_logs import record_losses
 
 STATE_PREFIX = "group_seeds_"
 """A group's state file: ``<results>/<experiment>/<scheme>/group_seeds_<seeds>.pt`` (e.g. ``group_seeds_0-30.pt``)."""
+
+TRAINED_FILE = "trained.json"
+"""A run's record that its group's training is over (its checkpoints and train time), written in its directory before
+the group's runs are evaluated and deleted once the run is done: a sweep that finds it evaluates the run again, and
+does not train it again."""
 
 STATE_FRACTION = 0.1
 """Besides each checkpoint, a group's state is saved every this fraction of the budget (checkpoints are in the last
@@ -203,6 +218,52 @@ def load_state(path: Path, configs: Sequence[RunConfig], results_dir: str | os.P
         if not all(Path(file).exists() for _, file in run["saved"]):
             return None
     return state
+
+
+def write_trained(directory: Path, config: RunConfig, saved: Sequence[tuple[int, Path]], train_time: float) -> None:
+    """
+    Record that a run's training is over, before it is evaluated (see :data:`TRAINED_FILE`).
+
+    :param directory: The run's directory.
+    :param config: The run.
+    :param saved: Its checkpoints, ``(env steps, model file)`` in order.
+    :param train_time: Its training's wall time, seconds.
+    """
+    record = {"config": config.to_dict(), "saved": [[steps, str(path)] for steps, path in saved], "train_time": train_time}
+    write_json_atomic(directory / TRAINED_FILE, record)
+
+
+def read_trained(directory: Path, config: RunConfig, echo: bool) -> tuple[list[tuple[int, Path]], float] | None:
+    """
+    :param directory: A run's directory.
+    :param config: The run.
+    :param echo: Print why a record is not used, too (it is appended to the run's ``train.log``).
+    :return: Its checkpoints and train time, when its training is over (:func:`write_trained`) for this config and
+        its checkpoints are still there; else ``None`` (the run trains, again if it had).
+    """
+    path = directory / TRAINED_FILE
+    if not path.exists():
+        return None
+    record = read_json(path)
+    stored = read_json(directory / CONFIG_FILE)
+    if not isinstance(record, dict) or not _same_config(record.get("config"), config):
+        why = f"its {TRAINED_FILE} is unreadable or of another config"
+    elif not _same_config(stored, config):
+        why = f"its {CONFIG_FILE} is of another config"
+    elif not all(Path(file).exists() for _, file in record["saved"]):
+        why = "some of the checkpoints its training saved are missing"
+    else:
+        return [(int(steps), Path(file)) for steps, file in record["saved"]], float(record["train_time"])
+    log_line(f"{config.run_id}: {why}, so it trains again", str(directory / LOG_FILE), echo)
+    return None
+
+
+def _same_config(stored: Any, config: RunConfig) -> bool:
+    """:return: Whether a config read from JSON is ``config`` (JSON has no tuples: compared as configs)."""
+    try:
+        return isinstance(stored, dict) and RunConfig.from_dict(stored).same_as(config)
+    except (TypeError, ValueError, KeyError):  # a foreign or older file
+        return False
 
 
 def read_progress_rows(path: Path, until: int) -> list[dict[str, Any]]:
@@ -450,7 +511,9 @@ def train_group(
 ) -> list[dict[str, Any]]:
     """
     Train a group's runs together (resuming from its state file when there is one for them) and evaluate each,
-    writing every run's directory as :func:`~sb3_maddpg.experiments.runner.execute_run` does.
+    writing every run's directory as :func:`~sb3_maddpg.experiments.runner.execute_run` does. A run whose training
+    is over (its :data:`TRAINED_FILE`: e.g. the process was killed while the group's runs were evaluated) is
+    evaluated only, not trained again.
 
     :param configs: The runs: one setting and scheme, different seeds (see :func:`plan_groups`).
     :param results_dir: The sweep's results directory.
@@ -459,6 +522,42 @@ def train_group(
     :param on_save: Called with the env steps of each state saved during training (e.g. a test raises there, to
         simulate a process killed right after a save).
     :return: Each run's summary, plus ``"files"`` (as ``execute_run``'s).
+    """
+    directories = [run_directory(results_dir, config) for config in configs]
+    trained = [read_trained(directory, config, verbose >= 1) for config, directory in zip(configs, directories)]
+    untrained = [config for config, record in zip(configs, trained) if record is None]
+    if untrained:
+        fresh = iter(_train_runs(untrained, results_dir, device, verbose, on_save))
+        trained = [record if record is not None else next(fresh) for record in trained]
+    results = []
+    for config, directory, record in zip(configs, directories, trained):
+        assert record is not None
+        saved, train_time = record
+        log_path = str(directory / LOG_FILE)
+
+        def log(line: str, path: str = log_path) -> None:  # the run's own train.log
+            log_line(line, path, verbose >= 1)
+
+        # Its checkpoints are deleted below, after its done marker: killed before, the run is evaluated again.
+        keep = dataclasses.replace(config, keep_checkpoints=True)
+        results.append(finish_run(keep, directory, saved, time.perf_counter() - train_time, train_time, log))
+        if not config.keep_checkpoints:
+            shutil.rmtree(directory / CHECKPOINT_DIR, ignore_errors=True)
+        (directory / TRAINED_FILE).unlink(missing_ok=True)
+    return results
+
+
+def _train_runs(
+    configs: Sequence[RunConfig],
+    results_dir: str | os.PathLike[str],
+    device: str,
+    verbose: int,
+    on_save: Callable[[int], None] | None,
+) -> list[tuple[list[tuple[int, Path]], float]]:
+    """
+    Train runs together, to their budget (see :func:`train_group`), and record each as trained (:func:`write_trained`).
+
+    :return: Each run's checkpoints, ``(env steps, model file)`` in order, and train time.
     """
     from sb3_maddpg.run_group import GroupCallback, RunGroup
 
@@ -473,7 +572,6 @@ def train_group(
     else:
         steps = int(resumed["group"]["num_timesteps"])
         old_rows = [read_progress_rows(directory / PROGRESS_FILE, steps) for directory in directories]
-    started = time.perf_counter()
     models = [build_model(config, device="cpu") for config in configs]  # on the CPU: they are saved and evaluated
     for model, directory, rows in zip(models, directories, old_rows):
         model.set_logger(configure(str(directory), ["csv"]))
@@ -507,18 +605,16 @@ def train_group(
                 )
         recorder.start(resumed)
         group.learn(max(0, recorder.total - group.num_timesteps), callback=Hooks())
-        if recorder.saved_at != group.num_timesteps:  # the last state: a crash while evaluating does not retrain
-            recorder.save(group)
         train_time = recorder.train_time
     finally:
         recorder.close()
-    started -= recorder.elapsed_before
-    results = [
-        finish_run(config, directory, checkpoints.saved, started, train_time, recorder.progress.log)
-        for config, directory, checkpoints in zip(configs, directories, recorder.checkpoints)
-    ]
+    # Each run's record, then the state goes: a crash while the runs are evaluated evaluates them again, whatever
+    # group the next attempt puts them in.
+    trained = [(list(checkpoint.saved), train_time) for checkpoint in recorder.checkpoints]
+    for config, directory, (saved, _) in zip(configs, directories, trained):
+        write_trained(directory, config, saved, train_time)
     state_path.unlink(missing_ok=True)
-    return results
+    return trained
 
 
 def run_batched(
