@@ -310,6 +310,20 @@ def test_a_group_rebuilt_from_written_back_models_continues_exactly() -> None:
             assert th.equal(a, b)
 
 
+def test_written_back_models_go_on_learning_with_the_groups_update_rule() -> None:
+    models = three_runs()
+    group = RunGroup(models).learn(300)  # 200 transitions past learning_starts: 2 steps, counted at 300
+    for run, model in enumerate(models):
+        group.write_back(run, model)
+    assert (models[0].update_rule.credit, models[0].update_rule.counted_at) == (0, 300)
+    # A group rebuilt from them, and one model's own learn(), take the steps the group would: one per 100 more.
+    rebuilt = RunGroup(models).learn(100)
+    assert rebuilt.n_updates == group.learn(100).n_updates == 3
+    before = models[0]._n_updates
+    models[0].learn(100, reset_num_timesteps=False)
+    assert models[0]._n_updates - before == 1
+
+
 # ----- the parts -----
 
 

@@ -112,6 +112,7 @@ def settings(model: MADDPG) -> dict[str, Any]:
         "action_noise": None if noise is None else _normal_noise(noise),
         "num_timesteps": model.num_timesteps,
         "n_updates": model._n_updates,
+        "update_credit": (model.update_rule.credit, model.update_rule.counted_at),
     }
 
 

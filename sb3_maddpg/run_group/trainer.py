@@ -109,6 +109,8 @@ class RunGroup:
         self.lr_schedule = first.lr_schedule
         self.parts = ActionParts.of(self.layout, self.device)
         self.update_rule = UpdateSchedule.from_arguments(first.transitions_per_update, None, None)
+        # The models' credit (checked: the same in each): a group of written-back models earns no steps twice.
+        self.update_rule.credit, self.update_rule.counted_at = first.update_rule.credit, first.update_rule.counted_at
         self.selector = model_selector(first)
         self.num_timesteps = first.num_timesteps
         """Env steps of each run (all its worlds counted)."""
@@ -364,7 +366,8 @@ class RunGroup:
 
     def write_back(self, run: int, model: MADDPG) -> MADDPG:
         """
-        Put run ``run``'s weights (actors, critics, targets), optimiser states and counters into ``model``, a model
+        Put run ``run``'s weights (actors, critics, targets), optimiser states and counters (``num_timesteps``,
+        ``_n_updates``, the update rule's credit) into ``model``, a model
         of the group's configuration (e.g. the one the run was built from); ``model.save`` then writes a file
         ``MADDPG.load`` reads. The replay buffer stays in the group.
 
@@ -392,6 +395,8 @@ class RunGroup:
         _load_member_state(self.critic_optimizer, teams.critic, run, model.critic.optimizer)
         model.num_timesteps = self.num_timesteps
         model._n_updates = self.n_updates
+        # The credit too: the model's learn(reset_num_timesteps=False), or a group built from it, goes on exactly.
+        model.update_rule.credit, model.update_rule.counted_at = self.update_rule.credit, self.update_rule.counted_at
         return model
 
 
