@@ -358,6 +358,25 @@ def test_models_that_differ_in_more_than_their_seed_are_refused() -> None:
         RunGroup([make_model(0), make_model(1, n_agents=2)])
     with pytest.raises(ValueError, match=r"^The models differ in critic_sharing"):
         RunGroup([make_model(0), make_model(1, critic_sharing="independent")])
+    # The policy's configuration, whichever model has it (a group of models with and without layer norm stacked
+    # model 0's parameters only, or failed on a missing one).
+    for first, second in ((False, True), (True, False)):
+        with pytest.raises(ValueError, match=rf"^The models differ in layer_norm: model 0 has {first}, model 1 has {second}"):
+            RunGroup(
+                [
+                    make_model(0, policy_kwargs={**SMALL, "layer_norm": first}),
+                    make_model(1, policy_kwargs={**SMALL, "layer_norm": second}),
+                ]
+            )
+    with pytest.raises(ValueError, match=r"^The models differ in net_arch"):
+        RunGroup([make_model(0), make_model(1, policy_kwargs={"net_arch": [16, 8]})])
+    with pytest.raises(ValueError, match=r"^The models differ in share_parameters"):
+        RunGroup([make_model(0), make_model(1, policy_kwargs={**SMALL, "share_parameters": True})])
+    odd = make_model(1)
+    odd.actor.register_parameter("extra", th.nn.Parameter(th.zeros(2)))
+    with pytest.raises(ValueError, match=r"^The models' networks differ in parameter actor\.extra: model 0's has shape none"):
+        RunGroup([make_model(0), odd])
+    assert RunGroup([make_model(s, policy_kwargs={**SMALL, "layer_norm": True}) for s in (0, 1)]).learn(200).n_updates == 1
 
 
 @pytest.mark.parametrize(

@@ -28,12 +28,21 @@ def check_models(models: Sequence[MADDPG]) -> None:
     for index, model in enumerate(models):
         check_model(model, index)
     reference = settings(models[0])
+    shapes = parameter_shapes(models[0])
     for index, model in enumerate(models[1:], start=1):
         for name, value in settings(model).items():
-            if value != reference[name]:
+            if value != reference.get(name):
                 raise ValueError(
-                    f"The models differ in {name}: model 0 has {reference[name]!r}, model {index} has {value!r}. "
+                    f"The models differ in {name}: model 0 has {reference.get(name)!r}, model {index} has {value!r}. "
                     + SAME_EXCEPT_SEED
+                )
+        # What the settings above miss (e.g. a policy class of a user's): the group stacks parameters name by name.
+        other = parameter_shapes(model)
+        for name in [*shapes, *(name for name in other if name not in shapes)]:
+            if other.get(name) != shapes.get(name):
+                raise ValueError(
+                    f"The models' networks differ in parameter {name}: model 0's has shape {shapes.get(name, 'none')}, "
+                    f"model {index}'s {other.get(name, 'none')}. " + SAME_EXCEPT_SEED
                 )
 
 
@@ -105,15 +114,30 @@ def settings(model: MADDPG) -> dict[str, Any]:
         "max_grad_norm": model.max_grad_norm,
         "actor_reg_coef": model.actor_reg_coef,
         "n_envs": model.n_envs,
-        "net_arch": policy.net_arch,
-        "activation_fn": policy.activation_fn,
-        "share_parameters": policy.share_parameters,
+        "policy_class": type(policy).__name__,
+        # The policy's whole configuration (net_arch, activation_fn, share_parameters, layer_norm, ...) but what is
+        # compared above, the schedule (a function object; learning_rate is compared) and the spaces (the layout).
+        **{
+            name: value
+            for name, value in policy._get_constructor_parameters().items()
+            if name not in ("lr_schedule", "observation_space", "action_space", "agent_layout", *_MODEL_SETTINGS)
+        },
         "optimizer": (type(model.actor.optimizer).__name__, model.actor.optimizer.defaults),
         "action_noise": None if noise is None else _normal_noise(noise),
         "num_timesteps": model.num_timesteps,
         "n_updates": model._n_updates,
         "update_credit": (model.update_rule.credit, model.update_rule.counted_at),
     }
+
+
+_MODEL_SETTINGS = ("critic_sharing", "critic_sharing_kwargs")
+"""The policy's constructor parameters :func:`settings` reads from the model instead."""
+
+
+def parameter_shapes(model: MADDPG) -> dict[str, tuple[int, ...]]:
+    """:return: The shape of each parameter of the model's actors and critics, by name (e.g. ``"actor.mlp.weight_0"``)."""
+    modules = (("actor", model.actor), ("critic", model.critic))
+    return {f"{prefix}.{name}": tuple(p.shape) for prefix, module in modules for name, p in module.named_parameters()}
 
 
 def model_selector(model: MADDPG) -> Selector | None:
