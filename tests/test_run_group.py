@@ -16,6 +16,7 @@ import pytest
 import torch as th
 from scipy import stats
 from stable_baselines3.common.logger import Logger
+from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
@@ -385,6 +386,10 @@ def test_models_that_differ_in_more_than_their_seed_are_refused() -> None:
         (lambda: make_model(critic_sharing="attention"), r"^Model 0's critics use a learned scheme \(AttentionCritic"),
         (lambda: make_model(seed=None), r"^Model 0 has no seed.*MADDPG\(\.\.\., seed=s\)"),
         (lambda: make_model(train_freq=1), r"^Model 0 was given train_freq or gradient_steps.*transitions_per_update"),
+        (
+            lambda: MADDPG("MlpPolicy", VecNormalize(SimpleSpreadVecEnv(2, n_agents=N_AGENTS), norm_reward=False), seed=0),
+            r"^Model 0's env is wrapped in VecNormalize.*--backend local \(MADDPG\.learn\)",
+        ),
     ],
 )
 def test_what_a_group_cannot_train_is_refused_with_the_cause_first(make: Any, message: str) -> None:

@@ -47,11 +47,17 @@ def check_models(models: Sequence[MADDPG]) -> None:
 
 
 def check_model(model: MADDPG, index: int) -> None:
-    """Refuse one model the group cannot train (its algorithm, its team, its scheme, its schedule, its seed)."""
+    """Refuse one model the group cannot train (its algorithm, its env, its team, its scheme, its schedule, its seed)."""
     if type(model) is not MADDPG:
         raise TypeError(
             f"Model {index} is a {type(model).__name__}, but a run group trains MADDPG models only (a sibling's "
             "critics and update order differ): train it with its own learn(), or pass MADDPG models."
+        )
+    if model.get_vec_normalize_env() is not None:
+        raise ValueError(
+            f"Model {index}'s env is wrapped in VecNormalize, but a run group steps its own worlds and would train on "
+            "raw observations: train it with --backend local (MADDPG.learn), or build the model on the "
+            "env without VecNormalize."
         )
     layout = model.agent_layout
     assert layout is not None, "MADDPG reads the layout when it is built"
