@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+import torch
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.evaluation import evaluate_team
@@ -217,6 +218,21 @@ def test_runs_a_group_cannot_train_are_refused_first(tmp_path: Path, capsys: pyt
             check_batched(dataclasses.replace(tiny(), **changes).runs())
     with pytest.raises(ValueError, match="runs_per_process must be at least 1"):
         plan_groups([], 0)
+
+
+def test_a_device_the_groups_cannot_train_on_is_refused_before_anything_is_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)  # this machine, as one without CUDA
+    for device, cause in (
+        ("cuda", r"^CUDA is not available on this machine, .*use --device cpu or auto"),
+        ("cuda:0", r"^CUDA is not available on this machine"),
+        ("gpu", r"^--device 'gpu' is not a device torch knows"),
+    ):
+        with pytest.raises(BatchedRunRefused, match=cause):
+            run_sweep([tiny(seeds=(0,))], tmp_path, backend="batched", verbose=0, device=device)
+        assert not (tmp_path / "tiny").exists()  # nothing trained, nothing written
+    check_batched([], device="cuda")  # no run to do: nothing to refuse
 
 
 def test_groups_are_one_setting_and_scheme() -> None:

@@ -99,17 +99,47 @@ def plan_groups(configs: Sequence[RunConfig], runs_per_process: int | None = Non
     return groups
 
 
-def check_batched(configs: Sequence[RunConfig]) -> None:
+def check_device(device: str) -> None:
+    """
+    Refuse a device the groups cannot train on here, before anything is written (every group would fail after its
+    runs' directories were started afresh).
+
+    :param device: ``--device``: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:<index>"``.
+    :raise BatchedRunRefused: For a device that is not one, or a CUDA device this machine does not have.
+    """
+    try:
+        resolved = th.device(device) if device != "auto" else None
+    except (RuntimeError, TypeError) as error:
+        raise BatchedRunRefused(f"--device {device!r} is not a device torch knows ({error}): use cpu, cuda or auto.") from None
+    if resolved is None or resolved.type != "cuda":
+        return
+    if not th.cuda.is_available():
+        raise BatchedRunRefused(
+            f"CUDA is not available on this machine, so the run groups cannot train on {device}: use --device cpu or "
+            "auto (or --ray, to train on a cluster's GPUs)."
+        )
+    if resolved.index is not None and resolved.index >= th.cuda.device_count():
+        raise BatchedRunRefused(
+            f"This machine has {th.cuda.device_count()} CUDA device(s), so there is no {device}: use --device cuda "
+            f"(device 0), or an index below {th.cuda.device_count()}."
+        )
+
+
+def check_batched(configs: Sequence[RunConfig], device: str | None = None) -> None:
     """
     Refuse, before anything trains, the runs a run group cannot train: the first such run is named, with the cause
     and what to do. One model of each setting and scheme is built and checked as :class:`RunGroup` checks its models.
 
     :param configs: The runs to do.
-    :raise BatchedRunRefused: For the first run refused.
+    :param device: The groups' device, checked first (:func:`check_device`) when there are runs; ``None``: not
+        checked (e.g. under Ray, where the tasks' machines have the GPUs).
+    :raise BatchedRunRefused: For the device, or the first run refused.
     """
     from sb3_maddpg.run_group import SpreadTask
     from sb3_maddpg.run_group.checks import check_models
 
+    if device is not None and configs:
+        check_device(device)
     for group in plan_groups(configs):
         config = group[0]
         if config.algorithm != DEFAULT_ALGORITHM:

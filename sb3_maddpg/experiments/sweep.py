@@ -175,7 +175,7 @@ def run_sweep(
         from sb3_maddpg.experiments.batched import check_batched, plan_groups
 
         plan_groups([], runs_per_process)  # its argument checks, before anything runs
-        check_batched(plan_sweep(experiments, results_path)[0])
+        check_batched(plan_sweep(experiments, results_path)[0], device=None if on_ray else device)  # Ray: its own check
     with lock_results(results_path):
         return _run_locked_sweep(experiments, results_path, execution, verbose)
 
