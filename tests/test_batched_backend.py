@@ -20,6 +20,7 @@ from sb3_maddpg.experiments.batched import (
     group_state_path,
     parse_seed_ranges,
     plan_groups,
+    remove_stale_states,
     seed_ranges,
     train_group,
 )
@@ -197,6 +198,49 @@ def test_a_crash_while_the_runs_are_evaluated_evaluates_them_again_without_train
         done_lines = [line for line in log.splitlines() if ": done in" in line]
         assert done_lines and all(f"{config.run_id}: done in" in line for line in done_lines), log  # its own only
     assert not list((results / configs[0].run_id).parent.glob("group_seeds_*"))
+
+
+def test_a_state_not_used_says_why_and_stale_temporary_files_are_removed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    configs = tiny(seeds=(0, 1)).runs()
+    first_checkpoint = configs[0].checkpoint_steps()[0]
+
+    class Killed(Exception):
+        pass
+
+    def kill_at(steps: int) -> Any:
+        def hook(saved_at: int) -> None:
+            if saved_at >= steps:
+                raise Killed
+
+        return hook
+
+    def restart_says(why: str) -> None:
+        capsys.readouterr()
+        with pytest.raises(Killed):
+            train_group(configs, tmp_path, device="cpu", verbose=1, on_save=kill_at(0))
+        out = capsys.readouterr().out
+        assert f"tiny/full: {why}" in out and "so the group starts afresh" in out, out
+        for config in configs:  # and in each run's new train.log
+            assert f"{config.run_id}: {why}" in (tmp_path / config.run_id / "train.log").read_text()
+
+    state = group_state_path(tmp_path, configs)
+    with pytest.raises(Killed):
+        train_group(configs, tmp_path, device="cpu", verbose=0, on_save=kill_at(0))
+    state.write_bytes(b"not a state")
+    restart_says("group_seeds_0-1.pt cannot be read (UnpicklingError: truncated")
+    with pytest.raises(Killed):
+        train_group(configs, tmp_path, device="cpu", verbose=0, on_save=kill_at(first_checkpoint))
+    for path in (tmp_path / configs[0].run_id / "checkpoints").iterdir():
+        path.unlink()
+    restart_says("group_seeds_0-1.pt names checkpoints of tiny/full/seed_000 that are missing")
+    # A killed save's temporary file goes with the runs' stale states; another group's stays.
+    ours, theirs = state.with_name(f".{state.name}.123.tmp"), state.with_name(".group_seeds_5.pt.123.tmp")
+    ours.write_bytes(b"")
+    theirs.write_bytes(b"")
+    remove_stale_states(tmp_path, configs)
+    assert not ours.exists() and not state.exists() and theirs.exists()
 
 
 def test_runs_a_group_cannot_train_are_refused_first(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

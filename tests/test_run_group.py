@@ -325,6 +325,19 @@ def test_written_back_models_go_on_learning_with_the_groups_update_rule() -> Non
     assert models[0]._n_updates - before == 1
 
 
+def test_a_state_for_saving_holds_full_buffers_without_a_copy() -> None:
+    group = RunGroup(three_runs(buffer_size=200)).learn(100)  # 100 of 200 rows: partly filled
+    partial = group.state_dict(copy_buffers=False)["buffers"]["observations"]
+    assert partial.shape[1] == 100 and partial.untyped_storage().nbytes() == partial.nbytes  # the rows alone
+    assert th.equal(partial, group.buffers.observations[:, :100])
+    group.learn(200)
+    full = group.state_dict(copy_buffers=False)["buffers"]
+    copied = group.state_dict()["buffers"]
+    for name in ("observations", "rewards"):
+        assert full[name].data_ptr() == getattr(group.buffers, name).data_ptr()  # no second copy on the device
+        assert th.equal(copied[name], full[name]) and copied[name].data_ptr() != full[name].data_ptr()
+
+
 # ----- the parts -----
 
 

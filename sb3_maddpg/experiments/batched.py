@@ -202,12 +202,17 @@ def group_state_path(results_dir: str | os.PathLike[str], configs: Sequence[RunC
 
 
 def remove_stale_states(results_dir: str | os.PathLike[str], configs: Sequence[RunConfig]) -> None:
-    """Delete the state files of earlier groups that held any of these runs (they are started afresh)."""
+    """
+    Delete the state files of earlier groups that held any of these runs (they are started afresh), and the temporary
+    files of saves a killed process left (:func:`save_state`'s ``.group_seeds_<seeds>.pt.<pid>.tmp``).
+    """
     seeds = {config.seed for config in configs}
     directory = group_state_path(results_dir, configs).parent
-    for path in directory.glob(f"{STATE_PREFIX}*.pt"):
+    stale = [(path, path.stem) for path in directory.glob(f"{STATE_PREFIX}*.pt")]
+    stale += [(path, path.name[1:].partition(".pt.")[0]) for path in directory.glob(f".{STATE_PREFIX}*.pt.*.tmp")]
+    for path, stem in stale:
         try:
-            overlaps = bool(parse_seed_ranges(path.stem[len(STATE_PREFIX) :]) & seeds)
+            overlaps = bool(parse_seed_ranges(stem[len(STATE_PREFIX) :]) & seeds)
         except ValueError:  # not a name this module writes
             continue
         if overlaps:
@@ -225,29 +230,45 @@ def save_state(path: Path, state: dict[str, Any]) -> None:
         raise
 
 
-def load_state(path: Path, configs: Sequence[RunConfig], results_dir: str | os.PathLike[str]) -> dict[str, Any] | None:
+def load_state(
+    path: Path,
+    configs: Sequence[RunConfig],
+    results_dir: str | os.PathLike[str],
+    log: Callable[[str], None] | None = None,
+) -> dict[str, Any] | None:
     """
     :param path: A group's state file.
     :param configs: The group's runs.
     :param results_dir: The sweep's results directory.
+    :param log: Called with a line saying why a state file that exists is not used.
     :return: The state, when it is readable, of these runs with these configs, and their directories still hold
         what it was saved with (config and checkpoints); else ``None`` (the group starts afresh).
     """
     if not path.exists():
         return None
+    state, why = _read_state(path, configs, results_dir)
+    if state is None and log is not None:
+        log(f"{path.name} {why}, so the group starts afresh")
+    return state
+
+
+def _read_state(
+    path: Path, configs: Sequence[RunConfig], results_dir: str | os.PathLike[str]
+) -> tuple[dict[str, Any] | None, str]:
+    """:return: :func:`load_state`'s state, or ``None`` and why not (a clause following the file's name)."""
     try:
         state = th.load(path, map_location="cpu", weights_only=True)
-    except Exception:  # a truncated or foreign file: start afresh
-        return None
+    except Exception as error:  # a truncated or foreign file: start afresh
+        return None, f"cannot be read ({type(error).__name__}: truncated, or not a state)"
     if not isinstance(state, dict) or state.get("configs") != [config.to_dict() for config in configs]:
-        return None
+        return None, "is of other runs or configs"
     for config, run in zip(configs, state["runs"]):
-        stored = read_json(run_directory(results_dir, config) / CONFIG_FILE)
-        if not isinstance(stored, dict) or not RunConfig.from_dict(stored).same_as(config):
-            return None
-        if not all(Path(file).exists() for _, file in run["saved"]):
-            return None
-    return state
+        if not _same_config(read_json(run_directory(results_dir, config) / CONFIG_FILE), config):
+            return None, f"was saved with another {CONFIG_FILE} of {config.run_id}"
+        missing = [file for _, file in run["saved"] if not Path(file).exists()]
+        if missing:
+            return None, f"names checkpoints of {config.run_id} that are missing ({missing[0]})"
+    return state, ""
 
 
 def write_trained(directory: Path, config: RunConfig, saved: Sequence[tuple[int, Path]], train_time: float) -> None:
@@ -514,7 +535,7 @@ class GroupRecorder:
             run["curve"] = list(curve.history)
         state = {
             "configs": [config.to_dict() for config in self.configs],
-            "group": group.state_dict(),
+            "group": group.state_dict(copy_buffers=False),  # written at once: no copy of full buffers
             "runs": runs,
             "elapsed": self.train_time,
             "rounds_logged": self.rounds_logged,
@@ -593,12 +614,17 @@ def _train_runs(
 
     directories = [run_directory(results_dir, config) for config in configs]
     state_path = group_state_path(results_dir, configs)
-    resumed = load_state(state_path, configs, results_dir)
+    discarded: list[str] = []
+    resumed = load_state(state_path, configs, results_dir, discarded.append)
     old_rows: list[list[dict[str, Any]]] = [[] for _ in configs]
     if resumed is None:
         remove_stale_states(results_dir, configs)
         for config, directory in zip(configs, directories):
             start_run_directory(config, directory)
+            for line in discarded:  # why, in the run's new train.log (and once on stdout)
+                log_line(f"{config.run_id}: {line}", str(directory / LOG_FILE), echo=False)
+        if discarded and verbose >= 1:
+            print(f"{configs[0].experiment}/{configs[0].scheme}: {discarded[0]}", flush=True)
     else:
         steps = int(resumed["group"]["num_timesteps"])
         old_rows = [read_progress_rows(directory / PROGRESS_FILE, steps) for directory in directories]

@@ -276,7 +276,7 @@ class RunGroup:
 
     # ----- save and resume -----
 
-    def state_dict(self) -> dict[str, Any]:
+    def state_dict(self, copy_buffers: bool = True) -> dict[str, Any]:
         """
         Everything the group's training goes on from, as tensors (on the group's device) and plain values, for
         ``torch.save``: the stacked weights and targets, the optimisers' states, the replay buffers (the rows
@@ -284,6 +284,9 @@ class RunGroup:
         the finished episodes' records), the counters and the update rule's credit. Taken at the end of a round
         (:meth:`GroupCallback.on_round_end`), :meth:`load_state_dict` continues the same training exactly.
 
+        :param copy_buffers: Copy the buffers' filled rows (on the device). ``False``, to ``torch.save`` the state at
+            once: full buffers are the group's own tensors (no second copy on the device) and partly filled ones'
+            rows are copied to host memory; such a state changes as the group trains on.
         :return: The state.
         """
         teams, buffers = self.teams, self.buffers
@@ -302,7 +305,7 @@ class RunGroup:
             "buffers": {
                 "pos": buffers.pos,
                 "size": filled,
-                **{name: getattr(buffers, name)[:, :filled].clone() for name in _BUFFER_FIELDS},
+                **{name: _filled_rows(getattr(buffers, name), filled, copy_buffers) for name in _BUFFER_FIELDS},
             },
             "worlds": None
             if worlds is None
@@ -411,6 +414,16 @@ def _modules(teams: StackedTeams) -> list[tuple[str, StackedModule]]:
         ("actor_target", teams.actor_target),
         ("critic_target", teams.critic_target),
     ]
+
+
+def _filled_rows(tensor: th.Tensor, filled: int, copy: bool) -> th.Tensor:
+    """:return: A buffer's first ``filled`` rows (along dim 1), as a tensor of their own unless ``copy`` is ``False``."""
+    if copy:
+        return tensor[:, :filled].clone()
+    if filled == tensor.shape[1]:
+        return tensor  # full: torch.save writes the tensor itself
+    # A view would make torch.save write the whole storage: the rows alone, copied to the host (not the device).
+    return tensor[:, :filled].clone() if tensor.device.type == "cpu" else tensor[:, :filled].cpu()
 
 
 def _tensor(values: Any, device: th.device) -> th.Tensor:
