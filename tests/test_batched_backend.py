@@ -99,6 +99,19 @@ def test_a_group_writes_the_runners_files(warm_up_results: dict[str, Path], tmp_
     assert len(load_summaries(batched)) == 3
 
 
+def test_a_trained_groups_progress_csv_has_the_local_runs_header(tmp_path: Path) -> None:
+    experiment = tiny(seeds=(0,), keep_checkpoints=False)  # training on: the train/* keys too
+    headers = {}
+    for backend in ("local", "batched"):
+        assert run_sweep([experiment], tmp_path / backend, backend=backend, verbose=0, device="cpu").ok
+        with open(tmp_path / backend / experiment.runs()[0].run_id / "progress.csv", newline="") as file:
+            headers[backend] = next(csv.reader(file))
+    assert {"train/critic_loss", "train/agent_0/actor_loss", "train/n_updates", "train/learning_rate"} <= set(
+        headers["batched"]
+    )
+    assert sorted(headers["batched"]) == sorted(headers["local"])
+
+
 def test_same_scores_as_the_local_backend(warm_up_results: dict[str, Path]) -> None:
     local, batched = warm_up_results["local"], warm_up_results["batched"]
     finals: dict[str, list[float]] = {"local": [], "batched": []}
