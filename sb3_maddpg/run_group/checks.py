@@ -109,7 +109,7 @@ def settings(model: MADDPG) -> dict[str, Any]:
         "agent_layout": model.agent_layout,
         "critic_sharing": model.critic_sharing,
         "critic_sharing_kwargs": model.critic_sharing_kwargs,
-        "selector": describe_selector(model_selector(model)),
+        "selector": describe_selector(model.selector),
         "learning_rate": model.learning_rate,
         "buffer_size": model.buffer_size,
         "learning_starts": model.learning_starts,
@@ -144,11 +144,6 @@ def parameter_shapes(model: MADDPG) -> dict[str, tuple[int, ...]]:
     """:return: The shape of each parameter of the model's actors and critics, by name (e.g. ``"actor.mlp.weight_0"``)."""
     modules = (("actor", model.actor), ("critic", model.critic))
     return {f"{prefix}.{name}": tuple(p.shape) for prefix, module in modules for name, p in module.named_parameters()}
-
-
-def model_selector(model: MADDPG) -> Selector | None:
-    """:return: A model's selection rule, None without one."""
-    return model.selector
 
 
 def describe_selector(selector: Selector | None) -> tuple[Any, ...] | None:

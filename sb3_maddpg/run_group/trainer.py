@@ -15,7 +15,7 @@ from sb3_maddpg.losses import ActionParts, actor_loss_terms, critic_losses, crit
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.noise import per_env_noise
 from sb3_maddpg.run_group.buffer import RunReplayBuffers
-from sb3_maddpg.run_group.checks import check_models, model_selector
+from sb3_maddpg.run_group.checks import check_models
 from sb3_maddpg.run_group.selection import select_on_device
 from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams, clip_grad_norm_per_run_and_agent
 from sb3_maddpg.run_group.worlds import METRICS, SpreadRuns, SpreadTask
@@ -111,7 +111,7 @@ class RunGroup:
         self.update_rule = UpdateSchedule.from_arguments(first.transitions_per_update, None, None)
         # The models' credit (checked: the same in each): a group of written-back models earns no steps twice.
         self.update_rule.credit, self.update_rule.counted_at = first.update_rule.credit, first.update_rule.counted_at
-        self.selector = model_selector(first)
+        self.selector = first.selector
         self.num_timesteps = first.num_timesteps
         """Env steps of each run (all its worlds counted)."""
         self.n_updates = first._n_updates
