@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Issue 21's diagnosis at N=5 (exp1 setting: full observability, `full` sharing, batched env with 100 worlds):
 # each factor against the paper's configuration in one sweep, 3 seeds x 1M steps, configs in priority order
-# (four gradient steps per 100 transitions moved ahead on 2026-12-02: learning followed gradient steps, not env steps).
+# (four gradient steps per 100 transitions moved ahead on 2026-12-02: learning followed gradient steps, not env steps;
+# then, the same day, one-seed probes on the best of them, nearest-first with one step per 25 transitions, ahead of the
+# paper-based factors still to finish: their configs list seed 0 only until one leads).
 # Resumable: run it again and finished runs are skipped. Usage: bash benchmarks/n5_diagnosis/run.sh
 # Then: python benchmarks/n5_diagnosis/summarize.py
 set -u
@@ -10,7 +12,9 @@ RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-2}"
 export SDL_VIDEODRIVER=dummy
 configs=()
-for factor in paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 utd25 shared_params batch256 sorted_obs_utd25_layer_norm; do
+for factor in paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 \
+    sorted_obs_batch256_utd25 sorted_obs_utd25_shared_params sorted_obs_utd25_matd3 sorted_obs_utd25_layer_norm \
+    sorted_obs_batch256_utd10 sorted_obs_utd25_lr1e-3 utd25 shared_params batch256; do
     configs+=(--config "benchmarks/n5_diagnosis/$factor.json")
 done
 nice -n 19 python -m sb3_maddpg.experiments run "${configs[@]}" --results "$RESULTS_ROOT/n5_diagnosis/results" \
