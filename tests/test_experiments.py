@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu
 
-from sb3_maddpg.experiments import EXP1, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
+from sb3_maddpg.experiments import EXP1, EXP1_TUNED, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL, PAPER_NAMES, setting_label
 from sb3_maddpg.experiments.report import format_markdown
@@ -489,6 +489,12 @@ def test_a_setting_of_another_algorithm_is_labelled_with_its_name() -> None:
     assert setting_label("exp1", matd3) == "exp1 (MATD3, N=5, full obs., 100,000 ep.)"
     other_task = {**matd3, "env": "simple_tag"}
     assert setting_label("tag", other_task) == "tag (MATD3, simple_tag, 100,000 ep.)"
+
+
+def test_a_setting_that_observes_every_agent_nearest_first_is_labelled_full() -> None:
+    # exp1_tuned observes all 4 other agents, in order of distance: that is full observability, not "4 nearest".
+    assert setting_label("exp1_tuned", EXP1_TUNED.to_dict()) == "exp1_tuned (N=5, full obs. nearest first, 100,000 ep.)"
+    assert setting_label("exp2", EXP2.to_dict()) == "exp2 (N=5, 2 nearest obs., 150,000 ep.)"
 
 
 def test_configs_written_before_0_3_name_the_selector_as_0_3_does() -> None:

@@ -7,7 +7,9 @@ Command line: ``sb3-maddpg run --config exp1 ...`` then ``sb3-maddpg report <res
 from sb3_maddpg.experiments.config import (
     BASELINE_SCHEME,
     EXP1,
+    EXP1_TUNED,
     EXP2,
+    EXP2_TUNED,
     EXPERIMENTS,
     PAPER_NAMES,
     SCHEMES,
@@ -25,7 +27,9 @@ from sb3_maddpg.experiments.sweep import SweepInterrupted, SweepResult, run_swee
 __all__ = [
     "BASELINE_SCHEME",
     "EXP1",
+    "EXP1_TUNED",
     "EXP2",
+    "EXP2_TUNED",
     "EXPERIMENTS",
     "PAPER_NAMES",
     "SCHEMES",

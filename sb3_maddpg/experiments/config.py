@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from sb3_maddpg.compat import renamed_in_0_3
+from sb3_maddpg.hyperparams import load_hyperparams
 
 EPISODE_LENGTH = 25
 """Steps per simple_spread episode in the paper (``max_cycles``)."""
@@ -53,7 +54,12 @@ def setting_label(name: str, experiment: dict[str, Any] | None) -> str:
     if experiment.get("env", DEFAULT_ENV) != DEFAULT_ENV:
         return f"{name} ({prefix}{experiment['env']}, {experiment['episodes']:,} ep.)"
     neighbors = experiment.get("num_agent_neighbors")
-    observability = "full obs." if neighbors is None else f"{neighbors} nearest obs."
+    if neighbors is None:
+        observability = "full obs."
+    elif neighbors >= experiment["n_agents"] - 1:  # every other agent, in order of distance
+        observability = "full obs. nearest first"
+    else:
+        observability = f"{neighbors} nearest obs."
     return f"{name} ({prefix}N={experiment['n_agents']}, {observability}, {experiment['episodes']:,} ep.)"
 
 
@@ -364,6 +370,37 @@ EXP2 = ExperimentConfig(
 )
 """The paper's experiment 2 (each agent observes its two nearest other agents)."""
 
+
+def tuned_experiment(paper: ExperimentConfig) -> ExperimentConfig:
+    """
+    :param paper: One of the paper's settings (``EXP1``, ``EXP2``).
+    :return: The same setting, protocol and budget at the hyperparameters ``sb3_maddpg/hyperparams/maddpg.yml``
+        holds for it, named ``<setting>_tuned``.
+    """
+    tuned = load_hyperparams(paper.name)
+    if tuned.n_agents != paper.n_agents or tuned.n_timesteps != paper.episodes * paper.episode_length:
+        raise ValueError(
+            f"maddpg.yml's {paper.name!r} entry is for {tuned.n_agents} agents and {tuned.n_timesteps:,} steps, but the "
+            f"setting has {paper.n_agents} agents and {paper.episodes * paper.episode_length:,} steps: correct the entry."
+        )
+    env_kwargs = dict(tuned.env_kwargs)
+    num_agent_neighbors = env_kwargs.pop("num_agent_neighbors", paper.num_agent_neighbors)
+    return dataclasses.replace(
+        paper,
+        name=f"{paper.name}_tuned",
+        num_agent_neighbors=num_agent_neighbors,
+        env_kwargs={**paper.env_kwargs, **env_kwargs},
+        model_kwargs={**paper.model_kwargs, **tuned.model_kwargs},
+        description=tuned.description,
+    )
+
+
+EXP1_TUNED = tuned_experiment(EXP1)
+"""Experiment 1 at the best configuration measured at N=5 (``sb3_maddpg/hyperparams/maddpg.yml``)."""
+
+EXP2_TUNED = tuned_experiment(EXP2)
+"""Experiment 2 with experiment 1's best changes (``sb3_maddpg/hyperparams/maddpg.yml``)."""
+
 SELECT_NEAREST_AT_N3: dict[str, dict[str, Any]] = {"selected": {"selector": 1}}
 """``selected`` runs of a 3-agent team select the nearest other agent: selecting both (the default ``k=2``) would be
 ``full`` sharing in another order."""
@@ -416,14 +453,16 @@ SMOKE = ExperimentConfig(
 )
 """A pipeline check that runs every scheme in seconds (for CI)."""
 
-EXPERIMENTS: dict[str, ExperimentConfig] = {config.name: config for config in (EXP1, EXP2, N3_FULL, N3_PARTIAL, SMOKE)}
+EXPERIMENTS: dict[str, ExperimentConfig] = {
+    config.name: config for config in (EXP1, EXP2, EXP1_TUNED, EXP2_TUNED, N3_FULL, N3_PARTIAL, SMOKE)
+}
 """The named presets."""
 
 
 def load_experiment(name_or_path: str) -> ExperimentConfig:
     """
-    :param name_or_path: A preset name (``exp1``, ``exp2``, ``n3_full``, ``n3_partial``, ``smoke``) or the path of a JSON file
-        written from :meth:`ExperimentConfig.to_dict`.
+    :param name_or_path: A preset name (``exp1``, ``exp2``, ``exp1_tuned``, ``exp2_tuned``, ``n3_full``, ``n3_partial``,
+        ``smoke``) or the path of a JSON file written from :meth:`ExperimentConfig.to_dict`.
     :return: The experiment config.
     """
     if name_or_path in EXPERIMENTS:
