@@ -18,6 +18,7 @@ import torch as th
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import SimpleSpreadVecEnv
 from sb3_maddpg.run_group import RunGroup
+from sb3_maddpg.run_group.buffer import replay_nbytes
 
 PROTOCOL_STEPS = 155 * 2_500_000 + 155 * 3_750_000
 """Env steps of the paper's two experiments: 5 schemes x 31 seeds each, 100,000 and 150,000 episodes of 25 steps."""
@@ -29,11 +30,12 @@ def synchronize(device: th.device) -> None:
         th.cuda.synchronize(device)
 
 
-def buffer_bytes(n_agents: int, buffer_size: int) -> int:
-    """:return: One run's replay buffer on the device (float32 observations, next observations, actions, rewards and
-    dones, as :meth:`~sb3_maddpg.run_group.RunReplayBuffers.nbytes` counts them)."""
+def buffer_bytes(n_agents: int, buffer_size: int, worlds: int) -> int:
+    """:return: One run's replay buffer on the device, as :meth:`~sb3_maddpg.run_group.RunReplayBuffers.nbytes` counts
+    it (next observations kept as the following step's rows: see :mod:`sb3_maddpg.run_group.buffer`)."""
     layout = SimpleSpreadVecEnv(1, n_agents=n_agents).agent_layout
-    return 4 * (2 * layout.obs_dim + layout.action_dim + 2 * n_agents) * buffer_size
+    capacity = max(worlds, buffer_size // worlds * worlds)
+    return replay_nbytes(1, capacity, layout.obs_dim, layout.action_dim, n_agents, worlds, episode_length=25)
 
 
 def build_group(n_runs: int, n_agents: int, worlds: int, buffer_size: int, device: th.device) -> RunGroup:
@@ -87,7 +89,7 @@ def main() -> None:
     print("| R | env steps/s, summed | per run | one update round (ms) | peak device memory (GB) | exp1 + exp2 at this rate |")
     print("|---|---|---|---|---|---|")
     for n_runs in args.runs:
-        needed = n_runs * buffer_bytes(args.n_agents, args.buffer_size)
+        needed = n_runs * buffer_bytes(args.n_agents, args.buffer_size, args.worlds)
         if device.type == "cuda" and needed > th.cuda.mem_get_info(device)[0]:
             # The buffers alone do not fit: the protocol then runs in smaller groups (--runs-per-process).
             print(f"| {n_runs} | does not fit: {needed / 1e9:.0f} GB of replay buffers | | | | |", flush=True)

@@ -23,6 +23,7 @@ from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.envs import SimpleSpreadVecEnv
 from sb3_maddpg.losses import one_member
 from sb3_maddpg.run_group import RunGroup, RunReplayBuffers, SpreadTask, clip_grad_norm_per_run_and_agent
+from sb3_maddpg.run_group.buffer import replay_nbytes
 from sb3_maddpg.run_group.selection import select_on_device
 from sb3_maddpg.selection import FixedGraph, NearestAgents
 
@@ -342,7 +343,7 @@ def test_a_state_for_saving_holds_full_buffers_without_a_copy() -> None:
 
 
 def test_each_run_samples_its_own_rows_from_its_own_generator() -> None:
-    buffers = RunReplayBuffers(2, capacity=6, obs_dim=1, action_dim=1, n_agents=1)
+    buffers = RunReplayBuffers(2, capacity=6, obs_dim=1, action_dim=1, n_agents=1, rows_per_step=2)
     for step in range(4):  # 8 rows into 6: the first two are overwritten
         values = th.tensor([[[step * 2.0], [step * 2.0 + 1]], [[-step * 2.0], [-step * 2.0 - 1]]])
         buffers.add(values, values, values, values, values)
@@ -351,6 +352,50 @@ def test_each_run_samples_its_own_rows_from_its_own_generator() -> None:
     assert th.equal(rows[1], th.randint(0, 6, (10,), generator=th.Generator().manual_seed(12)))
     batch = buffers.get(rows)
     assert th.equal(batch.observations[0, :, 0], buffers.observations[0, rows[0], 0])
+
+
+@pytest.mark.parametrize("capacity_steps", [7, 9])  # 7: wraps mid-episode; 9: a multiple of the episode's 3 steps
+def test_next_observations_are_those_stored_with_each_transition(capacity_steps: int) -> None:
+    """The buffers keep next observations as the following step's rows, episode ends apart: every held row's next
+    observations are the ones added with it (a plain store of every row beside them is the reference), while
+    filling, once full and wrapping, the newest step included."""
+    n_runs, worlds, obs_dim, episode_length = 2, 2, 3, 3
+    buffers = RunReplayBuffers(2, capacity_steps * worlds, obs_dim, 1, 1, rows_per_step=worlds, episode_length=3)
+    generator = th.Generator().manual_seed(3)
+    reference: dict[int, th.Tensor] = {}  # row -> the next observations added with it, [R, obs_dim]
+    observations = th.randn(n_runs, worlds, obs_dim, generator=generator)
+    for step in range(4 * capacity_steps):
+        end = step % episode_length == episode_length - 1
+        next_observations = th.randn(n_runs, worlds, obs_dim, generator=generator)
+        row = buffers.pos
+        buffers.add(
+            observations, observations[..., :1], next_observations, th.zeros(2, 2, 1), th.zeros(2, 2, 1), episode_end=end
+        )
+        for world in range(worlds):
+            reference[row + world] = next_observations[:, world]
+        observations = th.randn(n_runs, worlds, obs_dim, generator=generator) if end else next_observations
+        rows = th.arange(buffers.size).expand(n_runs, -1)
+        expected = th.stack([reference[int(r)] for r in rows[0]], dim=1)
+        assert th.equal(buffers.get(rows).next_observations, expected), f"step {step}"
+
+
+def test_episodes_shorter_than_declared_are_refused() -> None:
+    # Sized for an episode end every 3 steps: one every step outgrows the store of the episodes' last observations.
+    buffers = RunReplayBuffers(1, capacity=6, obs_dim=1, action_dim=1, n_agents=1, episode_length=3)
+    zeros = th.zeros(1, 1, 1)
+    with pytest.raises(ValueError, match="Episodes end more often than every 3 steps"):
+        for _ in range(6):
+            buffers.add(zeros, zeros, zeros, zeros, zeros, episode_end=True)
+
+
+def test_buffers_hold_about_half_of_storing_next_observations_beside() -> None:
+    # The paper's N=5 buffers: 1M transitions in steps of 100 worlds, episodes of 25 steps.
+    obs_dim, action_dim, n_agents = 150, 25, 5
+    stored_beside = 4 * (2 * obs_dim + action_dim + 2 * n_agents) * 1_000_000
+    held = replay_nbytes(1, 1_000_000, obs_dim, action_dim, n_agents, rows_per_step=100, episode_length=25)
+    assert 0.5 < held / stored_beside < 0.6
+    small = RunReplayBuffers(3, 60, 7, 2, 2, selection_size=1, rows_per_step=4, episode_length=5)
+    assert small.nbytes() == replay_nbytes(3, 60, 7, 2, 2, rows_per_step=4, episode_length=5, selection_size=1)
 
 
 @pytest.mark.parametrize("selector", [NearestAgents(k=2), NearestAgents(k=1), FixedGraph([[1, 2], [2, 0], [0, 1]])])

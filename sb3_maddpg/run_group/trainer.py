@@ -24,7 +24,7 @@ from sb3_maddpg.update_schedule import UpdateSchedule
 LOSS_NAMES = ("critic_loss", "actor_loss", "actor_reg_loss", "action_saturation")
 """The per-run, per-agent means each :meth:`RunGroup.train` call records in :attr:`RunGroup.losses`."""
 
-STATE_VERSION = 1
+STATE_VERSION = 2
 """The layout of :meth:`RunGroup.state_dict`'s value (a state of another version is refused)."""
 
 
@@ -132,6 +132,8 @@ class RunGroup:
             self.layout.n_agents,
             0 if self.selector is None else self.selector.k,
             self.device,
+            rows_per_step=self.worlds_per_run,
+            episode_length=1 if self.task is None else self.task.max_cycles,
         )
         self.world_dtype = world_dtype
         self.worlds: SpreadRuns | None = None
@@ -210,7 +212,7 @@ class RunGroup:
         step = worlds.step(actions)
         selections = None if self.selector is None else select_on_device(self.selector, observations, self.layout)
         dones = th.zeros_like(step.rewards)  # simple_spread never terminates: its truncations bootstrap
-        self.buffers.add(observations, actions, step.next_observations, step.rewards, dones, selections)
+        self.buffers.add(observations, actions, step.next_observations, step.rewards, dones, selections, step.truncated)
         self.num_timesteps += self.worlds_per_run
 
     def learn(self, total_timesteps: int, callback: GroupCallback | None = None) -> "RunGroup":
@@ -290,7 +292,6 @@ class RunGroup:
         :return: The state.
         """
         teams, buffers = self.teams, self.buffers
-        filled = buffers.size
         worlds = self.worlds
         return {
             "version": STATE_VERSION,
@@ -302,11 +303,7 @@ class RunGroup:
             "n_updates": self.n_updates,
             "update_rule": (self.update_rule.credit, self.update_rule.counted_at),
             "generators": [generator.get_state() for generator in self.generators],
-            "buffers": {
-                "pos": buffers.pos,
-                "size": filled,
-                **{name: _filled_rows(getattr(buffers, name), filled, copy_buffers) for name in _BUFFER_FIELDS},
-            },
+            "buffers": buffers.state_dict(copy=copy_buffers),
             "worlds": None
             if worlds is None
             else {
@@ -349,11 +346,7 @@ class RunGroup:
             self._worlds()  # built first: building them draws new episodes from the generators, set next
         for generator, generator_state in zip(self.generators, state["generators"]):
             generator.set_state(generator_state.cpu())
-        saved_buffers = state["buffers"]
-        filled = int(saved_buffers["size"])
-        for name in _BUFFER_FIELDS:
-            getattr(self.buffers, name)[:, :filled] = saved_buffers[name].to(device)
-        self.buffers.pos, self.buffers.size = int(saved_buffers["pos"]), filled
+        self.buffers.load_state_dict(state["buffers"])
         saved_worlds = state["worlds"]
         if saved_worlds is not None:
             worlds = self._worlds()
@@ -403,10 +396,6 @@ class RunGroup:
         return model
 
 
-_BUFFER_FIELDS = ("observations", "actions", "next_observations", "rewards", "dones", "selections")
-"""The replay buffers' tensors a state holds."""
-
-
 def _modules(teams: StackedTeams) -> list[tuple[str, StackedModule]]:
     return [
         ("actor", teams.actor),
@@ -414,16 +403,6 @@ def _modules(teams: StackedTeams) -> list[tuple[str, StackedModule]]:
         ("actor_target", teams.actor_target),
         ("critic_target", teams.critic_target),
     ]
-
-
-def _filled_rows(tensor: th.Tensor, filled: int, copy: bool) -> th.Tensor:
-    """:return: A buffer's first ``filled`` rows (along dim 1), as a tensor of their own unless ``copy`` is ``False``."""
-    if copy:
-        return tensor[:, :filled].clone()
-    if filled == tensor.shape[1]:
-        return tensor  # full: torch.save writes the tensor itself
-    # A view would make torch.save write the whole storage: the rows alone, copied to the host (not the device).
-    return tensor[:, :filled].clone() if tensor.device.type == "cpu" else tensor[:, :filled].cpu()
 
 
 def _tensor(values: Any, device: th.device) -> th.Tensor:
