@@ -81,10 +81,17 @@ def group_key(config: RunConfig) -> str:
     return json.dumps({key: value for key, value in config.to_dict().items() if key != "seed"}, sort_keys=True)
 
 
-def plan_groups(configs: Sequence[RunConfig], runs_per_process: int | None = None) -> list[list[RunConfig]]:
+def plan_groups(
+    configs: Sequence[RunConfig],
+    runs_per_process: int | None = None,
+    most_runs: Callable[[Sequence[RunConfig]], int] | None = None,
+) -> list[list[RunConfig]]:
     """
     :param configs: The runs to do.
-    :param runs_per_process: The most runs in one group (``None``: all that share a setting and scheme).
+    :param runs_per_process: The most runs in one group (``None``: all that share a setting and scheme, or as many as
+        ``most_runs`` allows).
+    :param most_runs: When ``runs_per_process`` is ``None``: the most runs of a setting and scheme one group holds,
+        given those runs (e.g. :func:`memory_bound`).
     :return: The groups, each the runs of one setting and scheme (different seeds), in the sweep's order.
     """
     if runs_per_process is not None and runs_per_process < 1:
@@ -94,9 +101,42 @@ def plan_groups(configs: Sequence[RunConfig], runs_per_process: int | None = Non
         buckets.setdefault(group_key(config), []).append(config)
     groups = []
     for runs in buckets.values():
-        size = runs_per_process or len(runs)
+        size = runs_per_process or (len(runs) if most_runs is None else max(1, min(len(runs), most_runs(runs))))
         groups += [runs[start : start + size] for start in range(0, len(runs), size)]
     return groups
+
+
+def resolve_device(device: str) -> th.device:
+    """:return: The device a group trains on for ``--device`` (``"auto"``: CUDA when there is a GPU, else the CPU)."""
+    if device == "auto":
+        return th.device("cuda" if th.cuda.is_available() else "cpu")
+    return th.device(device)
+
+
+def memory_bound(device: str, log: Callable[[str], None] | None = None) -> Callable[[Sequence[RunConfig]], int]:
+    """
+    :param device: The groups' device (``--device``).
+    :param log: Called with a line for each setting and scheme whose seeds do not fit in one group.
+    :return: For :func:`plan_groups`: the most of given runs (one setting and scheme) that one group holds on that device
+        (:func:`~sb3_maddpg.run_group.memory.runs_that_fit`: their replay buffers bound it).
+    """
+    from sb3_maddpg.run_group.memory import runs_that_fit
+
+    def most_runs(runs: Sequence[RunConfig]) -> int:
+        config = runs[0]
+        model = build_model(config, device="cpu")
+        try:
+            size = runs_that_fit(model, resolve_device(device))
+        finally:
+            model.get_env().close()
+        if log is not None and size.runs < len(runs):
+            log(
+                f"{config.experiment}/{config.scheme}: groups of at most {size.runs} runs (each run's replay buffer "
+                f"{size.run_bytes / 1e9:.2f} GB; bound: {size.limit}); --runs-per-process sets another size"
+            )
+        return size.runs
+
+    return most_runs
 
 
 def check_device(device: str) -> None:
@@ -128,7 +168,9 @@ def check_device(device: str) -> None:
 def check_batched(configs: Sequence[RunConfig], device: str | None = None) -> None:
     """
     Refuse, before anything trains, the runs a run group cannot train: the first such run is named, with the cause
-    and what to do. One model of each setting and scheme is built and checked as :class:`RunGroup` checks its models.
+    and what to do. One model of each setting and scheme is built and checked as :class:`RunGroup` checks its models,
+    and, given a device, for one run's replay buffer fitting in its memory
+    (:func:`~sb3_maddpg.run_group.memory.runs_that_fit`).
 
     :param configs: The runs to do.
     :param device: The groups' device, checked first (:func:`check_device`) when there are runs; ``None``: not
@@ -137,6 +179,7 @@ def check_batched(configs: Sequence[RunConfig], device: str | None = None) -> No
     """
     from sb3_maddpg.run_group import SpreadTask
     from sb3_maddpg.run_group.checks import check_models
+    from sb3_maddpg.run_group.memory import runs_that_fit
 
     if device is not None and configs:
         check_device(device)
@@ -154,6 +197,8 @@ def check_batched(configs: Sequence[RunConfig], device: str | None = None) -> No
             try:
                 check_models([model])
                 cause = "" if SpreadTask.from_env(model.get_env()) is not None else "its env tells no simple_spread task."
+                if device is not None and not cause:
+                    runs_that_fit(model, resolve_device(device))  # one run's buffers at least
             except (TypeError, ValueError) as error:
                 cause = str(error)
             model.get_env().close()
@@ -690,12 +735,14 @@ def run_batched(
     :param results_dir: The sweep's results directory.
     :param on_result: Called for each run as its group ends.
     :param device: Where the groups train.
-    :param runs_per_process: The most runs in one group (``None``: all of a setting and scheme).
+    :param runs_per_process: The most runs in one group (``None``: all of a setting and scheme, or as many as fit
+        in the device's memory, :func:`memory_bound`).
     :param threads: Torch threads.
     :param verbose: 1 to print each group's progress lines.
     """
     th.set_num_threads(threads)
-    for group in plan_groups(configs, runs_per_process):
+    most_runs = memory_bound(device, log=print if verbose else None) if runs_per_process is None else None
+    for group in plan_groups(configs, runs_per_process, most_runs):
         try:
             results = train_group(group, results_dir, device=device, verbose=verbose)
         except Exception:

@@ -110,7 +110,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--runs-per-process",
         type=int,
         default=None,
-        help="batched: the most runs in one group (default: all seeds of a setting and scheme; fewer use less memory)",
+        help="batched: the most runs in one group (default: all seeds of a setting and scheme, or as many as the "
+        "device's memory holds; with --ray: all seeds)",
     )
     execution.add_argument(
         "--ray",

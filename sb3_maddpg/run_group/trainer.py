@@ -16,6 +16,7 @@ from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.noise import per_env_noise
 from sb3_maddpg.run_group.buffer import RunReplayBuffers
 from sb3_maddpg.run_group.checks import check_models
+from sb3_maddpg.run_group.memory import buffer_capacity
 from sb3_maddpg.run_group.selection import select_on_device
 from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams, clip_grad_norm_per_run_and_agent
 from sb3_maddpg.run_group.worlds import METRICS, SpreadRuns, SpreadTask
@@ -126,7 +127,7 @@ class RunGroup:
         self.task = task if task is not None else SpreadTask.from_env(first.env) if first.env is not None else None
         self.buffers = RunReplayBuffers(
             self.n_runs,
-            max(self.worlds_per_run, first.buffer_size // self.worlds_per_run * self.worlds_per_run),  # whole steps
+            buffer_capacity(first.buffer_size, self.worlds_per_run),
             self.layout.obs_dim,
             self.layout.action_dim,
             self.layout.n_agents,
