@@ -149,6 +149,43 @@ def test_bad_settings_say_what_to_do(tmp_path: Path, changes: dict, message: str
         settings(tmp_path, **changes)
 
 
+def test_fixed_parameters_hold_in_every_trial_and_the_others_are_searched(tmp_path: Path) -> None:
+    fixed = {"transitions_per_update": 50, "width": 64, "learning_rate": 1e-3}
+    study = run_study(settings(tmp_path, n_trials=3, fixed_params=fixed))
+    trials = [trial for trial in study.trials if trial.state.name == "COMPLETE"]
+    assert len(trials) == 3
+    for trial in trials:
+        kwargs = trial.user_attrs["model_kwargs"]
+        assert (kwargs["transitions_per_update"], kwargs["learning_rate"]) == (50, 1e-3)
+        assert kwargs["policy_kwargs"]["net_arch"] == {"pi": [64, 64], "qf": [64, 64, 64]}
+    assert len({trial.params["noise_std"] for trial in trials}) == 3  # the rest is still sampled
+
+
+@pytest.mark.parametrize(
+    ("fixed", "message"),
+    [
+        ({"hidden": 64}, r"--fix 'hidden' is not a sampled parameter: fix one of \['actor_reg_coef', 'batch_size'"),
+        ({"width": 96}, r"--fix width=96 is not one of its choices \[64, 128, 256\]"),
+        ({"learning_rate": 0.5}, r"--fix learning_rate=0.5 is outside its range \[0.0001, 0.02\]"),
+    ],
+)
+def test_parameters_a_study_cannot_fix_are_refused(tmp_path: Path, fixed: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        settings(tmp_path, fixed_params=fixed)
+
+
+def test_the_tune_command_takes_fixes_and_names_its_study_by_them(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    storage = f"sqlite:///{tmp_path / 'tune.db'}"
+    argv = ["tune", "--config", "smoke", "--scheme", "full", "--trials", "1", "--steps", "800", "--evaluations", "1"]
+    argv += ["--eval-episodes", "2", "--last-evaluations", "1", "--storage", storage]
+    assert main([*argv, "--fix", "transitions_per_update=50", "--fix", "width=64"]) == 0
+    assert "fixed in every trial: transitions_per_update=50, width=64" in capsys.readouterr().out
+    names = optuna.study.get_all_study_names(storage)
+    assert names == ["smoke_min_dist_sum_transitions_per_update=50_width=64"]
+    assert main([*argv, "--fix", "width"]) == 2
+    assert "--fix 'width' is not NAME=VALUE" in capsys.readouterr().err
+
+
 def open_the_study_at_once(storage: str, barrier: Any) -> int:
     barrier.wait()  # every process past its imports, so that they create the new file's tables together
     study = load_study(TuneSettings(experiment=TINY, study_name="together", storage=storage, heartbeat_seconds=1))

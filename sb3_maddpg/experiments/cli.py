@@ -5,6 +5,7 @@ import importlib.util
 import json
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from sb3_maddpg.experiments.config import (
     DEFAULT_N_ENVS,
@@ -160,6 +161,14 @@ def build_parser() -> argparse.ArgumentParser:
     tune.add_argument("--threads", type=int, default=1, help="torch threads per worker (default: 1)")
     tune.add_argument("--heartbeat", type=int, default=60, help="seconds between a trial's heartbeats (default 60)")
     tune.add_argument("--preset-out", help="also write the best trial's preset (experiment JSON) to this file")
+    tune.add_argument(
+        "--fix",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="hold a sampled parameter at one value in every trial (repeat for several), e.g. --fix "
+        "transitions_per_update=25 --fix width=64; the study's default name then says so",
+    )
 
     report = commands.add_parser(
         "report", help="Table 2 (Markdown, CSV), learning curves and boxplots from a results directory"
@@ -260,6 +269,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     return report_command(args)
 
 
+def parse_fixed_params(items: list[str]) -> dict[str, Any]:
+    """
+    :param items: ``--fix`` values, ``NAME=VALUE`` each (the value as JSON: ``25``, ``1e-3``).
+    :return: The parameters to hold, by name (checked by the study's settings).
+    """
+    fixed: dict[str, Any] = {}
+    for item in items:
+        name, equals, text = item.partition("=")
+        if not equals or not name:
+            raise ValueError(f"--fix {item!r} is not NAME=VALUE: e.g. --fix transitions_per_update=25.")
+        try:
+            fixed[name.strip()] = json.loads(text)
+        except json.JSONDecodeError:
+            raise ValueError(f"--fix {item!r}: its value {text!r} is not a number (JSON), e.g. 25 or 1e-3.") from None
+    return fixed
+
+
 def tune_command(args: argparse.Namespace) -> int:
     """
     :param args: Parsed ``tune`` arguments.
@@ -274,9 +300,11 @@ def tune_command(args: argparse.Namespace) -> int:
         neighbors = None if args.neighbors == "all" else int(args.neighbors)
         experiment = ExperimentConfig.from_dict({**experiment.to_dict(), "num_agent_neighbors": neighbors})
     try:
+        fixed = parse_fixed_params(args.fix)
+        fixed_name = "".join(f"_{name}={value}" for name, value in fixed.items())
         settings = TuneSettings(
             experiment=experiment,
-            study_name=args.study_name or f"{experiment.name}_{args.objective}",
+            study_name=args.study_name or f"{experiment.name}_{args.objective}{fixed_name}",
             storage=args.storage,
             n_trials=args.trials,
             budget=args.steps,
@@ -286,7 +314,10 @@ def tune_command(args: argparse.Namespace) -> int:
             objective=args.objective,
             seed=args.seed,
             heartbeat_seconds=args.heartbeat,
+            fixed_params=fixed,
         )
+        if fixed:
+            print("fixed in every trial: " + ", ".join(f"{name}={value}" for name, value in fixed.items()), flush=True)
         print(
             f"study {settings.study_name!r} in {settings.storage}: {settings.n_trials} trials of {settings.budget:,} steps "
             f"on {experiment.name} (N={experiment.n_agents}, scheme {experiment.schemes[0]}), {args.workers} worker(s)",

@@ -44,26 +44,53 @@ def import_optuna() -> Any:
     return optuna
 
 
+CATEGORICAL_PARAMS: dict[str, tuple[Any, ...]] = {
+    "width": (64, 128, 256),
+    "batch_size": (256, 512, 1024, 2048),
+    "transitions_per_update": (10, 25, 50, 100, 200, 400),
+    "tau": (0.005, 0.01, 0.02, 0.05),
+    "gamma": (0.9, 0.95, 0.97, 0.99),
+    "actor_reg_coef": (0.0, 1e-4, 1e-3, 1e-2),
+}
+"""The sampled parameters with a few choices each, by their names in the study."""
+
+LOG_UNIFORM_PARAMS: dict[str, tuple[float, float]] = {"learning_rate": (1e-4, 2e-2), "noise_std": (0.02, 0.5)}
+"""The sampled parameters drawn on a log scale between two bounds, by their names in the study."""
+
+
 def sample_maddpg_params(trial: Any) -> dict[str, Any]:
     """
-    A sample of MADDPG's hyperparameters around the paper's (Lowe et al.'s), rl-zoo3 style.
+    A sample of MADDPG's hyperparameters around the paper's (Lowe et al.'s), rl-zoo3 style
+    (:data:`CATEGORICAL_PARAMS`, :data:`LOG_UNIFORM_PARAMS`).
 
     :param trial: An Optuna trial.
     :return: ``MADDPG`` keyword arguments: the learning rate (actors and critics), the exploration noise (in mpe2's
         units), the batch size, the network width (actors of 2 and critics of 3 hidden layers), the update ratio
         (transitions per gradient step), tau, gamma and the actor regulariser.
     """
-    width = trial.suggest_categorical("width", [64, 128, 256])
-    return {
-        "learning_rate": trial.suggest_float("learning_rate", 1e-4, 2e-2, log=True),
-        "noise_std": trial.suggest_float("noise_std", 0.02, 0.5, log=True),
-        "batch_size": trial.suggest_categorical("batch_size", [256, 512, 1024, 2048]),
-        "policy_kwargs": {"net_arch": {"pi": [width, width], "qf": [width, width, width]}},
-        "transitions_per_update": trial.suggest_categorical("transitions_per_update", [10, 25, 50, 100, 200, 400]),
-        "tau": trial.suggest_categorical("tau", [0.005, 0.01, 0.02, 0.05]),
-        "gamma": trial.suggest_categorical("gamma", [0.9, 0.95, 0.97, 0.99]),
-        "actor_reg_coef": trial.suggest_categorical("actor_reg_coef", [0.0, 1e-4, 1e-3, 1e-2]),
-    }
+    values = {name: trial.suggest_float(name, low, high, log=True) for name, (low, high) in LOG_UNIFORM_PARAMS.items()}
+    values |= {name: trial.suggest_categorical(name, list(choices)) for name, choices in CATEGORICAL_PARAMS.items()}
+    width = values.pop("width")
+    return {**values, "policy_kwargs": {"net_arch": {"pi": [width, width], "qf": [width, width, width]}}}
+
+
+def check_fixed_params(fixed: dict[str, Any]) -> None:
+    """
+    Refuse parameters a study cannot fix: names it does not sample, or values outside their range or choices.
+
+    :param fixed: Sampled parameters to hold at one value, by name (e.g. ``{"transitions_per_update": 25}``).
+    """
+    for name, value in fixed.items():
+        if name in CATEGORICAL_PARAMS:
+            if value not in CATEGORICAL_PARAMS[name]:
+                raise ValueError(f"--fix {name}={value!r} is not one of its choices {list(CATEGORICAL_PARAMS[name])}.")
+        elif name in LOG_UNIFORM_PARAMS:
+            low, high = LOG_UNIFORM_PARAMS[name]
+            if not isinstance(value, int | float) or isinstance(value, bool) or not low <= value <= high:
+                raise ValueError(f"--fix {name}={value!r} is outside its range [{low}, {high}].")
+        else:
+            sampled = sorted([*CATEGORICAL_PARAMS, *LOG_UNIFORM_PARAMS])
+            raise ValueError(f"--fix {name!r} is not a sampled parameter: fix one of {sampled}.")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,6 +110,8 @@ class TuneSettings:
     :param seed: Seed of the sampler and of every trial's run.
     :param heartbeat_seconds: See :data:`HEARTBEAT_SECONDS`.
     :param pruner: An Optuna pruner; ``None``: a median pruner (after 5 trials, from the second evaluation).
+    :param fixed_params: Sampled parameters held at one value in every trial, by their names in the study (e.g.
+        ``{"transitions_per_update": 25, "width": 64}``; Optuna's ``PartialFixedSampler``): the others are searched.
     """
 
     experiment: ExperimentConfig
@@ -97,8 +126,10 @@ class TuneSettings:
     seed: int = 0
     heartbeat_seconds: int = HEARTBEAT_SECONDS
     pruner: Any = None
+    fixed_params: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        check_fixed_params(self.fixed_params)
         if self.objective not in OBJECTIVES:
             raise ValueError(f"objective must be one of {sorted(OBJECTIVES)}, got {self.objective!r}.")
         if self.experiment.env != "simple_spread":
@@ -268,11 +299,16 @@ def load_study(settings: TuneSettings) -> Any:
                 )
             )
     interval = max(1, settings.budget // settings.n_evaluations)
+    sampler = optuna.samplers.TPESampler(seed=settings.seed, n_startup_trials=5)
+    if settings.fixed_params:
+        with warnings.catch_warnings():  # "experimental" since Optuna 2.4: said on every start
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            sampler = optuna.samplers.PartialFixedSampler(settings.fixed_params, sampler)
     return optuna.create_study(
         study_name=settings.study_name,
         storage=storage,
         direction=OBJECTIVES[settings.objective],
-        sampler=optuna.samplers.TPESampler(seed=settings.seed, n_startup_trials=5),
+        sampler=sampler,
         pruner=settings.pruner or optuna.pruners.MedianPruner(n_startup_trials=5, n_warmup_steps=interval),
         load_if_exists=True,
     )
