@@ -4,6 +4,7 @@ trial failed and retried), prunes, and prints the best trial as a preset that `s
 import json
 import multiprocessing
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -67,6 +68,7 @@ def test_a_tiny_study_runs_and_gives_a_preset_run_takes(tmp_path: Path, capsys: 
     assert main([*argv, "--preset-out", str(preset)]) == 0
     out = capsys.readouterr().out
     assert "best trial" in out and "(lower is better) of 2 finished trials" in out
+    assert re.search(r"trial 1: 400/800 steps, min_dist_sum \d+\.\d{4}, \d+\.\d min\n", out)  # progress per evaluation
     config = ExperimentConfig.from_dict(json.loads(preset.read_text()))
     study = load_study(settings(tmp_path, study_name="smoke_min_dist_sum"))
     assert config.name == "smoke_tuned" and config.model_kwargs["learning_rate"] == study.best_params["learning_rate"]

@@ -178,16 +178,29 @@ class TrialEvalCallback(TeamEvalCallback):
     :param trial: The trial.
     :param objective: A key of :data:`OBJECTIVES`.
     :param references: The task's references, for ``"normalised"``.
+    :param log: Called with a line after each evaluation (the trial's progress), or ``None``.
+    :param budget: The trial's env steps, for those lines.
     :param kwargs: For :class:`~sb3_maddpg.evaluation.TeamEvalCallback`.
     """
 
-    def __init__(self, trial: Any, objective: str, references: dict[str, dict[str, float]] | None, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        trial: Any,
+        objective: str,
+        references: dict[str, dict[str, float]] | None,
+        log: Callable[[str], None] | None = None,
+        budget: int = 0,
+        **kwargs: Any,
+    ) -> None:
         super().__init__(**kwargs)
         self.trial = trial
         self.objective = objective
         self.references = references
+        self.log = log
+        self.budget = budget
         self.values: list[float] = []
         self.pruned = False
+        self._started = time.monotonic()
 
     def _on_step(self) -> bool:
         evaluated = len(self.history)
@@ -197,18 +210,23 @@ class TrialEvalCallback(TeamEvalCallback):
         value = objective_value(self.history[-1], self.objective, self.references)
         self.values.append(value)
         self.trial.report(value, step=self.num_timesteps)
-        if self.trial.should_prune():
-            self.pruned = True
-            return False  # SB3 stops learn()
-        return True
+        self.pruned = self.trial.should_prune()
+        if self.log is not None:
+            elapsed = time.monotonic() - self._started
+            self.log(
+                f"trial {self.trial.number}: {self.num_timesteps:,}/{self.budget:,} steps, {self.objective} {value:.4f}, "
+                f"{elapsed / 60:.1f} min" + (", pruned" if self.pruned else "")
+            )
+        return not self.pruned  # False: SB3 stops learn()
 
 
-def run_trial(trial: Any, settings: TuneSettings) -> float:
+def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | None = None) -> float:
     """
     Train and score one trial (the study's objective function).
 
     :param trial: The Optuna trial.
     :param settings: The study.
+    :param log: Called with a line after each of the trial's evaluations (its progress), or ``None``.
     :return: The objective's mean over the last evaluations; ``optuna.TrialPruned`` is raised when pruned.
     """
     optuna = import_optuna()
@@ -228,6 +246,8 @@ def run_trial(trial: Any, settings: TuneSettings) -> float:
         trial,
         settings.objective,
         references,
+        log=log,
+        budget=settings.budget,
         eval_env=make_eval_env(config, settings.eval_episodes),
         eval_freq=max(1, interval // env.num_envs),
         n_eval_episodes=settings.eval_episodes,
@@ -321,13 +341,18 @@ def finished_trials(study: Any) -> int:
     return len(study.get_trials(deepcopy=False, states=states))
 
 
-def optimize(settings: TuneSettings, threads: int | None = 1, log: Callable[[str], None] = print) -> Any:
+def print_line(line: str) -> None:
+    """Print a line at once (a study's lines go to a log file, read while it runs)."""
+    print(line, flush=True)
+
+
+def optimize(settings: TuneSettings, threads: int | None = 1, log: Callable[[str], None] = print_line) -> Any:
     """
     Run trials in this process until the study has ``n_trials`` finished ones.
 
     :param settings: The study.
     :param threads: Torch threads (see :func:`~sb3_maddpg.torch_threads.use_torch_threads`).
-    :param log: Where each finished trial's line goes.
+    :param log: Where each trial's lines go: one per evaluation (its progress) and one when it ends.
     :return: The study.
     """
     optuna = import_optuna()
@@ -343,7 +368,7 @@ def optimize(settings: TuneSettings, threads: int | None = 1, log: Callable[[str
         settings.n_trials, states=(optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
     )
     if finished_trials(study) < settings.n_trials:
-        study.optimize(lambda trial: run_trial(trial, settings), callbacks=[stop, report], gc_after_trial=True)
+        study.optimize(lambda trial: run_trial(trial, settings, log), callbacks=[stop, report], gc_after_trial=True)
     return study
 
 
