@@ -151,6 +151,18 @@ def test_bad_settings_say_what_to_do(tmp_path: Path, changes: dict, message: str
         settings(tmp_path, **changes)
 
 
+def test_a_settings_policy_kwargs_stay_under_the_sampled_width(tmp_path: Path) -> None:
+    # A setting that shares parameters (or normalises layers) must keep doing so in every trial: the sample sets the
+    # width through policy_kwargs too, and replacing the setting's policy_kwargs whole dropped share_parameters.
+    shared = TINY.replace(model_kwargs={**TINY.model_kwargs, "policy_kwargs": {"share_parameters": True, "layer_norm": True}})
+    study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
+    sample = sample_maddpg_params(study.ask())
+    kwargs = settings(tmp_path, experiment=shared).run_config(sample).model_kwargs
+    assert kwargs["policy_kwargs"] == {"share_parameters": True, "layer_norm": True, **sample["policy_kwargs"]}
+    assert kwargs["learning_starts"] == TINY.model_kwargs["learning_starts"] and kwargs["gamma"] == sample["gamma"]
+    assert shared.model_kwargs["policy_kwargs"] == {"share_parameters": True, "layer_norm": True}  # not written into
+
+
 def test_fixed_parameters_hold_in_every_trial_and_the_others_are_searched(tmp_path: Path) -> None:
     fixed = {"transitions_per_update": 50, "width": 64, "learning_rate": 1e-3}
     study = run_study(settings(tmp_path, n_trials=3, fixed_params=fixed))

@@ -9,7 +9,7 @@ import sys
 
 import optuna
 
-STUDY = "n5_sorted_obs_utd25_min_dist_sum_transitions_per_update=25_batch_size=1024_width=64"
+STUDY = "n5_sorted_obs_utd25_shared_params_min_dist_sum_transitions_per_update=25_batch_size=1024_width=64"
 """The study ``run.sh`` runs (its default name: the setting, the objective and the fixed parameters)."""
 
 PAPER_VALUES = {"learning_rate": 1e-2, "noise_std": 0.1, "tau": 0.01, "gamma": 0.95, "actor_reg_coef": 1e-3}

@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Issue 21's tuning study at N=5 on the best configuration of the diagnosis (exp1 setting, `full` sharing, agents
-# and landmarks observed nearest first, one gradient step per 25 transitions): Optuna searches the learning rate,
+# and landmarks observed nearest first, one gradient step per 25 transitions, one actor and one critic shared by all
+# agents): Optuna searches the learning rate,
 # the exploration noise, tau, gamma and the actor regulariser; the costly parameters (update ratio, batch, width) are
 # fixed so that a trial costs what a diagnosis run of 400k steps does. Objective: min-dist sum (lower is better),
 # mean of the last 2 of 8 evaluations of 50 episodes, over 400k env steps (the diagnosis' best curve is flat from
-# 400k). Resumable: the study lives in results/tune.db (run the same command again; a killed trial is retried).
+# 400k). The paper's values of the searched parameters are enqueued as a trial (enqueue_baseline.py).
+# Resumable: the study lives in results/tune.db (run the same command again; a killed trial is retried).
 #   bash benchmarks/n5_tuning/run.sh                 # WORKERS=1 by default
 # Then: python benchmarks/n5_tuning/summarize.py     # writes summary.md and trials.csv
 set -u
@@ -13,7 +15,8 @@ WORKERS="${WORKERS:-1}"
 TRIALS="${TRIALS:-20}"
 export SDL_VIDEODRIVER=dummy
 mkdir -p benchmarks/n5_tuning/results
-nice -n 19 python -m sb3_maddpg.experiments tune --config benchmarks/n5_diagnosis/sorted_obs_utd25.json \
+python benchmarks/n5_tuning/enqueue_baseline.py sqlite:///benchmarks/n5_tuning/results/tune.db
+nice -n 19 python -m sb3_maddpg.experiments tune --config benchmarks/n5_diagnosis/sorted_obs_utd25_shared_params.json \
     --fix transitions_per_update=25 --fix batch_size=1024 --fix width=64 \
     --steps 400000 --evaluations 8 --last-evaluations 2 --eval-episodes 50 --objective min_dist_sum \
     --trials "$TRIALS" --workers "$WORKERS" --threads 1 --seed 0 \

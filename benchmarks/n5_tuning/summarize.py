@@ -74,11 +74,11 @@ def main(storage_path: Path, summary_path: Path) -> None:
             f"Study `{name}`: {states.count('complete')} complete, {states.count('pruned')} pruned, "
             f"{states.count('running')} running, {states.count('fail')} failed trials. Setting: simple_spread N=5, full "
             "observability with agents and landmarks observed nearest first, `full` sharing, one gradient step per 25 "
-            "transitions, batch 1024, 64-unit networks (fixed); 400k env steps per trial, seed 0; objective: min-dist "
+            "transitions, one actor and one critic shared by all agents, batch 1024, 64-unit networks (fixed); 400k "
+            "env steps per trial, seed 0; objective: min-dist "
             "sum (lower is better) over the last 2 of 8 evaluations of 50 episodes. The paper's values of the searched "
             "parameters (learning rate 0.01, noise 0.1, tau 0.01, gamma 0.95, regulariser 0.001) are a trial of the "
-            "study (`enqueue_baseline.py`); in the diagnosis this configuration scored 1.30 at 400k steps "
-            "(learning-curve evaluations, seeds 0-1).",
+            "study (`enqueue_baseline.py`).",
             "",
             "| rank | trial | min-dist sum | " + " | ".join(SEARCHED) + " | minutes |",
             "|---|---|---|" + "---|" * len(SEARCHED) + "---|",

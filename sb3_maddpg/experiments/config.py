@@ -40,6 +40,19 @@ def ordered_schemes(schemes: Iterable[str]) -> list[str]:
     return [scheme for scheme in SCHEMES if scheme in present] + sorted(present - set(SCHEMES))
 
 
+def merge_model_kwargs(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    """
+    :param base: Keyword arguments of an algorithm (e.g. a setting's ``model_kwargs``).
+    :param changes: Keyword arguments over them (e.g. a tuning trial's sample).
+    :return: ``changes`` over ``base`` (copies), their ``policy_kwargs`` merged key by key (``changes`` win): a
+        sample's network width keeps a setting's ``share_parameters`` or ``layer_norm``.
+    """
+    merged = copy.deepcopy({**base, **changes})
+    if isinstance(base.get("policy_kwargs"), dict) and isinstance(changes.get("policy_kwargs"), dict):
+        merged["policy_kwargs"] = copy.deepcopy({**base["policy_kwargs"], **changes["policy_kwargs"]})
+    return merged
+
+
 def setting_label(name: str, experiment: dict[str, Any] | None) -> str:
     """
     :param name: The experiment name.

@@ -24,7 +24,7 @@ from stable_baselines3.common.vec_env import VecMonitor
 
 from sb3_maddpg.evaluation import TeamEvalCallback
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
-from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
+from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig, merge_model_kwargs
 from sb3_maddpg.experiments.runner import load_algorithm, make_env, make_eval_env
 from sb3_maddpg.install_hint import extra_install_command
 from sb3_maddpg.torch_threads import use_torch_threads
@@ -146,11 +146,13 @@ class TuneSettings:
     def run_config(self, model_kwargs: dict[str, Any]) -> RunConfig:
         """
         :param model_kwargs: The trial's sampled keyword arguments.
-        :return: The trial's run: the experiment's first run with the trial's budget, seed and kwargs over its own.
+        :return: The trial's run: the experiment's first run with the trial's budget, seed and kwargs over its own
+            (:func:`~sb3_maddpg.experiments.config.merge_model_kwargs`: its ``policy_kwargs`` are kept under the
+            sample's network width).
         """
         base = self.experiment.replace(seeds=(self.seed,)).runs()[0]
         episodes = max(1, math.ceil(self.budget / base.episode_length))
-        merged = {**copy.deepcopy(base.model_kwargs), **model_kwargs}
+        merged = merge_model_kwargs(base.model_kwargs, model_kwargs)
         return dataclasses.replace(base, episodes=episodes, model_kwargs=merged, curve_points=0)
 
 
@@ -422,7 +424,7 @@ def best_preset(study: Any, settings: TuneSettings) -> dict[str, Any]:
         with the trial's ``model_kwargs`` over its own, named ``<experiment>_tuned``.
     """
     best = study.best_trial
-    model_kwargs = {**settings.experiment.model_kwargs, **best.user_attrs["model_kwargs"]}
+    model_kwargs = merge_model_kwargs(settings.experiment.model_kwargs, best.user_attrs["model_kwargs"])
     description = (
         f"{settings.experiment.name} with the best of {finished_trials(study)} trials of study "
         f"{settings.study_name!r} ({settings.objective} {best.value:.4f} over the last {settings.last_evaluations} of "
