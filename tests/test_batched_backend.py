@@ -248,6 +248,11 @@ def test_a_state_not_used_says_why_and_stale_temporary_files_are_removed(
     for path in (tmp_path / configs[0].run_id / "checkpoints").iterdir():
         path.unlink()
     restart_says("group_seeds_0-1.pt names checkpoints of tiny/full/seed_000 that are missing")
+    # A state of an earlier layout (e.g. buffers that stored next observations beside) is not used either.
+    saved = torch.load(state, map_location="cpu", weights_only=True)
+    saved["group"]["version"] = 1
+    torch.save(saved, state)
+    restart_says("group_seeds_0-1.pt is of another layout (version 1; this package reads version 2)")
     # A killed save's temporary file goes with the runs' stale states; another group's stays.
     ours, theirs = state.with_name(f".{state.name}.123.tmp"), state.with_name(".group_seeds_5.pt.123.tmp")
     ours.write_bytes(b"")

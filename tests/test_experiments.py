@@ -491,6 +491,24 @@ def test_a_setting_of_another_algorithm_is_labelled_with_its_name() -> None:
     assert setting_label("tag", other_task) == "tag (MATD3, simple_tag, 100,000 ep.)"
 
 
+def test_model_kwargs_from_the_command_line_keep_the_settings_policy_kwargs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # A setting that shares parameters, told on the command line to normalise layers too, does both.
+    setting = tmp_path / "shared.json"
+    policy_kwargs = {**SMOKE.model_kwargs["policy_kwargs"], "share_parameters": True}
+    shared = SMOKE.replace(name="shared", model_kwargs={**SMOKE.model_kwargs, "policy_kwargs": policy_kwargs})
+    setting.write_text(json.dumps(shared.to_dict()))
+    argv = ["run", "--config", str(setting), "--results", str(tmp_path / "r"), "--dry-run"]
+    assert main([*argv, "--model-kwargs", '{"policy_kwargs": {"layer_norm": true}}']) == 0
+    printed = json.loads(capsys.readouterr().out.splitlines()[0].split(": ", 1)[1])
+    assert printed["model_kwargs"]["policy_kwargs"] == {
+        **SMOKE.model_kwargs["policy_kwargs"],
+        "share_parameters": True,
+        "layer_norm": True,
+    }
+
+
 def test_a_setting_that_observes_every_agent_nearest_first_is_labelled_full() -> None:
     # exp1_tuned observes all 4 other agents, in order of distance: that is full observability, not "4 nearest".
     assert setting_label("exp1_tuned", EXP1_TUNED.to_dict()) == "exp1_tuned (N=5, full obs. nearest first, 100,000 ep.)"

@@ -2,13 +2,14 @@
 host's memory, and the batched backend splits a setting's seeds into groups that fit (or refuses one that cannot)."""
 
 import dataclasses
+from pathlib import Path
 from typing import Any
 
 import pytest
 import torch as th
 
 import sb3_maddpg.run_group.memory as memory
-from sb3_maddpg.experiments import SMOKE, ExperimentConfig
+from sb3_maddpg.experiments import SMOKE, ExperimentConfig, run_sweep
 from sb3_maddpg.experiments.batched import BatchedRunRefused, check_batched, memory_bound, plan_groups
 from sb3_maddpg.experiments.runner import build_model
 from sb3_maddpg.run_group import RunGroup
@@ -80,3 +81,14 @@ def test_runs_whose_buffers_cannot_fit_are_refused_before_training(monkeypatch: 
     with pytest.raises(BatchedRunRefused, match=r"tiny/full/seed_000 .*cannot train in a run group.*does not fit"):
         check_batched(tiny().runs(), device="cpu")
     check_batched(tiny().runs(), device=None)  # under Ray the workers' machines hold the buffers: not checked here
+
+
+def test_a_sweep_says_its_split_and_trains_groups_that_fit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    experiment = dataclasses.replace(tiny(seeds=3), schemes=("full",))
+    run_bytes = run_buffer_nbytes(build_model(experiment.runs()[0], device="cpu"))
+    monkeypatch.setattr(memory, "host_memory", lambda: int(5.5 * run_bytes))  # 40% of it: 2 runs
+    result = run_sweep([experiment], tmp_path, backend="batched", device="cpu", verbose=0)
+    assert result.ok and len(result.completed) == 3
+    log = (tmp_path / "sweep.log").read_text()
+    assert "in 2 run group(s) of up to 2 run(s) on cpu" in log
+    assert "tiny/full: groups of at most 2 runs (each run's replay buffer" in log

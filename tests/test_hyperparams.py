@@ -56,6 +56,8 @@ def test_tuned_presets_change_only_what_their_entry_says() -> None:
         assert tuned_preset.num_agent_neighbors == entry.env_kwargs["num_agent_neighbors"]
         assert tuned_preset.model_kwargs == entry.model_kwargs
         assert "num_agent_neighbors" not in tuned_preset.env_kwargs
+        entry_env = {name: value for name, value in entry.env_kwargs.items() if name != "num_agent_neighbors"}
+        assert tuned_preset.env_kwargs == {**paper.env_kwargs, **entry_env}
         changed = {
             field.name
             for field in dataclasses.fields(paper)

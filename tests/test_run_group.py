@@ -343,7 +343,7 @@ def test_a_state_for_saving_holds_full_buffers_without_a_copy() -> None:
 
 
 def test_each_run_samples_its_own_rows_from_its_own_generator() -> None:
-    buffers = RunReplayBuffers(2, capacity=6, obs_dim=1, action_dim=1, n_agents=1, rows_per_step=2)
+    buffers = RunReplayBuffers(2, capacity=6, obs_dim=1, action_dim=1, n_agents=1, rows_per_step=2, episode_length=3)
     for step in range(4):  # 8 rows into 6: the first two are overwritten
         values = th.tensor([[[step * 2.0], [step * 2.0 + 1]], [[-step * 2.0], [-step * 2.0 - 1]]])
         buffers.add(values, values, values, values, values)
@@ -354,38 +354,65 @@ def test_each_run_samples_its_own_rows_from_its_own_generator() -> None:
     assert th.equal(batch.observations[0, :, 0], buffers.observations[0, rows[0], 0])
 
 
+CUDA = pytest.mark.skipif(not th.cuda.is_available(), reason="needs a CUDA device")
+
+
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=CUDA)])
 @pytest.mark.parametrize("capacity_steps", [7, 9])  # 7: wraps mid-episode; 9: a multiple of the episode's 3 steps
-def test_next_observations_are_those_stored_with_each_transition(capacity_steps: int) -> None:
+def test_next_observations_are_those_stored_with_each_transition(capacity_steps: int, device: str) -> None:
     """The buffers keep next observations as the following step's rows, episode ends apart: every held row's next
     observations are the ones added with it (a plain store of every row beside them is the reference), while
-    filling, once full and wrapping, the newest step included."""
+    filling, once full and wrapping, the newest step included; and so do buffers loaded from a state saved on the
+    way (copied, or not), which go on being written."""
     n_runs, worlds, obs_dim, episode_length = 2, 2, 3, 3
-    buffers = RunReplayBuffers(2, capacity_steps * worlds, obs_dim, 1, 1, rows_per_step=worlds, episode_length=3)
+
+    def new_buffers() -> RunReplayBuffers:
+        return RunReplayBuffers(
+            n_runs, capacity_steps * worlds, obs_dim, 1, 1, device=device, rows_per_step=worlds, episode_length=3
+        )
+
+    buffers = new_buffers()
     generator = th.Generator().manual_seed(3)
     reference: dict[int, th.Tensor] = {}  # row -> the next observations added with it, [R, obs_dim]
     observations = th.randn(n_runs, worlds, obs_dim, generator=generator)
+    zeros = th.zeros(n_runs, worlds, 1)
     for step in range(4 * capacity_steps):
         end = step % episode_length == episode_length - 1
         next_observations = th.randn(n_runs, worlds, obs_dim, generator=generator)
         row = buffers.pos
-        buffers.add(
-            observations, observations[..., :1], next_observations, th.zeros(2, 2, 1), th.zeros(2, 2, 1), episode_end=end
-        )
+        on_device = (observations.to(device), next_observations.to(device), zeros.to(device))
+        buffers.add(on_device[0], on_device[0][..., :1], on_device[1], on_device[2], on_device[2], episode_end=end)
         for world in range(worlds):
             reference[row + world] = next_observations[:, world]
         observations = th.randn(n_runs, worlds, obs_dim, generator=generator) if end else next_observations
-        rows = th.arange(buffers.size).expand(n_runs, -1)
+        rows = th.arange(buffers.size, device=device).expand(n_runs, -1)
         expected = th.stack([reference[int(r)] for r in rows[0]], dim=1)
-        assert th.equal(buffers.get(rows).next_observations, expected), f"step {step}"
+        assert th.equal(buffers.get(rows).next_observations.cpu(), expected), f"step {step}"
+        if step in (capacity_steps + 1, 2 * capacity_steps + 2):  # full and wrapped; saved, then loaded afresh
+            copy = step == capacity_steps + 1
+            loaded = new_buffers()
+            loaded.load_state_dict(buffers.state_dict(copy=copy))
+            assert th.equal(loaded.get(rows).next_observations, buffers.get(rows).next_observations)
+            buffers = loaded
+
+
+def test_a_state_of_other_buffers_is_refused_with_what_differs() -> None:
+    saved = RunReplayBuffers(1, capacity=6, obs_dim=2, action_dim=1, n_agents=1, rows_per_step=2, episode_length=3)
+    other = RunReplayBuffers(1, capacity=6, obs_dim=2, action_dim=1, n_agents=1, rows_per_step=3, episode_length=3)
+    with pytest.raises(ValueError, match=r"has final_observations of shape \(1, 3, 2, 2\), these buffers \(1, 2, 3, 2\)"):
+        other.load_state_dict(saved.state_dict())
 
 
 def test_episodes_shorter_than_declared_are_refused() -> None:
     # Sized for an episode end every 3 steps: one every step outgrows the store of the episodes' last observations.
-    buffers = RunReplayBuffers(1, capacity=6, obs_dim=1, action_dim=1, n_agents=1, episode_length=3)
+    buffers = RunReplayBuffers(1, capacity=6, obs_dim=1, action_dim=1, n_agents=1, rows_per_step=1, episode_length=3)
     zeros = th.zeros(1, 1, 1)
     with pytest.raises(ValueError, match="Episodes end more often than every 3 steps"):
-        for _ in range(6):
-            buffers.add(zeros, zeros, zeros, zeros, zeros, episode_end=True)
+        for step in range(6):
+            before = (buffers.pos, buffers.size, buffers.observations.clone())
+            buffers.add(zeros + step, zeros, zeros, zeros, zeros, episode_end=True)
+    # The refused step wrote nothing: the buffers are as they were before it.
+    assert (buffers.pos, buffers.size) == before[:2] and th.equal(buffers.observations, before[2])
 
 
 def test_buffers_hold_about_half_of_storing_next_observations_beside() -> None:

@@ -71,7 +71,9 @@ def test_a_tiny_study_runs_and_gives_a_preset_run_takes(tmp_path: Path, capsys: 
     assert re.search(r"trial 1: 400/800 steps, min_dist_sum \d+\.\d{4}, \d+\.\d min\n", out)  # progress per evaluation
     config = ExperimentConfig.from_dict(json.loads(preset.read_text()))
     study = load_study(settings(tmp_path, study_name="smoke_min_dist_sum"))
-    assert config.name == "smoke_tuned" and config.model_kwargs["learning_rate"] == study.best_params["learning_rate"]
+    assert (
+        config.name == "smoke_min_dist_sum_best" and config.model_kwargs["learning_rate"] == study.best_params["learning_rate"]
+    )
     assert config.model_kwargs["learning_starts"] == SMOKE.model_kwargs["learning_starts"]  # the setting's own stay
     # The trial's value is its last evaluation's min-dist sum (last_evaluations=1): a real evaluation, not a constant.
     assert 0.0 < study.best_value < 10.0 and len({trial.value for trial in study.trials}) == 2
@@ -181,6 +183,7 @@ def test_fixed_parameters_hold_in_every_trial_and_the_others_are_searched(tmp_pa
         ({"hidden": 64}, r"--fix 'hidden' is not a sampled parameter: fix one of \['actor_reg_coef', 'batch_size'"),
         ({"width": 96}, r"--fix width=96 is not one of its choices \[64, 128, 256\]"),
         ({"learning_rate": 0.5}, r"--fix learning_rate=0.5 is outside its range \[0.0001, 0.02\]"),
+        ({"transitions_per_update": 25.0}, r"--fix transitions_per_update=25.0 is not one of its choices"),  # an int
     ],
 )
 def test_parameters_a_study_cannot_fix_are_refused(tmp_path: Path, fixed: dict, message: str) -> None:
@@ -196,6 +199,8 @@ def test_the_tune_command_takes_fixes_and_names_its_study_by_them(tmp_path: Path
     assert "fixed in every trial: transitions_per_update=50, width=64" in capsys.readouterr().out
     names = optuna.study.get_all_study_names(storage)
     assert names == ["smoke_min_dist_sum_transitions_per_update=50_width=64"]
+    assert main([*argv, "--fix", "width=64", "--fix", "transitions_per_update=50"]) == 0  # the same study, resumed
+    assert optuna.study.get_all_study_names(storage) == names
     assert main([*argv, "--fix", "width"]) == 2
     assert "--fix 'width' is not NAME=VALUE" in capsys.readouterr().err
 

@@ -9,7 +9,12 @@ import sys
 
 import optuna
 
-STUDY = "n5_sorted_obs_utd25_shared_params_min_dist_sum_transitions_per_update=25_batch_size=1024_width=64"
+from sb3_maddpg.experiments.tune import default_study_name
+
+FIXED = {"transitions_per_update": 25, "batch_size": 1024, "width": 64}
+"""The parameters ``run.sh`` fixes (its ``--fix`` options)."""
+
+STUDY = default_study_name("n5_sorted_obs_utd25_shared_params", "min_dist_sum", FIXED)
 """The study ``run.sh`` runs (its default name: the setting, the objective and the fixed parameters)."""
 
 PAPER_VALUES = {"learning_rate": 1e-2, "noise_std": 0.1, "tau": 0.01, "gamma": 0.95, "actor_reg_coef": 1e-3}
@@ -18,5 +23,5 @@ PAPER_VALUES = {"learning_rate": 1e-2, "noise_std": 0.1, "tau": 0.01, "gamma": 0
 if __name__ == "__main__":
     storage = sys.argv[1] if len(sys.argv) > 1 else "sqlite:///benchmarks/n5_tuning/results/tune.db"
     study = optuna.create_study(study_name=STUDY, storage=storage, direction="minimize", load_if_exists=True)
-    study.enqueue_trial({**PAPER_VALUES, "transitions_per_update": 25, "batch_size": 1024, "width": 64}, skip_if_exists=True)
+    study.enqueue_trial({**PAPER_VALUES, **FIXED}, skip_if_exists=True)
     print(f"enqueued the paper's values in {STUDY!r}: {PAPER_VALUES}")

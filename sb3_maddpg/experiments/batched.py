@@ -122,19 +122,24 @@ def memory_bound(device: str, log: Callable[[str], None] | None = None) -> Calla
     """
     from sb3_maddpg.run_group.memory import runs_that_fit
 
+    sizes: dict[str, int] = {}  # by group key: each setting and scheme's model is built and said once
+
     def most_runs(runs: Sequence[RunConfig]) -> int:
         config = runs[0]
-        model = build_model(config, device="cpu")
-        try:
-            size = runs_that_fit(model, resolve_device(device))
-        finally:
-            model.get_env().close()
-        if log is not None and size.runs < len(runs):
-            log(
-                f"{config.experiment}/{config.scheme}: groups of at most {size.runs} runs (each run's replay buffer "
-                f"{size.run_bytes / 1e9:.2f} GB; bound: {size.limit}); --runs-per-process sets another size"
-            )
-        return size.runs
+        key = group_key(config)
+        if key not in sizes:
+            model = build_model(config, device="cpu")
+            try:
+                size = runs_that_fit(model, resolve_device(device))
+            finally:
+                model.get_env().close()
+            if log is not None and size.runs < len(runs):
+                log(
+                    f"{config.experiment}/{config.scheme}: groups of at most {size.runs} runs (each run's replay buffer "
+                    f"{size.run_bytes / 1e9:.2f} GB; bound: {size.limit}); --runs-per-process sets another size"
+                )
+            sizes[key] = size.runs
+        return sizes[key]
 
     return most_runs
 
@@ -301,12 +306,17 @@ def _read_state(
     path: Path, configs: Sequence[RunConfig], results_dir: str | os.PathLike[str]
 ) -> tuple[dict[str, Any] | None, str]:
     """:return: :func:`load_state`'s state, or ``None`` and why not (a clause following the file's name)."""
+    from sb3_maddpg.run_group.trainer import STATE_VERSION
+
     try:
         state = th.load(path, map_location="cpu", weights_only=True)
     except Exception as error:  # a truncated or foreign file: start afresh
         return None, f"cannot be read ({type(error).__name__}: truncated, or not a state)"
     if not isinstance(state, dict) or state.get("configs") != [config.to_dict() for config in configs]:
         return None, "is of other runs or configs"
+    version = state["group"].get("version") if isinstance(state.get("group"), dict) else None
+    if version != STATE_VERSION:
+        return None, f"is of another layout (version {version}; this package reads version {STATE_VERSION})"
     for config, run in zip(configs, state["runs"]):
         if not _same_config(read_json(run_directory(results_dir, config) / CONFIG_FILE), config):
             return None, f"was saved with another {CONFIG_FILE} of {config.run_id}"
@@ -726,6 +736,7 @@ def run_batched(
     runs_per_process: int | None = None,
     threads: int = 1,
     verbose: int = 1,
+    most_runs: Callable[[Sequence[RunConfig]], int] | None = None,
 ) -> None:
     """
     Run the sweep's runs in groups (:func:`plan_groups`), one group after another in this process; a group that
@@ -739,9 +750,12 @@ def run_batched(
         in the device's memory, :func:`memory_bound`).
     :param threads: Torch threads.
     :param verbose: 1 to print each group's progress lines.
+    :param most_runs: For :func:`plan_groups` when ``runs_per_process`` is ``None`` (default: :func:`memory_bound` on
+        ``device``, saying a split on stdout).
     """
     th.set_num_threads(threads)
-    most_runs = memory_bound(device, log=print if verbose else None) if runs_per_process is None else None
+    if runs_per_process is None and most_runs is None:
+        most_runs = memory_bound(device, log=print if verbose else None)
     for group in plan_groups(configs, runs_per_process, most_runs):
         try:
             results = train_group(group, results_dir, device=device, verbose=verbose)

@@ -14,6 +14,7 @@ from sb3_maddpg.experiments.config import (
     VEC_ENVS,
     ExperimentConfig,
     load_experiment,
+    merge_model_kwargs,
 )
 from sb3_maddpg.experiments.stats import METRICS
 from sb3_maddpg.install_hint import extra_install_command
@@ -146,7 +147,7 @@ def build_parser() -> argparse.ArgumentParser:
     tune.add_argument("--neighbors", help="nearest other agents observed: an integer, or 'all'")
     tune.add_argument("--scheme", help="the critic_sharing scheme (default: the setting's first)")
     tune.add_argument("--env-kwargs", type=json.loads, help="JSON of the task constructor's keyword arguments")
-    tune.add_argument("--study-name", help="the study's name (default: <setting>_<objective>)")
+    tune.add_argument("--study-name", help="the study's name (default: <setting>_<objective>, then each --fix)")
     tune.add_argument("--storage", default="sqlite:///tune.db", help="Optuna storage URL (default: sqlite:///tune.db)")
     tune.add_argument("--trials", type=int, default=50, help="finished trials at which the study stops (default 50)")
     tune.add_argument("--steps", type=int, default=1_000_000, help="env steps per trial (default 1,000,000)")
@@ -197,11 +198,11 @@ def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
     for name in names:
         experiment = load_experiment(name)
         seeds = args.seed_list or (tuple(range(args.seeds)) if args.seeds is not None else None)
-        model_kwargs = {**experiment.model_kwargs, **args.model_kwargs} if args.model_kwargs else None
+        model_kwargs = merge_model_kwargs(experiment.model_kwargs, args.model_kwargs) if args.model_kwargs else None
         scheme_model_kwargs = None
         if args.scheme_model_kwargs:
             scheme_model_kwargs = {
-                scheme: {**experiment.scheme_model_kwargs.get(scheme, {}), **kwargs}
+                scheme: merge_model_kwargs(experiment.scheme_model_kwargs.get(scheme, {}), kwargs)
                 for scheme, kwargs in {**experiment.scheme_model_kwargs, **args.scheme_model_kwargs}.items()
             }
         experiment = experiment.replace(
@@ -291,7 +292,14 @@ def tune_command(args: argparse.Namespace) -> int:
     :param args: Parsed ``tune`` arguments.
     :return: The exit status.
     """
-    from sb3_maddpg.experiments.tune import TuneSettings, best_preset, describe_best, finished_trials, run_study
+    from sb3_maddpg.experiments.tune import (
+        TuneSettings,
+        best_preset,
+        default_study_name,
+        describe_best,
+        finished_trials,
+        run_study,
+    )
 
     experiment = load_experiment(args.config).replace(
         n_agents=args.n_agents, schemes=(args.scheme,) if args.scheme else None, env_kwargs=args.env_kwargs
@@ -301,10 +309,9 @@ def tune_command(args: argparse.Namespace) -> int:
         experiment = ExperimentConfig.from_dict({**experiment.to_dict(), "num_agent_neighbors": neighbors})
     try:
         fixed = parse_fixed_params(args.fix)
-        fixed_name = "".join(f"_{name}={value}" for name, value in fixed.items())
         settings = TuneSettings(
             experiment=experiment,
-            study_name=args.study_name or f"{experiment.name}_{args.objective}{fixed_name}",
+            study_name=args.study_name or default_study_name(experiment.name, args.objective, fixed),
             storage=args.storage,
             n_trials=args.trials,
             budget=args.steps,

@@ -321,7 +321,7 @@ class ExperimentConfig:
                 scheme=scheme,
                 seed=seed,
                 # Deep copies: algorithms may write into their kwargs, and the configs must stay as they were.
-                model_kwargs=copy.deepcopy({**self.model_kwargs, **self.scheme_model_kwargs.get(scheme, {})}),
+                model_kwargs=merge_model_kwargs(self.model_kwargs, self.scheme_model_kwargs.get(scheme, {})),
                 **shared,
             )
             for seed in self.seeds
@@ -403,7 +403,7 @@ def tuned_experiment(paper: ExperimentConfig) -> ExperimentConfig:
         name=f"{paper.name}_tuned",
         num_agent_neighbors=num_agent_neighbors,
         env_kwargs={**paper.env_kwargs, **env_kwargs},
-        model_kwargs={**paper.model_kwargs, **tuned.model_kwargs},
+        model_kwargs=merge_model_kwargs(paper.model_kwargs, tuned.model_kwargs),
         description=tuned.description,
     )
 

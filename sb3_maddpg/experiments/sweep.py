@@ -206,10 +206,14 @@ def _run_locked_sweep(
     # Ray's slots are known once it is up (workers=0 means all CPUs): run_ray reports them through on_parallel.
     parallel = workers if backend == "local" else max(1, workers) // max(1, threads)
     where = f"with {workers} worker(s) x {threads} thread(s)"
+    most_runs = None
+    group_lines: list[str] = []  # a setting's seeds split to fit the memory: said once the sweep log is open
     if backend == "batched":
-        from sb3_maddpg.experiments.batched import plan_groups
+        from sb3_maddpg.experiments.batched import memory_bound, plan_groups
 
-        groups = plan_groups(todo, execution.runs_per_process)
+        if execution.runs_per_process is None and not execution.on_ray:
+            most_runs = memory_bound(execution.device, log=group_lines.append)
+        groups = plan_groups(todo, execution.runs_per_process, most_runs)
         parallel = max((len(group) for group in groups), default=1)  # a group's runs finish together
         where = f"in {len(groups)} run group(s) of up to {parallel} run(s) on {execution.device}"
         if execution.on_ray:
@@ -218,6 +222,8 @@ def _run_locked_sweep(
     progress = SweepProgress(result.total, skipped, parallel, str(results_path / SWEEP_LOG), echo=verbose >= 1)
     names = ", ".join(experiment.name for experiment in experiments)
     progress.log(f"sweep of {result.total} runs ({names}) on {backend} {where}: {skipped} finished before, {len(todo)} to run")
+    for line in group_lines:
+        progress.log(line)
 
     def on_result(config: RunConfig, summary: dict[str, Any] | None, error: str | None) -> None:
         if summary is not None:
@@ -276,6 +282,7 @@ def _run_locked_sweep(
                 runs_per_process=execution.runs_per_process,
                 threads=threads,
                 verbose=run_verbose,
+                most_runs=most_runs,
             )
         else:
             run_ray(

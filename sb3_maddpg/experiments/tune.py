@@ -74,6 +74,17 @@ def sample_maddpg_params(trial: Any) -> dict[str, Any]:
     return {**values, "policy_kwargs": {"net_arch": {"pi": [width, width], "qf": [width, width, width]}}}
 
 
+def default_study_name(setting: str, objective: str, fixed: dict[str, Any]) -> str:
+    """
+    :param setting: The setting's name.
+    :param objective: A key of :data:`OBJECTIVES`.
+    :param fixed: The study's fixed parameters (``--fix``).
+    :return: ``<setting>_<objective>``, then each fixed parameter as ``_<name>=<value>`` in the order of their names
+        (so that the same fixes in another order resume the same study).
+    """
+    return f"{setting}_{objective}" + "".join(f"_{name}={fixed[name]}" for name in sorted(fixed))
+
+
 def check_fixed_params(fixed: dict[str, Any]) -> None:
     """
     Refuse parameters a study cannot fix: names it does not sample, or values outside their range or choices.
@@ -82,8 +93,10 @@ def check_fixed_params(fixed: dict[str, Any]) -> None:
     """
     for name, value in fixed.items():
         if name in CATEGORICAL_PARAMS:
-            if value not in CATEGORICAL_PARAMS[name]:
-                raise ValueError(f"--fix {name}={value!r} is not one of its choices {list(CATEGORICAL_PARAMS[name])}.")
+            choices = CATEGORICAL_PARAMS[name]
+            integers = all(isinstance(choice, int) for choice in choices)
+            if value not in choices or isinstance(value, bool) or (integers and not isinstance(value, int)):
+                raise ValueError(f"--fix {name}={value!r} is not one of its choices {list(choices)}.")
         elif name in LOG_UNIFORM_PARAMS:
             low, high = LOG_UNIFORM_PARAMS[name]
             if not isinstance(value, int | float) or isinstance(value, bool) or not low <= value <= high:
@@ -421,7 +434,8 @@ def best_preset(study: Any, settings: TuneSettings) -> dict[str, Any]:
     :param study: A study with a complete trial.
     :param settings: The study's settings.
     :return: The best trial as an experiment config (JSON-ready, for ``sb3-maddpg run --config``): the experiment
-        with the trial's ``model_kwargs`` over its own, named ``<experiment>_tuned``.
+        with the trial's ``model_kwargs`` over its own, named ``<study>_best`` (not ``<experiment>_tuned``: the
+        package's own ``exp1_tuned`` and ``exp2_tuned`` presets hold those names and their results' directories).
     """
     best = study.best_trial
     model_kwargs = merge_model_kwargs(settings.experiment.model_kwargs, best.user_attrs["model_kwargs"])
@@ -430,7 +444,7 @@ def best_preset(study: Any, settings: TuneSettings) -> dict[str, Any]:
         f"{settings.study_name!r} ({settings.objective} {best.value:.4f} over the last {settings.last_evaluations} of "
         f"{settings.n_evaluations} evaluations, {settings.budget:,} steps)"
     )
-    tuned = settings.experiment.replace(name=f"{settings.experiment.name}_tuned", model_kwargs=model_kwargs)
+    tuned = settings.experiment.replace(name=f"{settings.study_name}_best", model_kwargs=model_kwargs)
     return {**tuned.to_dict(), "description": description}
 
 

@@ -1,6 +1,7 @@
 """
-Tuned hyperparameters, rl-zoo3 style: one YAML file per algorithm (``maddpg.yml`` beside this module), one entry per
-setting, each with the measurement that put it there in the file's comments.
+Tuned hyperparameters, in the spirit of rl-zoo3's hyperparams files (nested here: the env's and the model's keyword
+arguments apart): one YAML file per algorithm (``maddpg.yml`` beside this module), one entry per setting, each with
+the measurement that put it there in the file's comments.
 
 MADDPG's own defaults stay the paper's, for reproduction; an entry says what to change, in a setting, to learn
 better than that. For example, the paper's experiment 1 at its best measured configuration::

@@ -77,8 +77,9 @@ class RunReplayBuffers:
         n_agents: int,
         selection_size: int = 0,
         device: th.device | str = "cpu",
-        rows_per_step: int = 1,
-        episode_length: int = 1,
+        *,
+        rows_per_step: int,
+        episode_length: int,
     ) -> None:
         if capacity < 1:
             raise ValueError(f"capacity must be at least 1 transition, got {capacity}.")
@@ -150,10 +151,14 @@ class RunReplayBuffers:
         """
         n = observations.shape[1]
         if n != self.rows_per_step:
-            raise ValueError(f"These buffers take {self.rows_per_step} transitions per run at a time, got {n}.")
+            raise ValueError(
+                f"These buffers take {self.rows_per_step} transitions per run at a time, got {n}: add one step of "
+                f"every world at once (rows_per_step={self.rows_per_step} rows per run)."
+            )
         if self.selection_size > 0 and selections is None:
             raise ValueError("These buffers store selections (selection_size > 0): pass the transitions' selections.")
         step = self.pos // n
+        slot = self._free_final_slot(step) if episode_end else -1  # checked before anything is written
         rows = slice(self.pos, self.pos + n)
         self.observations[:, rows] = observations
         self.actions[:, rows] = actions
@@ -162,25 +167,29 @@ class RunReplayBuffers:
         if selections is not None and self.selection_size > 0:
             self.selections[:, rows] = selections.to(th.int16)
         self.newest_next_observations.copy_(next_observations)
-        slot = self._store_final(step, next_observations) if episode_end else -1
+        if episode_end:
+            self.final_observations[:, slot] = next_observations
+            self._final_owner[slot] = step
+            self.finals_written += 1
         self.final_slot[step] = slot
         self._final_slot_host[step] = slot
         self.pos = (self.pos + n) % self.capacity
         self.size = min(self.size + n, self.capacity)
 
-    def _store_final(self, step: int, next_observations: th.Tensor) -> int:
-        """:return: The slot the episodes' last observations of step slot ``step`` are written to."""
+    def _free_final_slot(self, step: int) -> int:
+        """
+        :param step: The step slot about to be written, whose step ends the episodes.
+        :return: The slot of :attr:`final_observations` its next observations go to (the next in turn).
+        :raise ValueError: When that slot still holds a held step's (episodes shorter than ``episode_length``).
+        """
         slot = self.finals_written % len(self._final_owner)
         owner = self._final_owner[slot]
-        # The slot's last owner must have been overwritten since: else episodes were shorter than declared.
+        # The slot's last owner must have been overwritten since (or be this very step slot, being rewritten now).
         if owner >= 0 and owner != step and self._final_slot_host[owner] == slot:
             raise ValueError(
                 f"Episodes end more often than every {self.episode_length} steps: build the buffers with the "
                 "episodes' real (shortest) length as episode_length."
             )
-        self.final_observations[:, slot] = next_observations
-        self._final_owner[slot] = step
-        self.finals_written += 1
         return slot
 
     def sample_rows(self, batch_size: int, generators: Sequence[th.Generator]) -> th.Tensor:
@@ -260,6 +269,13 @@ class RunReplayBuffers:
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """:param state: A state of :meth:`state_dict`, of buffers of the same sizes (its tensors on any device)."""
+        for name in ("final_observations", "final_slot", "newest_next_observations"):
+            if tuple(state[name].shape) != tuple(getattr(self, name).shape):
+                raise ValueError(
+                    f"This buffers' state has {name} of shape {tuple(state[name].shape)}, these buffers "
+                    f"{tuple(getattr(self, name).shape)}: load a state of buffers of the same runs, capacity, worlds "
+                    "and episode length."
+                )
         filled = int(state["size"])
         for name in ROW_FIELDS:
             getattr(self, name)[:, :filled] = state[name].to(self.device)

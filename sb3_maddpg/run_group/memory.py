@@ -65,7 +65,7 @@ class GroupSize:
 
     :param runs: The most runs (at least 1).
     :param run_bytes: One run's replay buffer.
-    :param limit: What bounds it, in words (e.g. ``"80% of cuda:0's 139.8 GB"``).
+    :param limit: What bounds it, in words (e.g. ``"80% of cuda:0's 150.1 GB"``; GB are 10^9 bytes).
     """
 
     runs: int
