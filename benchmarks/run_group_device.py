@@ -18,7 +18,7 @@ import torch as th
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import SimpleSpreadVecEnv
 from sb3_maddpg.run_group import RunGroup
-from sb3_maddpg.run_group.buffer import replay_nbytes
+from sb3_maddpg.run_group.buffer import buffer_capacity, replay_nbytes
 
 PROTOCOL_STEPS = 155 * 2_500_000 + 155 * 3_750_000
 """Env steps of the paper's two experiments: 5 schemes x 31 seeds each, 100,000 and 150,000 episodes of 25 steps."""
@@ -34,7 +34,7 @@ def buffer_bytes(n_agents: int, buffer_size: int, worlds: int) -> int:
     """:return: One run's replay buffer on the device, as :meth:`~sb3_maddpg.run_group.RunReplayBuffers.nbytes` counts
     it (next observations kept as the following step's rows: see :mod:`sb3_maddpg.run_group.buffer`)."""
     layout = SimpleSpreadVecEnv(1, n_agents=n_agents).agent_layout
-    capacity = max(worlds, buffer_size // worlds * worlds)
+    capacity = buffer_capacity(buffer_size, worlds)
     return replay_nbytes(1, capacity, layout.obs_dim, layout.action_dim, n_agents, worlds, episode_length=25)
 
 

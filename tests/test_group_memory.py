@@ -92,3 +92,14 @@ def test_a_sweep_says_its_split_and_trains_groups_that_fit(tmp_path: Path, monke
     log = (tmp_path / "sweep.log").read_text()
     assert "in 2 run group(s) of up to 2 run(s) on cpu" in log
     assert "tiny/full: groups of at most 2 runs (each run's replay buffer" in log
+
+
+def test_a_sweep_warns_of_groups_asked_for_that_may_not_fit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    experiment = dataclasses.replace(tiny(seeds=3), schemes=("full",))
+    run_bytes = run_buffer_nbytes(build_model(experiment.runs()[0], device="cpu"))
+    monkeypatch.setattr(memory, "host_memory", lambda: int(5.5 * run_bytes))  # 40% of it: 2 runs
+    result = run_sweep([experiment], tmp_path, backend="batched", device="cpu", verbose=0, runs_per_process=3)
+    assert result.ok and len(result.completed) == 3  # as asked: one group of 3 (tiny buffers, no harm here)
+    log = (tmp_path / "sweep.log").read_text()
+    assert "in 1 run group(s) of up to 3 run(s)" in log
+    assert "tiny/full: groups of 3 runs (--runs-per-process) may not fit in memory: 2 fit by the package's estimate" in log

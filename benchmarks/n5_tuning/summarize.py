@@ -52,6 +52,7 @@ def importances(study: Any) -> dict[str, float]:
 
 
 def fmt(value: Any, digits: int = 3) -> str:
+    """:return: A table cell: blank for None, small floats in ``g`` format, others with ``digits`` decimals."""
     if value is None:
         return ""
     if isinstance(value, float):
@@ -60,6 +61,10 @@ def fmt(value: Any, digits: int = 3) -> str:
 
 
 def main(storage_path: Path, summary_path: Path) -> None:
+    """
+    :param storage_path: The study's SQLite file.
+    :param summary_path: Where ``summary.md`` goes (``trials.csv`` beside it).
+    """
     storage = f"sqlite:///{storage_path}"
     names = optuna.study.get_all_study_names(storage)
     lines = ["# N=5 tuning study", ""]

@@ -107,7 +107,10 @@ def plan_groups(
 
 
 def resolve_device(device: str) -> th.device:
-    """:return: The device a group trains on for ``--device`` (``"auto"``: CUDA when there is a GPU, else the CPU)."""
+    """
+    :param device: ``--device``: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:<index>"``.
+    :return: The device a group trains on (``"auto"``: CUDA when there is a GPU, else the CPU).
+    """
     if device == "auto":
         return th.device("cuda" if th.cuda.is_available() else "cpu")
     return th.device(device)
@@ -690,7 +693,7 @@ def _train_runs(
             for key, value in row.items():
                 model.logger.record(key, value)
             model.logger.dump(int(row.get("time/total_timesteps", 0)))
-    resolved = "cuda" if device == "auto" and th.cuda.is_available() else "cpu" if device == "auto" else device
+    resolved = resolve_device(device)
     group = RunGroup(models, device=resolved)
     if resumed is not None:
         group.load_state_dict(resumed["group"])

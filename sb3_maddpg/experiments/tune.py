@@ -357,7 +357,7 @@ def finished_trials(study: Any) -> int:
 
 
 def print_line(line: str) -> None:
-    """Print a line at once (a study's lines go to a log file, read while it runs)."""
+    """:param line: Printed at once (a study's lines go to a log file, read while it runs)."""
     print(line, flush=True)
 
 

@@ -18,6 +18,15 @@ ROW_FIELDS = ("observations", "actions", "rewards", "dones", "selections")
 """The tensors with one row per transition (``[R, capacity, ...]``)."""
 
 
+def buffer_capacity(buffer_size: int, worlds: int) -> int:
+    """
+    :param buffer_size: A model's ``buffer_size`` (transitions).
+    :param worlds: Its worlds per run (transitions per step).
+    :return: The transitions a group's buffers keep per run: whole steps, at least one.
+    """
+    return max(worlds, buffer_size // worlds * worlds)
+
+
 def final_slots(steps: int, episode_length: int) -> int:
     """
     :param steps: Steps the buffers hold (capacity / rows per step).
@@ -37,7 +46,17 @@ def replay_nbytes(
     episode_length: int,
     selection_size: int = 0,
 ) -> int:
-    """:return: The bytes :class:`RunReplayBuffers` of these sizes hold on their device (float32, int16 selections)."""
+    """
+    :param n_runs: Number of runs ``R``.
+    :param capacity: Transitions each run keeps.
+    :param obs_dim: Joint observation size.
+    :param action_dim: Joint action size.
+    :param n_agents: Number of agents.
+    :param rows_per_step: Rows each step adds (the worlds per run).
+    :param episode_length: The fewest steps between two episode ends.
+    :param selection_size: ``k`` selected agents per agent (0: no selections stored).
+    :return: The bytes :class:`RunReplayBuffers` of these sizes hold on their device (float32, int16 selections).
+    """
     steps = capacity // rows_per_step
     floats = n_runs * (capacity * (obs_dim + action_dim + 2 * n_agents) + rows_per_step * obs_dim)
     floats += n_runs * final_slots(steps, episode_length) * rows_per_step * obs_dim

@@ -7,21 +7,12 @@ from dataclasses import dataclass
 import torch as th
 
 from sb3_maddpg.maddpg import MADDPG
-from sb3_maddpg.run_group.buffer import replay_nbytes
+from sb3_maddpg.run_group.buffer import buffer_capacity, replay_nbytes
 from sb3_maddpg.run_group.worlds import SpreadTask
 
 MEMORY_FRACTION = 0.8
 """The share of a device's (and the host's) total memory the groups' replay buffers may fill: the rest is for the
 networks, batches, the CUDA context and the process itself."""
-
-
-def buffer_capacity(buffer_size: int, worlds: int) -> int:
-    """
-    :param buffer_size: A model's ``buffer_size`` (transitions).
-    :param worlds: Its worlds per run (transitions per step).
-    :return: The transitions a group keeps per run: whole steps, at least one.
-    """
-    return max(worlds, buffer_size // worlds * worlds)
 
 
 def run_buffer_nbytes(model: MADDPG) -> int:
@@ -31,7 +22,10 @@ def run_buffer_nbytes(model: MADDPG) -> int:
     """
     env, layout = model.get_env(), model.agent_layout
     if env is None or layout is None:
-        raise ValueError("The model has no env: a group's buffers are sized from the env's team and worlds.")
+        raise ValueError(
+            "The model has no env, but a group's buffers are sized from the env's team and worlds: build the model "
+            "with its env, or give it one with model.set_env(env)."
+        )
     worlds = env.num_envs
     task = SpreadTask.from_env(env)
     return replay_nbytes(
@@ -52,7 +46,10 @@ def host_memory() -> int:
 
 
 def device_memory(device: th.device) -> int:
-    """:return: The total memory of ``device`` in bytes (the host's for the CPU)."""
+    """
+    :param device: A device.
+    :return: Its total memory in bytes (the host's for the CPU).
+    """
     if device.type == "cuda":
         return int(th.cuda.get_device_properties(device).total_memory)
     return host_memory()

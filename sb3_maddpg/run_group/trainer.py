@@ -14,9 +14,8 @@ from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.noise import per_env_noise
-from sb3_maddpg.run_group.buffer import RunReplayBuffers
+from sb3_maddpg.run_group.buffer import RunReplayBuffers, buffer_capacity
 from sb3_maddpg.run_group.checks import check_models
-from sb3_maddpg.run_group.memory import buffer_capacity
 from sb3_maddpg.run_group.selection import select_on_device
 from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams, clip_grad_norm_per_run_and_agent
 from sb3_maddpg.run_group.worlds import METRICS, SpreadRuns, SpreadTask
