@@ -3,7 +3,9 @@
 # each factor against the paper's configuration in one sweep, 3 seeds x 1M steps, configs in priority order
 # (four gradient steps per 100 transitions moved ahead on 2026-12-02: learning followed gradient steps, not env steps;
 # then, the same day, one-seed probes on the best of them, nearest-first with one step per 25 transitions, ahead of the
-# paper-based factors still to finish: their configs list seed 0 only until one leads).
+# paper-based factors still to finish: their configs list seed 0 only until one leads; and then, when nearest-first
+# observations with a shared actor and critic led by far (0.92-1.02 at 350k steps, seed 0), probes on that first,
+# then the paper-based factors the issue lists: noise, layer normalisation, width, one step per 10 transitions).
 # Resumable: run it again and finished runs are skipped. Usage: bash benchmarks/n5_diagnosis/run.sh
 # Then: python benchmarks/n5_diagnosis/summarize.py
 set -u
@@ -12,9 +14,11 @@ RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-2}"
 export SDL_VIDEODRIVER=dummy
 configs=()
-for factor in paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 \
-    sorted_obs_batch256_utd25 sorted_obs_utd25_shared_params sorted_obs_utd25_matd3 sorted_obs_utd25_layer_norm \
-    sorted_obs_batch256_utd10 sorted_obs_utd25_lr1e-3 utd25 shared_params batch256; do
+for factor in paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 sorted_obs_batch256_utd25 sorted_obs_utd25_shared_params \
+    sorted_obs_utd25_shared_params_lr1e-3 sorted_obs_utd10_shared_params sorted_obs_utd25_shared_params_layer_norm \
+    sorted_obs_utd25_shared_params_matd3 \
+    noise0.3 layer_norm shared_params batch256 utd25 width128 utd10 \
+    sorted_obs_utd25_matd3 sorted_obs_utd25_layer_norm sorted_obs_batch256_utd10 sorted_obs_utd25_lr1e-3; do
     configs+=(--config "benchmarks/n5_diagnosis/$factor.json")
 done
 nice -n 19 python -m sb3_maddpg.experiments run "${configs[@]}" --results "$RESULTS_ROOT/n5_diagnosis/results" \
