@@ -97,6 +97,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     group.add_argument("--n-envs", type=int, help=f"worlds stepped together in training (default {DEFAULT_N_ENVS})")
     group.add_argument("--keep-checkpoints", action=argparse.BooleanOptionalAction, default=None, help="keep model files")
+    group.add_argument(
+        "--normalize-observations",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="normalise the observations by their running mean and variance (SB3's VecNormalize; rewards raw)",
+    )
     execution = run.add_argument_group("execution")
     execution.add_argument(
         "--backend",
@@ -221,6 +227,7 @@ def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
             env_kwargs=args.env_kwargs,
             score_agents=args.score_agents,
             keep_checkpoints=args.keep_checkpoints,
+            normalize_observations=args.normalize_observations,
             vec_env=args.vec_env,
             n_envs=args.n_envs,
             algorithm=ALGORITHMS[args.algo] if args.algo else None,

@@ -143,6 +143,9 @@ class RunConfig:
         ``{"continuous_actions": false}``).
     :param score_agents: Agent ids whose summed return is scored as ``group_return`` (e.g. the adversaries of
         ``simple_tag``); empty for none.
+    :param normalize_observations: Normalise the observations the model sees by their running mean and variance
+        (SB3's ``VecNormalize``, rewards left raw: the critics learn from per-agent rewards); the statistics are saved
+        beside each checkpoint, and each checkpoint is evaluated with its own.
     """
 
     experiment: str
@@ -165,6 +168,7 @@ class RunConfig:
     env: str = DEFAULT_ENV
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     score_agents: tuple[str, ...] = ()
+    normalize_observations: bool = False
 
     def __post_init__(self) -> None:
         _check_vec_env(self.vec_env, self.n_envs)
@@ -275,6 +279,7 @@ class ExperimentConfig:
     :param env: The task (see :class:`RunConfig`).
     :param env_kwargs: Keyword arguments for the task's constructor.
     :param score_agents: Agent ids whose summed return is scored as ``group_return``.
+    :param normalize_observations: See :class:`RunConfig`.
     """
 
     name: str
@@ -299,6 +304,7 @@ class ExperimentConfig:
     env: str = DEFAULT_ENV
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     score_agents: tuple[str, ...] = ()
+    normalize_observations: bool = False
 
     def __post_init__(self) -> None:
         _check_vec_env(self.vec_env, self.n_envs)

@@ -10,10 +10,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.logger import configure
-from stable_baselines3.common.vec_env import VecEnv, VecMonitor
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
 
 from sb3_maddpg.behaviour import team_behaviour
 from sb3_maddpg.evaluation import TeamEvalCallback, eval_keys, evaluate_team, write_rows
@@ -55,14 +56,78 @@ def make_env(config: RunConfig, n_envs: int | None = None) -> VecEnv:
     return make_task_vec_env(config, config.n_envs if n_envs is None else n_envs)
 
 
+def make_train_env(config: RunConfig) -> VecEnv:
+    """
+    :param config: The run.
+    :return: Its training env: the task, monitored, and with ``normalize_observations`` in a ``VecNormalize`` that
+        normalises observations only (the critics learn from the raw per-agent rewards).
+    """
+    env: VecEnv = VecMonitor(make_env(config))
+    if config.normalize_observations:
+        env = VecNormalize(env, norm_obs=True, norm_reward=False)
+    return env
+
+
 def make_eval_env(config: RunConfig, n_episodes: int) -> VecEnv:
     """
     :param config: The run.
     :param n_episodes: Episodes per evaluation.
-    :return: An evaluation env: on the batched env, one world per episode, so an evaluation takes one episode's steps.
+    :return: An evaluation env: on the batched env, one world per episode, so an evaluation takes one episode's steps;
+        with ``normalize_observations``, in a ``VecNormalize`` that does not update its statistics (they are the
+        training env's, copied at each evaluation, or a checkpoint's: :func:`load_observation_statistics`).
     """
     batched = config.env == DEFAULT_ENV and config.vec_env == "batched"
-    return make_env(config, n_episodes if batched else 1)
+    env = make_env(config, n_episodes if batched else 1)
+    if config.normalize_observations:
+        env = VecNormalize(env, training=False, norm_obs=True, norm_reward=False)
+    return env
+
+
+def statistics_path(model_path: str | os.PathLike[str]) -> Path:
+    """:return: Where a checkpoint's observation statistics are saved: ``model_<steps>_steps.vecnormalize.pkl``."""
+    return Path(model_path).with_suffix(".vecnormalize.pkl")
+
+
+def load_observation_statistics(eval_env: VecEnv, model_path: str | os.PathLike[str]) -> None:
+    """
+    Give an evaluation env (of :func:`make_eval_env`, with ``normalize_observations``) a checkpoint's observation
+    statistics, so that the checkpoint is evaluated on the observations it was trained on.
+
+    :param eval_env: The evaluation env (a ``VecNormalize``).
+    :param model_path: The checkpoint's model file (its statistics beside it, :func:`statistics_path`).
+    """
+    if not isinstance(eval_env, VecNormalize):
+        raise TypeError("The evaluation env has no VecNormalize: build it with make_eval_env for a normalising run.")
+    path = statistics_path(model_path)
+    if not path.exists():
+        raise FileNotFoundError(
+            f"{path} is missing: a run that normalises observations saves them beside each checkpoint; train the run "
+            "again (its directory is incomplete)."
+        )
+    eval_env.obs_rms = copy.deepcopy(VecNormalize.load(str(path), eval_env.venv).obs_rms)
+
+
+class NormalizedObservationPolicy:
+    """
+    A model that acts on raw observations: each is normalised by an evaluation env's statistics first (for
+    :func:`~sb3_maddpg.behaviour.team_behaviour`, which reads positions from the raw observations).
+
+    :param model: The model (trained on normalised observations).
+    :param normalization: The ``VecNormalize`` whose statistics normalise the observations.
+    """
+
+    def __init__(self, model: Any, normalization: VecNormalize) -> None:
+        self.model = model
+        self.normalization = normalization
+
+    def predict(self, observation: np.ndarray, deterministic: bool = True) -> tuple[np.ndarray, None]:
+        """
+        :param observation: Raw observations.
+        :param deterministic: Passed on.
+        :return: The model's actions for them, normalised.
+        """
+        actions, _ = self.model.predict(self.normalization.normalize_obs(observation), deterministic=deterministic)
+        return actions, None
 
 
 class CheckpointAtSteps(BaseCallback):
@@ -85,6 +150,9 @@ class CheckpointAtSteps(BaseCallback):
             path = self.save_dir / f"model_{self.num_timesteps}_steps.zip"
             self.save_dir.mkdir(parents=True, exist_ok=True)
             self.model.save(path)
+            normalization = self.model.get_vec_normalize_env()
+            if normalization is not None:  # the checkpoint acts on observations normalised by these statistics
+                normalization.save(str(statistics_path(path)))
             self.saved.append((self.num_timesteps, path))
         return True
 
@@ -100,6 +168,8 @@ def final_behaviour(config: RunConfig, model: Any, eval_env: VecEnv) -> dict[str
     neighbors = config.env_kwargs.get("num_landmark_neighbors")
     if config.env != DEFAULT_ENV or (neighbors is not None and neighbors < config.n_agents):
         return None
+    if isinstance(eval_env, VecNormalize):  # the behaviour reads positions from raw observations
+        model, eval_env = NormalizedObservationPolicy(model, eval_env), eval_env.venv
     return team_behaviour(model, eval_env, n_episodes=config.eval_episodes, seed=config.eval_seed)
 
 
@@ -175,13 +245,13 @@ def build_model(config: RunConfig, **kwargs: Any) -> Any:
     """
     :param config: The run.
     :param kwargs: More keyword arguments for the algorithm (e.g. ``device``), under the config's ``model_kwargs``.
-    :return: The run's untrained model, on a new training env (monitored).
+    :return: The run's untrained model, on a new training env (:func:`make_train_env`).
     """
     algorithm: Any = load_algorithm(config.algorithm)
     # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.
     return algorithm(
         "MlpPolicy",
-        VecMonitor(make_env(config)),
+        make_train_env(config),
         critic_sharing=config.scheme,
         seed=config.seed,
         **{**kwargs, **copy.deepcopy(config.model_kwargs)},
@@ -248,6 +318,8 @@ def finish_run(
     keys = eval_keys(metrics, config.score_agents)
     for steps, path in saved:
         checkpoint = algorithm.load(path, device="cpu")
+        if config.normalize_observations:
+            load_observation_statistics(eval_env, path)
         result = evaluate_team(
             checkpoint,
             eval_env,

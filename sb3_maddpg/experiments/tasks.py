@@ -71,6 +71,7 @@ def task_metrics(config: RunConfig) -> tuple[DeclaredMetric, ...]:
 
 def describe(config: RunConfig) -> str:
     """:return: The task in a few words, for progress lines."""
+    normalized = ", observations normalised" if config.normalize_observations else ""
     if config.env == DEFAULT_ENV:
-        return f"{config.n_envs} {config.vec_env} simple_spread env(s)"
-    return f"{config.n_envs} {config.env} env(s)"
+        return f"{config.n_envs} {config.vec_env} simple_spread env(s){normalized}"
+    return f"{config.n_envs} {config.env} env(s){normalized}"

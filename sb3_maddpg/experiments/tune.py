@@ -20,12 +20,10 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
-from stable_baselines3.common.vec_env import VecMonitor
-
 from sb3_maddpg.evaluation import TeamEvalCallback
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
 from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig, merge_model_kwargs
-from sb3_maddpg.experiments.runner import load_algorithm, make_env, make_eval_env
+from sb3_maddpg.experiments.runner import load_algorithm, make_eval_env, make_train_env
 from sb3_maddpg.install_hint import extra_install_command
 from sb3_maddpg.torch_threads import use_torch_threads
 
@@ -253,7 +251,7 @@ def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | N
         from sb3_maddpg.experiments.normalised_table import setting_references
 
         references = setting_references(settings.experiment.to_dict())
-    env = VecMonitor(make_env(config))
+    env = make_train_env(config)
     algorithm: Any = load_algorithm(config.algorithm)
     model = algorithm("MlpPolicy", env, critic_sharing=config.scheme, seed=config.seed, **copy.deepcopy(config.model_kwargs))
     interval = max(1, settings.budget // settings.n_evaluations)
