@@ -44,7 +44,12 @@ def test_every_entry_reaches_the_env_and_the_model(setting: str) -> None:
     env = SimpleSpreadVecEnv(n_envs=2, n_agents=tuned.n_agents, **tuned.env_kwargs)
     model = MADDPG("MlpPolicy", env, seed=0, **tuned.model_kwargs)
     for name, value in tuned.model_kwargs.items():
-        assert getattr(model, name) == value, name
+        if name == "policy_kwargs":  # MADDPG adds the team's layout and scheme to them
+            assert {key: model.policy_kwargs[key] for key in value} == value
+        else:
+            assert getattr(model, name) == value, name
+    shared = tuned.model_kwargs.get("policy_kwargs", {}).get("share_parameters", False)
+    assert model.actor.mlp.share_parameters == model.critic.mlp.share_parameters == shared  # reaches the networks
     assert any(getattr(model, name) != PAPER_DEFAULTS[name] for name in tuned.model_kwargs if name in PAPER_DEFAULTS)
 
 
