@@ -30,13 +30,19 @@ BEHAVIOUR_RADIUS = 0.3
 def final_distances(final_observations: np.ndarray, n_agents: int) -> tuple[np.ndarray, np.ndarray]:
     """
     :param final_observations: Joint observations at episodes' last steps, ``[episodes, n_agents * obs_size]``, with
-        every landmark observed (``num_landmark_neighbors`` ``None`` or N).
+        every landmark observed (``num_landmark_neighbors`` ``None`` or N: in index order, or nearest first).
     :param n_agents: Agents (and landmarks).
     :return: ``distances[e, i, l]``, agent i to landmark l, and ``speeds[e, i]``.
     """
     per_agent = final_observations.reshape(final_observations.shape[0], n_agents, -1).astype(np.float64)
     offsets = per_agent[:, :, 2 * DIM_P : 2 * DIM_P + DIM_P * n_agents].reshape(-1, n_agents, n_agents, DIM_P)
-    return np.linalg.norm(offsets, axis=-1), np.linalg.norm(per_agent[:, :, :DIM_P], axis=-1)
+    # Landmark l is agent 0's l-th: each agent lists the landmarks in its own order when it observes them nearest
+    # first, so its slots are matched to agent 0's by their absolute positions (own position plus offset).
+    absolute = per_agent[:, :, None, DIM_P : 2 * DIM_P] + offsets  # [episode, agent, slot, xy]
+    gaps = np.linalg.norm(absolute[:, :, :, None, :] - absolute[:, :1, None, :, :], axis=-1)  # [e, agent, slot, l]
+    slot_of = gaps.argmin(axis=2)  # [episode, agent, landmark]: the agent's slot holding landmark l
+    distances = np.take_along_axis(np.linalg.norm(offsets, axis=-1), slot_of, axis=2)
+    return distances, np.linalg.norm(per_agent[:, :, :DIM_P], axis=-1)
 
 
 def behaviour_of(distances: np.ndarray, speeds: np.ndarray, radius: float = BEHAVIOUR_RADIUS) -> dict[str, float]:

@@ -41,6 +41,24 @@ def test_final_distances_read_a_placed_worlds_observation() -> None:
     np.testing.assert_allclose(speeds[0], [0.5, 0.0, 1.0], atol=1e-6)
 
 
+def test_final_distances_read_landmarks_observed_nearest_first() -> None:
+    # The same placed worlds observed nearest first: each agent lists the landmarks in its own order, and the
+    # distances must still be agent i to landmark l (matched by absolute position), not agent i to its l-th nearest.
+    env = SimpleSpreadVecEnv(n_envs=1, n_agents=3, num_landmark_neighbors=3, num_agent_neighbors=2)
+    env.reset()
+    worlds = env.worlds
+    worlds.agent_pos[0] = [[0.0, 0.0], [0.5, 0.5], [-0.5, 0.2]]
+    worlds.landmark_pos[0] = [[0.3, -0.4], [1.0, 1.0], [-0.9, 0.0]]
+    worlds.agent_vel[0] = [[0.3, 0.4], [0.0, 0.0], [0.0, -1.0]]
+    observation = worlds.observations(worlds.distances()).reshape(1, -1)
+    distances, _ = final_distances(observation, 3)
+    truth = np.linalg.norm(worlds.agent_pos[0][:, None] - worlds.landmark_pos[0][None], axis=-1)
+    agent_0_order = np.argsort(truth[0])  # landmark l of the result is agent 0's l-th nearest
+    np.testing.assert_allclose(distances[0], truth[:, agent_0_order], atol=1e-6)
+    # So the behaviour is the index-ordered observation's: min-dist sum 0.5 + 0.5 + 0.4 = 1.4.
+    assert behaviour_of(distances, np.zeros((1, 3)))["min_dist_sum"] == pytest.approx(truth.min(axis=0).sum(), abs=1e-6)
+
+
 @pytest.mark.parametrize("path", ["batched", "mpe2"])
 def test_the_scripted_team_spreads_and_the_random_one_strays(path: str) -> None:
     env = make_simple_spread_vec_env(20 if path == "batched" else 2, path, n_agents=3)

@@ -64,6 +64,20 @@ def mean_std(values: list[float]) -> str:
     return f"{statistics.mean(values):.3f} ({statistics.stdev(values):.3f})"
 
 
+def behaviour_recorded_right(results: Path, summary: dict[str, Any]) -> bool:
+    """
+    :return: Whether a run's recorded behaviour is of its last checkpoint's evaluated episodes: its min-dist sum is
+        that evaluation's. Behaviour recorded before 2026-12-02 read nearest-first observations in index order and
+        fails this; it is left out.
+    """
+    if "behaviour" not in summary:
+        return False
+    directory = results / summary["experiment"] / summary["scheme"] / f"seed_{summary['seed']:03d}"
+    with open(directory / "checkpoint_evals.csv", newline="") as file:
+        last = list(csv.DictReader(file))[-1]
+    return abs(summary["behaviour"]["min_dist_sum"] - float(last["min_dist_sum"])) < 1e-3
+
+
 def summarise(results: Path) -> str:
     """:return: The Markdown of ``summary.md``."""
     summaries = load_summaries(results)
@@ -122,13 +136,13 @@ def summarise(results: Path) -> str:
         curve_lines.append(f"| {label} | " + " | ".join(cells) + " |")
     behaviour_lines = [
         "",
-        "## What the teams do at their episodes' end (last checkpoint, within 0.3; runs made since behaviour is recorded)",
+        "## What the teams do at their episodes' end (last checkpoint, within 0.3; runs whose behaviour is recorded right)",
         "",
         "| factor | runs | landmarks covered (of 5) | crowded landmarks | strays | stray speed | assignment gap |",
         "|---|---|---|---|---|---|---|",
     ]
     for name in order:
-        described = [s["behaviour"] for s in summaries if s["experiment"] == name and "behaviour" in s]
+        described = [s["behaviour"] for s in summaries if s["experiment"] == name and behaviour_recorded_right(results, s)]
         if described:
             label = experiments.get(name, {}).get("description", name).removeprefix("N=5 diagnosis: ").split(";")[0]
             means = {key: statistics.mean(b[key] for b in described) for key in described[0]}
