@@ -1,5 +1,7 @@
 """The plateau diagnosis: what a team does at the end of its episodes, from placed worlds and by hand."""
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -27,35 +29,33 @@ def test_a_spread_team_has_no_gap() -> None:
     assert np.isnan(result["stray_speed"])  # no stray: no speed
 
 
-def test_final_distances_read_a_placed_worlds_observation() -> None:
-    env = SimpleSpreadVecEnv(n_envs=1, n_agents=3)
+def placed_worlds(**env_kwargs: Any) -> tuple[np.ndarray, np.ndarray]:
+    """:return: One placed world of 3 agents' joint observation, and its true agent-to-landmark distances."""
+    env = SimpleSpreadVecEnv(n_envs=1, n_agents=3, **env_kwargs)
     env.reset()
     worlds = env.worlds
     worlds.agent_pos[0] = [[0.0, 0.0], [0.5, 0.5], [-0.5, 0.2]]
     worlds.landmark_pos[0] = [[0.3, -0.4], [1.0, 1.0], [-0.9, 0.0]]
     worlds.agent_vel[0] = [[0.3, 0.4], [0.0, 0.0], [0.0, -1.0]]
     observation = worlds.observations(worlds.distances()).reshape(1, -1)
+    return observation, np.linalg.norm(worlds.agent_pos[0][:, None] - worlds.landmark_pos[0][None], axis=-1)
+
+
+def test_final_distances_read_a_placed_worlds_observation() -> None:
+    observation, truth = placed_worlds()
     distances, speeds = final_distances(observation, 3)
-    expected = np.linalg.norm(worlds.agent_pos[0][:, None] - worlds.landmark_pos[0][None], axis=-1)
-    np.testing.assert_allclose(distances[0], expected, atol=1e-6)
+    np.testing.assert_allclose(distances[0], truth, atol=1e-6)
     np.testing.assert_allclose(speeds[0], [0.5, 0.0, 1.0], atol=1e-6)
 
 
 def test_final_distances_read_landmarks_observed_nearest_first() -> None:
-    # The same placed worlds observed nearest first: each agent lists the landmarks in its own order, and the
+    # The same placed world observed nearest first: each agent lists the landmarks in its own order, and the
     # distances must still be agent i to landmark l (matched by absolute position), not agent i to its l-th nearest.
-    env = SimpleSpreadVecEnv(n_envs=1, n_agents=3, num_landmark_neighbors=3, num_agent_neighbors=2)
-    env.reset()
-    worlds = env.worlds
-    worlds.agent_pos[0] = [[0.0, 0.0], [0.5, 0.5], [-0.5, 0.2]]
-    worlds.landmark_pos[0] = [[0.3, -0.4], [1.0, 1.0], [-0.9, 0.0]]
-    worlds.agent_vel[0] = [[0.3, 0.4], [0.0, 0.0], [0.0, -1.0]]
-    observation = worlds.observations(worlds.distances()).reshape(1, -1)
+    observation, truth = placed_worlds(num_landmark_neighbors=3, num_agent_neighbors=2)
     distances, _ = final_distances(observation, 3)
-    truth = np.linalg.norm(worlds.agent_pos[0][:, None] - worlds.landmark_pos[0][None], axis=-1)
     agent_0_order = np.argsort(truth[0])  # landmark l of the result is agent 0's l-th nearest
     np.testing.assert_allclose(distances[0], truth[:, agent_0_order], atol=1e-6)
-    # So the behaviour is the index-ordered observation's: min-dist sum 0.5 + 0.5 + 0.4 = 1.4.
+    # So the behaviour is the index-ordered observation's (min-dist sum 0.5 + 0.71 + 0.45).
     assert behaviour_of(distances, np.zeros((1, 3)))["min_dist_sum"] == pytest.approx(truth.min(axis=0).sum(), abs=1e-6)
 
 
