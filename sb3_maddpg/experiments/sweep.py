@@ -216,14 +216,16 @@ def _run_locked_sweep(
         groups = plan_groups(todo, execution.runs_per_process, most_runs)
         if execution.runs_per_process is not None and not execution.on_ray:
             fits = memory_bound(execution.device)
-            for group in groups:
-                if len(group) > fits(group):
+            warned: set[str] = set()
+            for group in groups:  # the first (largest) group of each setting and scheme says it
+                setting = f"{group[0].experiment}/{group[0].scheme}"
+                if setting not in warned and len(group) > fits(group):
+                    warned.add(setting)
                     group_lines.append(
-                        f"{group[0].experiment}/{group[0].scheme}: groups of {len(group)} runs (--runs-per-process) may "
-                        f"not fit in memory: {fits(group)} fit by the package's estimate; lower --runs-per-process if "
-                        "the sweep runs out of memory"
+                        f"{setting}: groups of {len(group)} runs (--runs-per-process) may not fit in memory: "
+                        f"{fits(group)} fit by the package's estimate; lower --runs-per-process if the sweep runs out "
+                        "of memory"
                     )
-                    break
         parallel = max((len(group) for group in groups), default=1)  # a group's runs finish together
         where = f"in {len(groups)} run group(s) of up to {parallel} run(s) on {execution.device}"
         if execution.on_ray:
