@@ -6,7 +6,8 @@
 # paper-based factors still to finish: their configs list seed 0 only until one leads; and then, when nearest-first
 # observations with a shared actor and critic led by far (0.92-1.02 at 350k steps, seed 0), probes on that first,
 # then the paper-based factors the issue lists: noise, observation normalisation, layer normalisation, width, one
-# step per 10 transitions).
+# step per 10 transitions; on 2026-12-02 (later) the paper-based factors at 3 seeds moved ahead of the shared probes:
+# the shared configuration already has 3 seeds at 2.5M in benchmarks/n5_tuned).
 # Resumable: run it again and finished runs are skipped. Usage: bash benchmarks/n5_diagnosis/run.sh
 # Then: python benchmarks/n5_diagnosis/summarize.py
 set -u
@@ -15,10 +16,10 @@ RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-2}"
 export SDL_VIDEODRIVER=dummy
 configs=()
-for factor in paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 sorted_obs_batch256_utd25 sorted_obs_utd25_shared_params \
-    sorted_obs_utd25_shared_params_lr1e-3 sorted_obs_utd10_shared_params sorted_obs_utd25_shared_params_layer_norm \
-    sorted_obs_utd25_shared_params_matd3 \
-    noise0.3 obs_norm layer_norm shared_params batch256 utd25 width128 utd10 \
+for factor in paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 sorted_obs_batch256_utd25 \
+    noise0.3 obs_norm layer_norm batch256 width128 shared_params \
+    sorted_obs_utd25_shared_params sorted_obs_utd25_shared_params_matd3 sorted_obs_utd25_shared_params_layer_norm \
+    sorted_obs_utd25_shared_params_lr1e-3 sorted_obs_utd10_shared_params utd25 utd10 \
     sorted_obs_utd25_matd3 sorted_obs_utd25_layer_norm sorted_obs_batch256_utd10 sorted_obs_utd25_lr1e-3; do
     configs+=(--config "benchmarks/n5_diagnosis/$factor.json")
 done
