@@ -12,8 +12,9 @@ RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-2}"
 export SDL_VIDEODRIVER=dummy
 configs=()
-# Priority order: the N=5 comparison, then N=3, then the costly 10-transitions-per-step pair (10x the gradient steps).
-for name in n5_maddpg n5_matd3 n3_maddpg n3_matd3 n5_tpu10_maddpg n5_tpu10_matd3; do
+# Priority order: N=3 (the cheapest: about 1 core-hour), then the N=5 comparison, then the costly
+# 10-transitions-per-step pair (10x the gradient steps).
+for name in n3_maddpg n3_matd3 n5_maddpg n5_matd3 n5_tpu10_maddpg n5_tpu10_matd3; do
     configs+=(--config "benchmarks/matd3/$name.json")
 done
 nice -n 19 python -m sb3_maddpg.experiments run "${configs[@]}" --results "$RESULTS_ROOT/matd3/results" \
