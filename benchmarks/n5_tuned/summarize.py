@@ -1,16 +1,19 @@
 """
-The N=5 target runs, summarised against issue 21's target: each seed's score over the last 20% of the paper's 2.5M
-env steps (mean of 20 checkpoint evaluations of 100 episodes), their mean (std), the normalised scores, and the
-learning curve's min-dist sum at equal env steps; reads ``results/`` (written by ``benchmarks/n5_tuned/run.sh``) and
-writes ``summary.md`` beside this file. Unfinished runs show their curve so far. Usage::
+The N=5 target runs, summarised against issue 21's target, for each experiment: each seed's score over the last 20%
+of the paper's 2.5M env steps (mean of 20 checkpoint evaluations of 100 episodes), their mean (std), the normalised
+scores, and the learning curve's min-dist sum at equal env steps and at the paper's 25,000 gradient steps; reads
+``results/`` (written by ``benchmarks/n5_tuned/run.sh``) and writes ``summary.md`` beside this file.
+Unfinished runs show their curve so far. Usage::
 
     python benchmarks/n5_tuned/summarize.py [results] [summary.md]
 """
 
 import csv
+import json
 import statistics
 import sys
 from pathlib import Path
+from typing import Any
 
 from sb3_maddpg.experiments.results import load_summaries
 from sb3_maddpg.normalised_score import normalised_scores, reference_scores
@@ -19,6 +22,10 @@ HERE = Path(__file__).resolve().parent
 CURVE_STEPS = (200_000, 400_000, 1_000_000, 1_500_000, 2_000_000, 2_500_000)
 TARGET = {"min_dist_sum": 0.8, "success_rate_r0.3": 0.30}
 """Issue 21's target at N=5 within 2.5M steps: min-dist sum at most 0.8, success within 0.3 at least 30%."""
+LEARNING_STARTS = 25_600
+"""The env steps of random actions before the first gradient step (the paper's)."""
+PAPER_GRADIENT_STEPS = 25_000
+"""The paper's gradient steps in its budget: 2.5M env steps at one per 100 transitions."""
 PAPER_AT_BUDGET = {"min_dist_sum": 1.79, "success_rate_r0.3": 0.03}
 """The paper's configuration after the same 2.5M steps (the committed N=5 outlook, 3 seeds)."""
 
@@ -36,38 +43,41 @@ def mean_std(values: list[float], digits: int = 3) -> str:
     return f"{statistics.mean(values):.{digits}f} ({statistics.stdev(values):.{digits}f})"
 
 
-def summarise(results: Path) -> str:
-    """:return: The Markdown of ``summary.md``."""
-    summaries = sorted(load_summaries(results), key=lambda summary: summary["seed"])
-    references = reference_scores(5)
+def transitions_per_update(experiment: dict[str, Any]) -> int:
+    """:return: The experiment's transitions per gradient step (the paper's 100 unless its model_kwargs say otherwise)."""
+    return int(experiment.get("model_kwargs", {}).get("transitions_per_update", 100))
+
+
+def at_gradient_steps(points: dict[int, float], steps: int, ratio: int) -> float | None:
+    """
+    :return: The curve's value where a run of one gradient step per ``ratio`` transitions has taken ``steps`` of them
+        (the evaluation nearest that env step, within 5% of it), else ``None``.
+    """
+    if not points:
+        return None
+    step = LEARNING_STARTS + steps * ratio
+    nearest = min(points, key=lambda point: abs(point - step))
+    return points[nearest] if abs(nearest - step) <= 0.05 * step else None
+
+
+def score_lines(runs: list[dict[str, Any]], ratio: int, references: dict[str, dict[str, float]]) -> list[str]:
+    """:return: The Markdown table of each seed's score, and their mean (std) against the target."""
     lines = [
-        "# N=5 against issue 21's target",
-        "",
-        "Setting: simple_spread N=5, exp1 (full observability, `full` sharing), agents and landmarks observed nearest "
-        "first, one gradient step per 25 transitions, one actor and one critic shared by all agents, the paper's "
-        "other hyperparameters, 100 batched worlds, 2.5M env steps (the paper's budget). Score: mean of 20 checkpoint "
-        "evaluations (100 episodes each) over the last 20% of training. Min-dist sum: lower is better; success within "
-        "0.3 and normalised scores: higher is better (0 = uniformly random actions, 1 = the scripted controller: "
-        f"min-dist sum {references['random']['min_dist_sum']:.2f} and {references['scripted']['min_dist_sum']:.2f}). "
-        f"Target: min-dist sum at most {TARGET['min_dist_sum']}, success within 0.3 at least "
-        f"{TARGET['success_rate_r0.3']:.0%}; the paper's configuration after the same budget: "
-        f"{PAPER_AT_BUDGET['min_dist_sum']} and {PAPER_AT_BUDGET['success_rate_r0.3']:.0%}.",
-        "",
         "| seed | min-dist sum | success within 0.3 | coverage within 0.3 | team return | normalised (min-dist, return) "
         "| gradient steps | train time |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for summary in summaries:
+    for summary in runs:
         score = summary["score"]
         normalised = normalised_scores(score, references)
-        gradient_steps = (summary["total_timesteps"] - 25_600) // 25
+        gradient_steps = (summary["total_timesteps"] - LEARNING_STARTS) // ratio
         lines.append(
             f"| {summary['seed']} | {score['min_dist_sum']:.3f} | {score['success_rate_r0.3']:.1%} | "
             f"{score['coverage_r0.3']:.3f} | {score['return_mean']:.1f} | {normalised['min_dist_sum']:.2f}, "
             f"{normalised['return_mean']:.2f} | {gradient_steps:,} | {summary['train_time_s'] / 60:.0f} min |"
         )
-    if summaries:
-        scores = [summary["score"] for summary in summaries]
+    if runs:
+        scores = [summary["score"] for summary in runs]
         dist = [score["min_dist_sum"] for score in scores]
         success = [score["success_rate_r0.3"] for score in scores]
         met = statistics.mean(dist) <= TARGET["min_dist_sum"] and statistics.mean(success) >= TARGET["success_rate_r0.3"]
@@ -76,15 +86,55 @@ def summarise(results: Path) -> str:
             f"{mean_std([score['coverage_r0.3'] for score in scores])} | "
             f"{mean_std([score['return_mean'] for score in scores], 1)} | | | |",
             "",
-            f"Target {'met' if met else 'not met'} by the mean over the {len(summaries)} finished seed(s).",
+            f"Target {'met' if met else 'not met'} by the mean over the {len(runs)} finished seed(s).",
         ]
-    lines += ["", "## Learning curve: min-dist sum (20-episode evaluations; lower is better)", ""]
-    lines += ["| seed | " + " | ".join(f"{step / 1e6:g}M" for step in CURVE_STEPS) + " |"]
-    lines += ["|---|" + "---|" * len(CURVE_STEPS)]
-    for path in sorted(results.glob("*/full/seed_*/learning_curve.csv")):
+    return lines
+
+
+def curve_lines(results: Path, name: str, ratio: int) -> list[str]:
+    """:return: The Markdown table of each seed's learning curve, finished or not, at equal env and gradient steps."""
+    lines = [
+        "| seed | "
+        + " | ".join(f"{step / 1e6:g}M" for step in CURVE_STEPS)
+        + f" | at the paper's {PAPER_GRADIENT_STEPS:,} gradient steps |",
+        "|---|" + "---|" * (len(CURVE_STEPS) + 1),
+    ]
+    for path in sorted(results.glob(f"{name}/full/seed_*/learning_curve.csv")):
         points = curve(path)
         cells = [f"{points[step]:.2f}" if step in points else "" for step in CURVE_STEPS]
+        paper_budget = at_gradient_steps(points, PAPER_GRADIENT_STEPS, ratio)
+        cells.append("" if paper_budget is None else f"{paper_budget:.2f}")
         lines.append(f"| {int(path.parent.name.removeprefix('seed_'))} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def summarise(results: Path) -> str:
+    """:return: The Markdown of ``summary.md``."""
+    summaries = sorted(load_summaries(results), key=lambda summary: summary["seed"])
+    experiments = {path.parent.name: json.loads(path.read_text()) for path in sorted(results.glob("*/experiment.json"))}
+    references = reference_scores(5)
+    lines = [
+        "# N=5 against issue 21's target",
+        "",
+        "Setting: simple_spread N=5, exp1 (full observability, `full` sharing), agents and landmarks observed nearest "
+        "first, one actor and one critic shared by all agents, the paper's other hyperparameters, 100 batched worlds, "
+        "2.5M env steps (the paper's budget); one gradient step per 25 transitions, and per the paper's 100 in the "
+        "second experiment. Score: mean of 20 checkpoint evaluations (100 episodes each) over the last 20% of "
+        "training. Min-dist sum: lower is better; success within 0.3 and normalised scores: higher is better (0 = "
+        "uniformly random actions, 1 = the scripted controller: min-dist sum "
+        f"{references['random']['min_dist_sum']:.2f} and {references['scripted']['min_dist_sum']:.2f}). "
+        f"Target: min-dist sum at most {TARGET['min_dist_sum']}, success within 0.3 at least "
+        f"{TARGET['success_rate_r0.3']:.0%}; the paper's configuration after the same budget "
+        f"({PAPER_GRADIENT_STEPS:,} gradient steps): {PAPER_AT_BUDGET['min_dist_sum']} and "
+        f"{PAPER_AT_BUDGET['success_rate_r0.3']:.0%}.",
+    ]
+    for name in sorted(experiments, key=lambda name: (name != "n5_tuned_shared", name)):
+        experiment = experiments[name]
+        ratio = transitions_per_update(experiment)
+        lines += ["", f"## `{name}`: one gradient step per {ratio} transitions", ""]
+        lines += score_lines([summary for summary in summaries if summary["experiment"] == name], ratio, references)
+        lines += ["", "Learning curve: min-dist sum (20-episode evaluations; lower is better).", ""]
+        lines += curve_lines(results, name, ratio)
     lines += ["", "Made by `bash benchmarks/n5_tuned/run.sh` (resumable), then `python benchmarks/n5_tuned/summarize.py`."]
     return "\n".join(lines) + "\n"
 
