@@ -210,19 +210,24 @@ class MADDPG(TeamOffPolicyAlgorithm):
         actor_params = list(self.actor.parameters())
         for _ in range(gradient_steps):
             self._n_updates += 1
-            # Sample replay buffer: one joint batch, the same rows for every agent
+            # Sample replay buffer: one joint batch, the same rows for every agent (and every critic of one)
             replay_data = one_member(self.replay_buffer.sample(batch_size, env=self._vec_normalize_env))
-            # Critic targets: every target actor on its next observation, then every target critic (no gradient)
-            target_q = critic_targets(team.target_actions, team.target_q, replay_data, self.gamma)
-            # Critic losses, while the critics' extractors record their diagnostics (this batch, as replayed)
+            # Critic targets (no gradient), then the losses of the critics trained on them, while the critics'
+            # extractors record their diagnostics (this batch, as replayed)
+            target_q = self._member_critic_targets(replay_data)
             with self.critic.recording_diagnostics():
-                critic_loss = critic_losses(team.q, replay_data, target_q)
+                critic_loss = self._member_critic_losses(replay_data, target_q)
             # Optimize the critics: agents' parameters are disjoint, each gets its own loss's gradient
             self.critic.optimizer.zero_grad()
             critic_loss.sum().backward()
             if self.max_grad_norm is not None:
                 self.critic.clip_grad_norm_per_agent(self.max_grad_norm)
             self.critic.optimizer.step()
+            # Kept on the device: one transfer per train() call, not one per gradient step. Per agent, the mean over
+            # the agent's critics (one here).
+            critic_log.append(critic_loss.detach().reshape(-1, critic_loss.shape[-1]).mean(0))
+            if not self._actor_update_due():
+                continue
             # Actor losses: -Q_i with only a_i replaced by mu_i(o_i), plus the regulariser
             actor_terms = actor_loss_terms(team.policy, team.q, replay_data, self._action_parts, self.actor_reg_coef)
             # Optimize the actors, computing only the actors' gradients (the critics' are not needed here)
@@ -235,19 +240,42 @@ class MADDPG(TeamOffPolicyAlgorithm):
             # Update the target networks (Polyak averaging)
             polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
             polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
-            # Kept on the device: one transfer per train() call, not one per gradient step.
-            critic_log.append(critic_loss[0].detach())
             actor_log.append(actor_terms.policy_loss[0].detach())
             reg_log.append(actor_terms.reg_loss[0].detach())
             saturation_log.append(actor_terms.saturation[0])
 
-        names = ("critic_loss", "actor_loss", "actor_reg_loss", "action_saturation")
-        logs = (critic_log, actor_log, reg_log, saturation_log)
-        self._log_losses(**{name: th.stack(log).mean(0) for name, log in zip(names, logs)})
+        means = {"critic_loss": th.stack(critic_log).mean(0)}
+        if actor_log:  # else no actor update in this call (a delayed one, as TD3's): its losses are not recorded
+            logs = {"actor_loss": actor_log, "actor_reg_loss": reg_log, "action_saturation": saturation_log}
+            means.update({name: th.stack(log).mean(0) for name, log in logs.items()})
+        self._log_losses(**means)
+
+    def _member_critic_targets(self, replay_data: MultiAgentReplayBufferSamples) -> th.Tensor:
+        """
+        The critic targets: every target actor on its next observation, then every target critic.
+
+        :param replay_data: A replay batch with a member dimension of 1 in front (:func:`~sb3_maddpg.losses.one_member`).
+        :return: The targets, ``[1, batch, n_agents]`` (no gradient).
+        """
+        return critic_targets(self._team.target_actions, self._team.target_q, replay_data, self.gamma)
+
+    def _member_critic_losses(self, replay_data: MultiAgentReplayBufferSamples, target_q: th.Tensor) -> th.Tensor:
+        """
+        The losses of the critics trained at this step against the targets: one critic per agent here.
+
+        :param replay_data: The replay batch, with a member dimension of 1 in front.
+        :param target_q: Its critic targets, ``[1, batch, n_agents]``.
+        :return: Each critic's loss, ``[1, n_agents]`` (``[critics, 1, n_agents]`` where an agent has several).
+        """
+        return critic_losses(self._team.q, replay_data, target_q)
+
+    def _actor_update_due(self) -> bool:
+        """:return: Whether this critic update is followed by an actor and target update (always, for MADDPG)."""
+        return True
 
     def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
-        """The team's critic targets (:func:`~sb3_maddpg.losses.critic_targets`) on a replay batch, ``[batch, n_agents]``."""
-        return critic_targets(self._team.target_actions, self._team.target_q, one_member(data), self.gamma)[0]
+        """The team's critic targets (:meth:`_member_critic_targets`) on a replay batch, ``[batch, n_agents]``."""
+        return self._member_critic_targets(one_member(data))[0]
 
     def _log_losses(self, **losses: th.Tensor) -> None:
         """Record the train call's per-agent means (``[n_agents]`` each, by name), each agent's and the team's."""

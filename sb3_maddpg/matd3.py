@@ -8,11 +8,10 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
-from stable_baselines3.common.utils import polyak_update
 
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.compat import renamed_argument
-from sb3_maddpg.losses import TeamNetworks, actor_loss_terms, critic_losses, critic_targets, one_member
+from sb3_maddpg.losses import TeamNetworks, critic_losses, critic_targets
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.matd3_policies import MATD3Policy, MlpPolicy, TwinMultiAgentCritic
 from sb3_maddpg.selection import Selector
@@ -198,55 +197,27 @@ class MATD3(MADDPG):
         actions = self._team.target_actions(next_observations)
         return smooth_target_actions(actions, self.target_policy_noise, self.target_noise_clip, self._action_parts.continuous)
 
-    def train(self, gradient_steps: int, batch_size: int = 100) -> None:
-        # Switch to train mode (this affects batch norm / dropout)
-        self.policy.set_training_mode(True)
-        # Update learning rate according to lr schedule
-        self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
-        team = self._team  # the losses' view of the networks: a member dimension of 1 in front
-        critic_log, actor_log, reg_log, saturation_log = [], [], [], []
-        actor_params = list(self.actor.parameters())
-        for _ in range(gradient_steps):
-            self._n_updates += 1
-            # Sample replay buffer: one joint batch, the same rows for every agent and both twins
-            replay_data = one_member(self.replay_buffer.sample(batch_size, env=self._vec_normalize_env))
-            # Critic targets: every target actor on its next observation plus clipped noise, then the min over the
-            # two target critics (no gradient)
-            target_q = critic_targets(self._smoothed_target_actions, team.target_q_min, replay_data, self.gamma)
-            # Both twins' losses against the one target, [2, 1, n_agents]; the first twin's extractors record
-            with self.critic.recording_diagnostics():
-                critic_loss = critic_losses(team.q_twins, replay_data, target_q)
-            # Optimize the critics: one optimiser over both twins (disjoint parameters, each its own loss's gradient)
-            self.critic.optimizer.zero_grad()
-            critic_loss.sum().backward()
-            if self.max_grad_norm is not None:
-                self.critic.clip_grad_norm_per_agent(self.max_grad_norm)
-            self.critic.optimizer.step()
-            critic_log.append(critic_loss[:, 0].detach().mean(0))  # per agent, the twins' mean
-            # Delayed policy updates
-            if self._n_updates % self.policy_delay == 0:
-                # Actor losses: -Q_i1 (the first twin only) with only a_i replaced by mu_i(o_i), plus the regulariser
-                actor_terms = actor_loss_terms(team.policy, team.q, replay_data, self._action_parts, self.actor_reg_coef)
-                # Optimize the actors, computing only the actors' gradients (the critics' are not needed here)
-                self.actor.optimizer.zero_grad()
-                for param, grad in zip(actor_params, th.autograd.grad(actor_terms.total.sum(), actor_params)):
-                    param.grad = grad
-                if self.max_grad_norm is not None:
-                    self.actor.clip_grad_norm_per_agent(self.max_grad_norm)
-                self.actor.optimizer.step()
-                # Update the target networks (Polyak averaging): both twins' and the actors'
-                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
-                polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
-                actor_log.append(actor_terms.policy_loss[0].detach())
-                reg_log.append(actor_terms.reg_loss[0].detach())
-                saturation_log.append(actor_terms.saturation[0])
+    def _member_critic_targets(self, replay_data: MultiAgentReplayBufferSamples) -> th.Tensor:
+        """
+        The critic targets: every target actor on its next observation plus the clipped smoothing noise, then the
+        minimum of the agent's two target critics.
 
-        means = {"critic_loss": th.stack(critic_log).mean(0)}
-        if actor_log:  # else no delayed update in this call: the actor losses are not recorded (as TD3's)
-            logs = {"actor_loss": actor_log, "actor_reg_loss": reg_log, "action_saturation": saturation_log}
-            means.update({name: th.stack(log).mean(0) for name, log in logs.items()})
-        self._log_losses(**means)
+        :param replay_data: A replay batch with a member dimension of 1 in front (:func:`~sb3_maddpg.losses.one_member`).
+        :return: The targets, ``[1, batch, n_agents]`` (no gradient).
+        """
+        twins = cast(TwinTeamNetworks, self._team)
+        return critic_targets(self._smoothed_target_actions, twins.target_q_min, replay_data, self.gamma)
 
-    def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
-        """The team's critic targets (smoothed target actions, min of the twins) on a replay batch, ``[batch, n_agents]``."""
-        return critic_targets(self._smoothed_target_actions, self._team.target_q_min, one_member(data), self.gamma)[0]
+    def _member_critic_losses(self, replay_data: MultiAgentReplayBufferSamples, target_q: th.Tensor) -> th.Tensor:
+        """
+        Both twins' losses against the one target (the first twin's extractors record the diagnostics).
+
+        :param replay_data: The replay batch, with a member dimension of 1 in front.
+        :param target_q: Its critic targets, ``[1, batch, n_agents]``.
+        :return: Each twin's loss, ``[2, 1, n_agents]``.
+        """
+        return critic_losses(cast(TwinTeamNetworks, self._team).q_twins, replay_data, target_q)
+
+    def _actor_update_due(self) -> bool:
+        """:return: Whether this critic update is followed by an actor and target update: every ``policy_delay``-th."""
+        return self._n_updates % self.policy_delay == 0
