@@ -4,14 +4,22 @@ import torch as th
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.losses import ActorLossTerms, actor_loss_terms, critic_losses, critic_targets, one_member
+from sb3_maddpg.losses import ActorLossTerms, actor_loss_terms, one_member
+
+
+def critic_losses_by_critic(model: MADDPG, data: MultiAgentReplayBufferSamples) -> th.Tensor:
+    """:return: Each critic's loss, ``[critics per agent, n_agents]`` (1 for MADDPG, 2 for MATD3), as ``train()``
+    computes it (its hooks)."""
+    batch = one_member(data)
+    losses = model._member_critic_losses(batch, model._member_critic_targets(batch))
+    return losses.reshape(-1, losses.shape[-1])
 
 
 def team_critic_losses(model: MADDPG, data: MultiAgentReplayBufferSamples) -> th.Tensor:
-    """:return: Each critic's loss, ``[n_agents]``, as ``train()`` computes it."""
-    batch, team = one_member(data), model._team
-    targets = critic_targets(team.target_actions, team.target_q, batch, model.gamma)
-    return critic_losses(team.q, batch, targets)[0]
+    """:return: Each critic's loss, ``[n_agents]``, as ``train()`` computes it (a model of one critic per agent)."""
+    losses = critic_losses_by_critic(model, data)
+    assert losses.shape[0] == 1, "one critic per agent expected: use critic_losses_by_critic"
+    return losses[0]
 
 
 def team_actor_terms(model: MADDPG, data: MultiAgentReplayBufferSamples) -> ActorLossTerms:

@@ -108,8 +108,9 @@ def test_the_critic_update_descends_both_twins_losses_at_that_target(scheme: str
     assert moved(twin_1, model.critic.mlp) and moved(twin_2, model.critic.twin)
 
 
-def test_twin_critics_are_independent_networks_with_their_own_extractors(collected_model: Any) -> None:
-    model = collected_model("attention")
+@pytest.mark.parametrize("scheme", ["attention", "learned_selection"])
+def test_twin_critics_are_independent_networks_with_their_own_extractors(scheme: str, collected_model: Any) -> None:
+    model = collected_model(scheme)
     assert isinstance(model.policy, MATD3Policy) and isinstance(model.critic, TwinMultiAgentCritic)
     first, second = model.critic.extractors, model.critic.twin.extractors
     assert all(a is not b and type(a) is type(b) for a, b in zip(first, second))
@@ -200,6 +201,9 @@ def visible(scheme: Any, i: int, selections: th.Tensor | None) -> tuple[list[set
         "observations": (everyone, alone),
         "actions": (alone, everyone),
         "attention": (everyone, everyone),
+        # Straight-through: the backward pass is the softmax mixture of every other agent's slot (the value sees only
+        # the k chosen agents: tests/test_attention.py)
+        "learned_selection": (everyone, everyone),
         "selected": (None, None),
     }[scheme]
     if obs is None:
@@ -209,14 +213,11 @@ def visible(scheme: Any, i: int, selections: th.Tensor | None) -> tuple[list[set
     return [obs] * BATCH, [actions] * BATCH
 
 
-def critic_loss_function(model: MADDPG) -> Any:
-    """The critic (or both twins, stacked in front) as ``train()`` hands it to :func:`critic_losses`."""
-    return model._team.q_twins if isinstance(model, MATD3) else model._team.q  # type: ignore[attr-defined]
-
-
 @pytest.mark.parametrize("algorithm", list(ALGORITHMS))
 @pytest.mark.parametrize(
-    "scheme", ["independent", "full", "observations", "actions", "selected", "attention", PER_AGENT_MAP], ids=str
+    "scheme",
+    ["independent", "full", "observations", "actions", "selected", "attention", "learned_selection", PER_AGENT_MAP],
+    ids=str,
 )
 def test_each_critics_loss_reaches_exactly_the_inputs_its_scheme_allows(
     algorithm: str, scheme: Any, collected_model: Any, replay_batch: Any
@@ -226,9 +227,9 @@ def test_each_critics_loss_reaches_exactly_the_inputs_its_scheme_allows(
     assert layout is not None
     data = one_member(replay_batch(model))
     obs, actions = data.observations.clone().requires_grad_(True), data.actions.clone().requires_grad_(True)
-    team = model._team
-    targets = critic_targets(team.target_actions, team.target_q, data, model.gamma)
-    losses = critic_losses(critic_loss_function(model), data._replace(observations=obs, actions=actions), targets)
+    # As train() computes them: its hooks give MATD3's smoothed min target and both twins' losses
+    targets = model._member_critic_targets(data)
+    losses = model._member_critic_losses(data._replace(observations=obs, actions=actions), targets)
     twins = losses.reshape(-1, N_AGENTS)  # [n_twins, n_agents]: 1 for MADDPG, 2 for MATD3
     assert twins.shape[0] == (2 if algorithm == "MATD3" else 1)
     selections = None if data.selections is None else data.selections[0]

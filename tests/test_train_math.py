@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch as th
 
-from sb3_maddpg import MADDPG
+from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.envs import make_simple_spread
 from sb3_maddpg.policies import AgentCritic
 from tests.loss_helpers import team_actor_terms, team_critic_losses
@@ -72,9 +72,12 @@ def test_critic_loss_reaches_only_its_own_critic(collected_model: Any, replay_ba
             assert all(grad[j].abs().sum() == 0 for j in range(3) if j != i)
 
 
+@pytest.mark.parametrize("algorithm", [MADDPG, MATD3], ids=lambda algorithm: algorithm.__name__)
 @pytest.mark.parametrize("scheme", ["full", "actions", "selected", "attention", "learned_selection"])
-def test_actor_loss_reaches_only_its_own_actor(scheme: str, collected_model: Any, replay_batch: Any) -> None:
-    model = collected_model(scheme)
+def test_actor_loss_reaches_only_its_own_actor(
+    scheme: str, algorithm: type[MADDPG], collected_model: Any, replay_batch: Any
+) -> None:
+    model = collected_model(scheme, algorithm=algorithm)
     losses = team_actor_terms(model, replay_batch(model)).total
     params = list(model.actor.parameters())
     for i in range(3):
