@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch as th
 from torch import nn
 
@@ -102,7 +103,8 @@ def agent_actors(model: Any) -> dict[str, AgentActor]:
 def export_actors(model: Any, directory: str | os.PathLike[str], format: str = "onnx") -> dict[str, Path]:
     """
     Write each agent's actor to ``<directory>/<agent_id><suffix>`` and a manifest, ``<directory>/manifest.json``
-    (agent ids, each agent's file, observation and action spaces, the format, the package version).
+    (agent ids, each agent's file, observation and action spaces, the format, the package version). An observation
+    bound that is infinite is written as ``null``: strict JSON has no infinity.
 
     :param model: A :class:`~sb3_maddpg.MADDPG` model.
     :param directory: Where to write (created if missing).
@@ -126,13 +128,19 @@ def export_actors(model: Any, directory: str | os.PathLike[str], format: str = "
         else:
             th.jit.trace(actor, example).save(str(path))
         files[agent_id] = path
-        action_slice = layout.action_slices[i]
+        action_slice, obs_slice = layout.action_slices[i], layout.obs_slices[i]
         entries.append(
             {
                 "agent_id": agent_id,
                 "file": path.name,
                 "observation_size": layout.obs_sizes[i],
-                "observation_slice": [layout.obs_slices[i].start, layout.obs_slices[i].stop],
+                "observation_slice": [obs_slice.start, obs_slice.stop],
+                "observation": {
+                    "type": "box",
+                    "dtype": str(model.observation_space.dtype),
+                    "low": _bounds(model.observation_space.low[obs_slice]),
+                    "high": _bounds(model.observation_space.high[obs_slice]),
+                },
                 "action": (
                     {"type": "discrete", "n": layout.action_sizes[i]}
                     if layout.is_discrete(i)
@@ -149,6 +157,11 @@ def export_actors(model: Any, directory: str | os.PathLike[str], format: str = "
         manifest["onnx"] = {"input": "observation", "output": "action", "opset": ONNX_OPSET}
     (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     return files
+
+
+def _bounds(values: np.ndarray) -> list[float | None]:
+    """:return: Box bounds as JSON numbers, ``None`` (``null``) for an unbounded one (strict JSON has no infinity)."""
+    return [float(value) if np.isfinite(value) else None for value in values.tolist()]
 
 
 def _export_onnx(actor: AgentActor, example: th.Tensor, path: Path) -> None:

@@ -6,20 +6,21 @@ from pettingzoo import ParallelEnv
 
 
 class MixedTeam(ParallelEnv):
-    """Two agents on a line: ``mover`` (Box(-1, 1, (1,))) moves, ``chooser`` (Discrete(3)) picks left, stay or right;
-    both are rewarded for ending near 0."""
+    """Two agents on a line: ``mover`` (Box(-1, 1, (1,)), or ``mover_bounds``) moves, ``chooser`` (Discrete(3)) picks
+    left, stay or right; both are rewarded for ending near 0."""
 
     metadata = {"name": "mixed_team_v0"}
 
-    def __init__(self) -> None:
+    def __init__(self, mover_bounds: tuple[float, float] = (-1.0, 1.0)) -> None:
         self.possible_agents = ["mover", "chooser"]
         self.agents: list[str] = []
+        self.mover_bounds = mover_bounds
 
     def observation_space(self, agent: str) -> spaces.Box:
         return spaces.Box(-10.0, 10.0, (1,), np.float32)
 
     def action_space(self, agent: str) -> spaces.Space:
-        return spaces.Box(-1.0, 1.0, (1,), np.float32) if agent == "mover" else spaces.Discrete(3)
+        return spaces.Box(*self.mover_bounds, (1,), np.float32) if agent == "mover" else spaces.Discrete(3)
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         self.agents, self.t = list(self.possible_agents), 0

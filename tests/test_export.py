@@ -1,19 +1,23 @@
 """Each agent's actor exported alone (ONNX, TorchScript) gives what the model's predict gives for that agent, from that
-agent's own observation: homogeneous, heterogeneous, shared-parameter and mixed continuous/discrete teams."""
+agent's own observation: homogeneous, heterogeneous, shared-parameter and mixed continuous/discrete teams; a team of
+exported actors, each on its own observation, scores in mpe2 as evaluate_team scores the model."""
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
-import onnxruntime
 import pytest
 import torch as th
 
-from sb3_maddpg import MADDPG
+from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.envs import PettingZooToGym, make_mpe_env, make_simple_spread
+from sb3_maddpg.evaluation import evaluate_team
 from sb3_maddpg.export import MANIFEST, export_actors
 from sb3_maddpg.version import __version__
 from tests.mixed_team import MixedTeam
+
+onnxruntime = pytest.importorskip("onnxruntime", reason="the export extra is not installed: pip install -e '.[export]'")
 
 FAST = {"learning_starts": 50, "batch_size": 16, "transitions_per_update": 10, "policy_kwargs": {"net_arch": [16, 16]}}
 
@@ -21,7 +25,7 @@ TEAMS = {
     "homogeneous": lambda: make_simple_spread(n_agents=3),
     "shared_parameters": lambda: make_simple_spread(n_agents=3),
     "heterogeneous": lambda: make_mpe_env("simple_speaker_listener"),  # observations of 3 and 11, actions of 3 and 5
-    "mixed": lambda: PettingZooToGym(MixedTeam()),  # a Box(-1, 1) agent and a Discrete(3) one
+    "mixed": lambda: PettingZooToGym(MixedTeam(mover_bounds=(-2.0, 3.0))),  # a Box(-2, 3) agent and a Discrete(3) one
     "layer_norm": lambda: make_mpe_env("simple_speaker_listener"),  # heterogeneous, with layer normalisation
 }
 
@@ -57,7 +61,8 @@ def test_each_exported_actor_acts_as_the_model_from_its_own_observation(team: st
             np.testing.assert_array_equal(action, expected.argmax(axis=1))  # the index of the model's one-hot
         else:
             np.testing.assert_allclose(action, expected, atol=1e-5)
-            assert (action >= model.action_space.low[layout.action_slices[i]] - 1e-6).all()
+            low, high = model.action_space.low[layout.action_slices[i]], model.action_space.high[layout.action_slices[i]]
+            assert (action >= low - 1e-6).all() and (action <= high + 1e-6).all()
 
 
 def test_torchscript_export_matches_too(tmp_path: Path) -> None:
@@ -84,7 +89,8 @@ def test_the_manifest_describes_each_agent(tmp_path: Path) -> None:
         "file": "mover.onnx",
         "observation_size": 1,
         "observation_slice": [0, 1],
-        "action": {"type": "box", "low": [-1.0], "high": [1.0]},
+        "observation": {"type": "box", "dtype": "float32", "low": [-10.0], "high": [10.0]},
+        "action": {"type": "box", "low": [-2.0], "high": [3.0]},
     }
     assert chooser["action"] == {"type": "discrete", "n": 3} and chooser["observation_slice"] == [1, 2]
 
@@ -102,3 +108,47 @@ def test_a_batch_of_any_size_and_the_model_stays_usable(tmp_path: Path) -> None:
 def test_an_unknown_format_says_which_there_are(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"format must be one of \['onnx', 'torchscript'\], got 'tflite'"):
         export_actors(trained("homogeneous"), tmp_path, format="tflite")
+
+
+def test_an_exported_team_run_agent_by_agent_in_mpe2_scores_as_evaluate_team(tmp_path: Path) -> None:
+    """Decentralised execution: each agent's ONNX file on its own mpe2 observation, no package code in the loop."""
+    from mpe2 import simple_spread_v3
+
+    model = MATD3("MlpPolicy", make_simple_spread(n_agents=3), seed=0, **FAST)
+    model.learn(300)
+    export_actors(model, tmp_path)
+    manifest = json.loads((tmp_path / MANIFEST).read_text())
+    sessions = {a["agent_id"]: onnxruntime.InferenceSession(str(tmp_path / a["file"])) for a in manifest["agents"]}
+    env = simple_spread_v3.parallel_env(N=3, max_cycles=25, continuous_actions=True)
+    episodes, seed = 4, 3
+    agent_returns, min_dist_sums = [], []
+    for episode in range(episodes):
+        observations, _ = env.reset(seed=seed if episode == 0 else None)  # as evaluate_team seeds its env
+        returns = dict.fromkeys(env.possible_agents, 0.0)
+        while env.agents:
+            actions = {
+                agent: sessions[agent].run(None, {"observation": observations[agent][None].astype(np.float32)})[0][0]
+                for agent in env.agents
+            }
+            observations, rewards, _, _, _ = env.step(actions)
+            for agent, reward in rewards.items():
+                returns[agent] += reward
+        world = env.unwrapped.world
+        # Each landmark's distance to its nearest agent, summed, at the episode's last step (by hand)
+        min_dist_sums.append(
+            sum(min(np.linalg.norm(a.state.p_pos - lm.state.p_pos) for a in world.agents) for lm in world.landmarks)
+        )
+        agent_returns.append([returns[agent] for agent in env.possible_agents])
+    expected = evaluate_team(model, make_simple_spread(n_agents=3), n_episodes=episodes, seed=seed)
+    np.testing.assert_allclose(np.mean(agent_returns, axis=0), expected["agent_returns"], rtol=1e-4)
+    np.testing.assert_allclose(np.sum(agent_returns, axis=1).mean(), expected["return_mean"], rtol=1e-4)
+    np.testing.assert_allclose(np.mean(min_dist_sums), expected["min_dist_sum"], rtol=1e-4)
+
+
+def test_onnx_export_without_the_extra_names_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    model = MADDPG("MlpPolicy", make_simple_spread(n_agents=2), seed=0, **FAST)
+    monkeypatch.setitem(sys.modules, "onnxscript", None)  # as if not installed: importing it raises
+    with pytest.raises(ModuleNotFoundError, match=r"needs onnx and onnxscript, which are not installed: .*\[export\]"):
+        export_actors(model, tmp_path)
+    export_actors(model, tmp_path, format="torchscript")  # the alternative the error names works without them
+    assert (tmp_path / "agent_0.pt").exists()
