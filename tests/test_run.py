@@ -18,7 +18,7 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-from sb3_maddpg import MADDPG, AgentLayout
+from sb3_maddpg import MADDPG, MATD3, AgentLayout
 from sb3_maddpg.envs import SIMPLE_SPREAD_ID, PettingZooToGym, SimpleSpreadVecEnv, make_simple_spread
 from sb3_maddpg.selection import CallableSelector, FixedGraph, NearestAgents
 from sb3_maddpg.sharing import SCHEME_ALIASES, SHARING_SCHEMES, CriticFeaturesExtractor
@@ -137,13 +137,14 @@ class CountingCallback(BaseCallback):
         self.rollout_ends += 1
 
 
-def test_callbacks(tmp_path):
+@pytest.mark.parametrize("algorithm", [MADDPG, MATD3], ids=lambda algorithm: algorithm.__name__)
+def test_callbacks(tmp_path, algorithm):
     env = make_vec_env(make_team, n_envs=2)
     eval_env = make_vec_env(make_team, n_envs=1)
     checkpoint = CheckpointCallback(save_freq=50, save_path=str(tmp_path / "checkpoints"), name_prefix="maddpg")
     evaluation = EvalCallback(eval_env, eval_freq=50, n_eval_episodes=2, log_path=str(tmp_path / "eval"), warn=False)
     counting = CountingCallback()
-    model = MADDPG("MlpPolicy", env, **FAST)
+    model = algorithm("MlpPolicy", env, **FAST)
     model.learn(total_timesteps=200, callback=[checkpoint, evaluation, counting])
     # 200 steps over 2 envs = 100 calls; a checkpoint every 50 calls.
     assert counting.n_calls_seen == 100
@@ -154,7 +155,8 @@ def test_callbacks(tmp_path):
     assert evaluations["results"].shape == (2, 2)  # two evaluations of two episodes
     assert np.isfinite(evaluation.last_mean_reward)
     # A checkpoint loads and acts.
-    loaded = MADDPG.load(tmp_path / "checkpoints" / "maddpg_200_steps.zip")
+    loaded = algorithm.load(tmp_path / "checkpoints" / "maddpg_200_steps.zip")
+    assert type(loaded) is algorithm
     assert loaded.predict(env.reset(), deterministic=True)[0].shape == (2, N_AGENTS * ACTION_SIZE)
 
 
