@@ -24,8 +24,9 @@ FORMATS = {"onnx": ".onnx", "torchscript": ".pt"}
 """Export formats and their file suffixes."""
 MANIFEST = "manifest.json"
 """The manifest's file name in the export directory."""
-ONNX_OPSET = 17
-"""The ONNX operator set of the exported files (onnxruntime 1.14 and newer run it)."""
+ONNX_OPSET = 18
+"""The ONNX operator set of the exported files (onnxruntime 1.14 and newer run it): torch's exporter writes 18 itself,
+so that no version conversion (which it warns may fail) is needed."""
 
 
 class AgentActor(nn.Module):

@@ -82,7 +82,10 @@ def test_the_manifest_describes_each_agent(tmp_path: Path) -> None:
     export_actors(model, tmp_path)
     manifest = json.loads((tmp_path / MANIFEST).read_text())
     assert manifest["format"] == "onnx" and manifest["sb3_maddpg_version"] == __version__
-    assert manifest["onnx"] == {"input": "observation", "output": "action", "opset": 17}
+    assert manifest["onnx"] == {"input": "observation", "output": "action", "opset": 18}
+    import onnx
+
+    assert [entry.version for entry in onnx.load(tmp_path / "mover.onnx").opset_import if entry.domain == ""] == [18]
     mover, chooser = manifest["agents"]
     assert mover == {
         "agent_id": "mover",
