@@ -20,6 +20,7 @@ from sb3_maddpg.experiments.report import format_markdown
 from sb3_maddpg.experiments.results import (
     DONE_FILE,
     RESULT_FILES,
+    curve_value_at,
     is_finished,
     link_complete_seeds,
     load_summaries,
@@ -525,3 +526,13 @@ def test_configs_written_before_0_3_name_the_selector_as_0_3_does() -> None:
     stored_run = run.to_dict()
     stored_run["model_kwargs"] = {**{k: v for k, v in run.model_kwargs.items() if k != "selector"}, "selection": 1}
     assert RunConfig.from_dict(stored_run).same_as(run)
+
+
+def test_curve_value_at_reads_the_nearest_evaluation_and_none_beyond_the_tolerance() -> None:
+    rows = [{"timesteps": 100_000.0, "min_dist_sum": 2.0}, {"timesteps": 196_000.0, "min_dist_sum": 1.5}]
+    assert curve_value_at(rows, 200_000) == 1.5  # 2% away: the nearest evaluation
+    assert curve_value_at(rows, 104_000) == 2.0
+    assert curve_value_at(rows, 250_000) is None  # the nearest is 22% away: the run says nothing there
+    assert curve_value_at(rows, 250_000, tolerance=0.25) == 1.5
+    assert curve_value_at([], 200_000) is None
+    assert curve_value_at([{"timesteps": 200_000.0, "min_dist_sum": 1.0, "return_mean": -5.0}], 200_000, "return_mean") == -5.0

@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from sb3_maddpg.experiments.results import load_experiments, load_summaries, read_curve
+from sb3_maddpg.experiments.results import curve_value_at, load_experiments, load_summaries, read_curve
 from sb3_maddpg.experiments.stats import mann_whitney, mean_std
 from sb3_maddpg.normalised_score import normalised_scores, reference_scores
 
@@ -44,15 +44,6 @@ def cell(values: list[float], digits: int = 3, scale: float = 1.0) -> str:
         return ""
     mean, std = mean_std([scale * value for value in values])
     return f"{mean:.{digits}f}" if len(values) == 1 else f"{mean:.{digits}f} ({std:.{digits}f})"
-
-
-def curve_at(directory: str, step: int) -> float | None:
-    """:return: A run's learning-curve min-dist sum at the evaluation nearest ``step`` (within 5%), else ``None``."""
-    rows = read_curve(directory)
-    if not rows:
-        return None
-    nearest = min(rows, key=lambda row: abs(row["timesteps"] - step))
-    return nearest["min_dist_sum"] if abs(nearest["timesteps"] - step) <= 0.05 * step else None
 
 
 def algorithm_row(label: str, runs: list[dict[str, Any]], references: dict[str, dict[str, float]]) -> str:
@@ -129,9 +120,10 @@ def summarise(results: Path, update_cost: Path) -> str:
             }
             for name, algorithm in zip(names, ("MADDPG", "MATD3"), strict=True):
                 lines.append(f"| {scheme} " + algorithm_row(algorithm, runs[name], references))
+                curves = [read_curve(run["directory"]) for run in runs[name]]
                 means = []
                 for step in CURVE_STEPS:
-                    values = [curve_at(run["directory"], step) for run in runs[name]]
+                    values = [curve_value_at(rows, step) for rows in curves]
                     known = [value for value in values if value is not None]
                     means.append(f"{sum(known) / len(known):.2f}" if known and len(known) == len(values) else "")
                 curve_lines.append(f"| {short} | {scheme} | {algorithm} | " + " | ".join(means) + " |")

@@ -12,19 +12,19 @@ beside this file:
   steps, and at equal gradient steps (2,500, 5,000 and 10,000 after the 25,600 random steps: where a run with more
   updates per transition gets there first).
 
-Only seeds the paper's configuration has finished too are compared (like with like). Usage::
+Only seeds the paper's configuration has finished too are compared (like with like). One step per 10 transitions is
+read from ``benchmarks/matd3/results`` (``BORROWED``): MATD3's comparison ran the same configuration, same code. Usage::
 
     python benchmarks/n5_diagnosis/summarize.py [results] [summary.md]
 """
 
 import csv
-import json
 import statistics
 import sys
 from pathlib import Path
 from typing import Any
 
-from sb3_maddpg.experiments.results import load_summaries
+from sb3_maddpg.experiments.results import curve_value_at, load_experiments, load_summaries, read_curve
 from sb3_maddpg.normalised_score import normalised_scores, reference_scores
 
 HERE = Path(__file__).resolve().parent
@@ -33,6 +33,14 @@ CURVE_STEPS = (200_000, 400_000, 600_000, 800_000, 1_000_000)
 GRADIENT_STEPS = (2_500, 5_000, 10_000)
 PAPER_TRANSITIONS_PER_UPDATE = 100
 PAPER_LEARNING_STARTS = 25_600
+BORROWED = {
+    "n5_tpu10_maddpg": (
+        HERE.parent / "matd3" / "results",
+        "one gradient step per 10 transitions (benchmarks/matd3's `n5_tpu10_maddpg`: the same configuration)",
+    )
+}
+"""Factors another sweep ran in this one's configuration, read from its results so as not to run them twice: by
+experiment, that sweep's results directory and the factor's label here."""
 
 
 def transitions_per_update(experiment: dict[str, Any]) -> int:
@@ -45,18 +53,6 @@ def learning_starts(experiment: dict[str, Any]) -> int:
     return int(experiment.get("model_kwargs", {}).get("learning_starts", PAPER_LEARNING_STARTS))
 
 
-def curve(directory: Path) -> list[tuple[float, float]]:
-    """:return: ``(env steps, min-dist sum)`` of a run's learning curve."""
-    with open(directory / "learning_curve.csv", newline="") as file:
-        return [(float(row["timesteps"]), float(row["min_dist_sum"])) for row in csv.DictReader(file)]
-
-
-def at(points: list[tuple[float, float]], step: float) -> float | None:
-    """:return: The curve's value at the evaluation nearest ``step`` (within 5% of it), else ``None``."""
-    nearest = min(points, key=lambda point: abs(point[0] - step))
-    return nearest[1] if abs(nearest[0] - step) <= 0.05 * step else None
-
-
 def mean_std(values: list[float]) -> str:
     """``mean (std)`` of the values, or the one value."""
     if len(values) == 1:
@@ -64,7 +60,7 @@ def mean_std(values: list[float]) -> str:
     return f"{statistics.mean(values):.3f} ({statistics.stdev(values):.3f})"
 
 
-def behaviour_recorded_right(results: Path, summary: dict[str, Any]) -> bool:
+def behaviour_recorded_right(summary: dict[str, Any]) -> bool:
     """
     :return: Whether a run's recorded behaviour is of its last checkpoint's evaluated episodes: its min-dist sum is
         that evaluation's. Behaviour recorded before 2026-12-02 read nearest-first observations in index order and
@@ -72,8 +68,7 @@ def behaviour_recorded_right(results: Path, summary: dict[str, Any]) -> bool:
     """
     if "behaviour" not in summary:
         return False
-    directory = results / summary["experiment"] / summary["scheme"] / f"seed_{summary['seed']:03d}"
-    with open(directory / "checkpoint_evals.csv", newline="") as file:
+    with open(Path(summary["directory"]) / "checkpoint_evals.csv", newline="") as file:
         last = list(csv.DictReader(file))[-1]
     return abs(summary["behaviour"]["min_dist_sum"] - float(last["min_dist_sum"])) < 1e-3
 
@@ -81,7 +76,11 @@ def behaviour_recorded_right(results: Path, summary: dict[str, Any]) -> bool:
 def summarise(results: Path) -> str:
     """:return: The Markdown of ``summary.md``."""
     summaries = load_summaries(results)
-    experiments = {path.parent.name: json.loads(path.read_text()) for path in results.glob("*/experiment.json")}
+    experiments = load_experiments(results)
+    for name, (elsewhere, label) in BORROWED.items():
+        summaries += [summary for summary in load_summaries(elsewhere) if summary["experiment"] == name]
+        if name in (borrowed := load_experiments(elsewhere)):
+            experiments[name] = {**borrowed[name], "description": label}
     references = reference_scores(5)
     baseline_seeds = {summary["seed"] for summary in summaries if summary["experiment"] == BASELINE}
     order = [BASELINE, *sorted({summary["experiment"] for summary in summaries} - {BASELINE})]
@@ -128,10 +127,10 @@ def summarise(results: Path) -> str:
             f"{statistics.mean(run['train_steps_per_s'] for run in runs):,.0f} | "
             f"{statistics.mean(run['wall_time_s'] for run in runs) / 60:.0f} min |"
         )
-        curves = [curve(Path(run["directory"])) for run in runs]
+        curves = [read_curve(run["directory"]) for run in runs]
         cells = []
         for step in [*CURVE_STEPS, *(warm_up + steps * ratio for steps in GRADIENT_STEPS)]:
-            values = [value for value in (at(points, step) for points in curves) if value is not None]
+            values = [value for value in (curve_value_at(rows, step) for rows in curves) if value is not None]
             cells.append(f"{statistics.mean(values):.2f}" if len(values) == len(curves) else "")
         curve_lines.append(f"| {label} | " + " | ".join(cells) + " |")
     behaviour_lines = [
@@ -142,7 +141,7 @@ def summarise(results: Path) -> str:
         "|---|---|---|---|---|---|---|",
     ]
     for name in order:
-        described = [s["behaviour"] for s in summaries if s["experiment"] == name and behaviour_recorded_right(results, s)]
+        described = [s["behaviour"] for s in summaries if s["experiment"] == name and behaviour_recorded_right(s)]
         if described:
             label = experiments.get(name, {}).get("description", name).removeprefix("N=5 diagnosis: ").split(";")[0]
             means = {key: statistics.mean(b[key] for b in described) for key in described[0]}
@@ -157,7 +156,8 @@ def summarise(results: Path) -> str:
         "Throughput and wall time were measured with two runs at a time on a 2-core machine that was also running other "
         "work (tests and development): read them as ratios between factors, not as this machine's rate.",
         "",
-        "Made by `bash benchmarks/n5_diagnosis/run.sh` (resumable), then `python benchmarks/n5_diagnosis/summarize.py`.",
+        "Made by `bash benchmarks/n5_diagnosis/run.sh` (resumable; the row of one gradient step per 10 transitions by "
+        "`bash benchmarks/matd3/run.sh`), then `python benchmarks/n5_diagnosis/summarize.py`.",
     ]
     return "\n".join(lines + curve_lines + behaviour_lines + notes) + "\n"
 

@@ -8,14 +8,13 @@ Unfinished runs show their curve so far. Usage::
     python benchmarks/n5_tuned/summarize.py [results] [summary.md]
 """
 
-import csv
 import json
 import statistics
 import sys
 from pathlib import Path
 from typing import Any
 
-from sb3_maddpg.experiments.results import load_summaries
+from sb3_maddpg.experiments.results import curve_value_at, load_summaries, read_curve
 from sb3_maddpg.normalised_score import normalised_scores, reference_scores
 
 HERE = Path(__file__).resolve().parent
@@ -30,12 +29,6 @@ PAPER_AT_BUDGET = {"min_dist_sum": 1.79, "success_rate_r0.3": 0.03}
 """The paper's configuration after the same 2.5M steps (the committed N=5 outlook, 3 seeds)."""
 
 
-def curve(path: Path) -> dict[int, float]:
-    """:return: A run's learning curve, min-dist sum by env step."""
-    with open(path, newline="") as file:
-        return {int(float(row["timesteps"])): float(row["min_dist_sum"]) for row in csv.DictReader(file)}
-
-
 def mean_std(values: list[float], digits: int = 3) -> str:
     """:return: ``mean (std)`` of the values, or the one value."""
     if len(values) == 1:
@@ -46,18 +39,6 @@ def mean_std(values: list[float], digits: int = 3) -> str:
 def transitions_per_update(experiment: dict[str, Any]) -> int:
     """:return: The experiment's transitions per gradient step (the paper's 100 unless its model_kwargs say otherwise)."""
     return int(experiment.get("model_kwargs", {}).get("transitions_per_update", 100))
-
-
-def at_gradient_steps(points: dict[int, float], steps: int, ratio: int) -> float | None:
-    """
-    :return: The curve's value where a run of one gradient step per ``ratio`` transitions has taken ``steps`` of them
-        (the evaluation nearest that env step, within 5% of it), else ``None``.
-    """
-    if not points:
-        return None
-    step = LEARNING_STARTS + steps * ratio
-    nearest = min(points, key=lambda point: abs(point - step))
-    return points[nearest] if abs(nearest - step) <= 0.05 * step else None
 
 
 def score_lines(runs: list[dict[str, Any]], ratio: int, references: dict[str, dict[str, float]]) -> list[str]:
@@ -100,10 +81,10 @@ def curve_lines(results: Path, name: str, ratio: int) -> list[str]:
         "|---|" + "---|" * (len(CURVE_STEPS) + 1),
     ]
     for path in sorted(results.glob(f"{name}/full/seed_*/learning_curve.csv")):
-        points = curve(path)
-        cells = [f"{points[step]:.2f}" if step in points else "" for step in CURVE_STEPS]
-        paper_budget = at_gradient_steps(points, PAPER_GRADIENT_STEPS, ratio)
-        cells.append("" if paper_budget is None else f"{paper_budget:.2f}")
+        rows = read_curve(path.parent)
+        values = [curve_value_at(rows, step) for step in CURVE_STEPS]
+        values.append(curve_value_at(rows, LEARNING_STARTS + PAPER_GRADIENT_STEPS * ratio))
+        cells = ["" if value is None else f"{value:.2f}" for value in values]
         lines.append(f"| {int(path.parent.name.removeprefix('seed_'))} | " + " | ".join(cells) + " |")
     return lines
 

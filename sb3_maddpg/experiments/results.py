@@ -180,6 +180,25 @@ def read_curve(directory: str | os.PathLike[str]) -> list[dict[str, float]]:
         return [{key: float(value) for key, value in row.items()} for row in csv.DictReader(file)]
 
 
+def curve_value_at(
+    rows: list[dict[str, float]], step: float, metric: str = "min_dist_sum", tolerance: float = 0.05
+) -> float | None:
+    """
+    A learning curve's value at an env step, for tables that compare runs at equal steps.
+
+    :param rows: A run's learning curve rows (:func:`read_curve`).
+    :param step: The env step.
+    :param metric: The column to read.
+    :param tolerance: How far (as a fraction of ``step``) the nearest evaluation may be from ``step``.
+    :return: ``metric`` at the evaluation nearest ``step``, or ``None`` when none is within ``tolerance * step``
+        (a run that stopped earlier, or evaluated too sparsely to say).
+    """
+    if not rows:
+        return None
+    nearest = min(rows, key=lambda row: abs(row["timesteps"] - step))
+    return nearest[metric] if abs(nearest["timesteps"] - step) <= tolerance * step else None
+
+
 def load_summaries(results_dir: str | os.PathLike[str]) -> list[dict[str, Any]]:
     """
     :param results_dir: A results directory (``<experiment>/<scheme>/seed_<seed>/summary.json``).
