@@ -7,7 +7,9 @@
 # observations with a shared actor and critic led by far (0.92-1.02 at 350k steps, seed 0), probes on that first,
 # then the paper-based factors the issue lists: noise, observation normalisation, layer normalisation, width, one
 # step per 10 transitions; on 2026-12-02 (later) the paper-based factors at 3 seeds moved ahead of the shared probes:
-# the shared configuration already has 3 seeds at 2.5M in benchmarks/n5_tuned).
+# the shared configuration already has 3 seeds at 2.5M in benchmarks/n5_tuned; on 2026-12-02, the paper's
+# configuration at one step per 25 transitions (3 seeds) moved ahead of the probes, and one step per 10 transitions left
+# this queue: `n5_tpu10_maddpg` in benchmarks/matd3 is that run (same configuration, 3 seeds), which summarize.py reads).
 # Resumable: run it again and finished runs are skipped. Usage: bash benchmarks/n5_diagnosis/run.sh
 # Then: python benchmarks/n5_diagnosis/summarize.py
 set -u
@@ -17,9 +19,9 @@ WORKERS="${WORKERS:-2}"
 export SDL_VIDEODRIVER=dummy
 configs=()
 for factor in paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 sorted_obs_batch256_utd25 \
-    noise0.3 obs_norm layer_norm batch256 width128 shared_params \
+    noise0.3 obs_norm layer_norm batch256 width128 shared_params utd25 \
     sorted_obs_utd25_shared_params sorted_obs_utd25_shared_params_matd3 sorted_obs_utd25_shared_params_layer_norm \
-    sorted_obs_utd25_shared_params_lr1e-3 sorted_obs_utd10_shared_params utd25 utd10 \
+    sorted_obs_utd25_shared_params_lr1e-3 sorted_obs_utd10_shared_params \
     sorted_obs_utd25_matd3 sorted_obs_utd25_layer_norm sorted_obs_batch256_utd10 sorted_obs_utd25_lr1e-3; do
     configs+=(--config "benchmarks/n5_diagnosis/$factor.json")
 done
