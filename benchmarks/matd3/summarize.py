@@ -10,7 +10,7 @@ Reads the finished runs in ``results/`` (written by ``benchmarks/matd3/run.sh``)
   the scripted controller), success within 0.3 and team return (higher is better), mean (std) over its seeds, its
   measured env steps per second; and the two-sided Mann-Whitney U test of MATD3's min-dist sums against MADDPG's
   (with 3 seeds each, p = 0.1 is the smallest it can give: a direction, not a significant result);
-- the learning curves' min-dist sum (mean over seeds) at 200k, 400k, 600k, 800k and 1M env steps;
+- the learning curves' min-dist sum (mean over seeds) at 20%, 40%, ..., 100% of each setting's env steps;
 - the measured cost of a gradient step (``update_cost.py``).
 
 Only settings where both algorithms have a finished run are compared. Usage::
@@ -34,8 +34,13 @@ SETTINGS = {
     "n5_tpu10": ("N=5, 1 per 10", "N=5, one gradient step per 10 transitions"),
 }
 """The sweep's settings, with a short and a long label: experiment ``<setting>_maddpg`` against ``<setting>_matd3``."""
+REFERENCE_SETTING = {"n5_tpu10": ("n5", "N=5, 1 per 100")}
+"""A setting's curves are shown beside another's (its experiments' prefix, its label) at the same env steps: one step
+per 10 transitions beside the paper's one per 100, the comparison that asks whether twin critics fix what more updates
+per transition did to MADDPG."""
 ALGORITHMS = ("maddpg", "matd3")
-CURVE_STEPS = (200_000, 400_000, 600_000, 800_000, 1_000_000)
+CURVE_FRACTIONS = (0.2, 0.4, 0.6, 0.8, 1.0)
+"""The learning curves' columns, as fractions of a setting's budget."""
 
 
 def cell(values: list[float], digits: int = 3, scale: float = 1.0) -> str:
@@ -57,6 +62,17 @@ def algorithm_row(label: str, runs: list[dict[str, Any]], references: dict[str, 
         f"{cell([score['return_mean'] for score in scores], 1)} | "
         f"{cell([run['train_steps_per_s'] for run in runs], 0)} |"
     )
+
+
+def curve_means(runs: list[dict[str, Any]], steps: list[int]) -> list[str]:
+    """:return: The runs' mean learning-curve min-dist sum at each env step, empty where a run has no value there."""
+    curves = [read_curve(run["directory"]) for run in runs]
+    cells = []
+    for step in steps:
+        values = [curve_value_at(rows, step) for rows in curves]
+        known = [value for value in values if value is not None]
+        cells.append(f"{sum(known) / len(known):.2f}" if known and len(known) == len(values) else "")
+    return cells
 
 
 def update_cost_lines(path: Path) -> list[str]:
@@ -85,25 +101,34 @@ def summarise(results: Path, update_cost: Path) -> str:
         "",
         "Setting: simple_spread, full observability, the paper's hyperparameters (TD3's `policy_delay=2`, "
         "`target_policy_noise=0.2`, `target_noise_clip=0.5` for MATD3), batched env of 100 worlds, 1M env steps per run "
-        "(40,000 episodes). Score: mean of 20 checkpoint evaluations (100 episodes each) over the last 20% of "
-        "training, then mean (std) over the seeds listed. Min-dist sum: lower is better; normalised score (of the "
-        "min-dist sum: 0 = uniformly random actions, 1 = the scripted controller), success within 0.3 and team "
-        "return: higher is better. p: two-sided Mann-Whitney U of MATD3's min-dist sums against MADDPG's; with 3 "
-        "seeds each the smallest p it can give is 0.1, so a p of 0.1 says every MATD3 seed was on one side of every "
-        "MADDPG seed, not that the difference is significant.",
+        "(40,000 episodes) unless a section says otherwise. Score: mean of 20 checkpoint evaluations (100 episodes "
+        "each) over the last 20% of training, then mean (std) over the seeds listed. Min-dist sum: lower is better; "
+        "normalised score (of the min-dist sum: 0 = uniformly random actions, 1 = the scripted controller), success "
+        "within 0.3 and team return: higher is better. p: two-sided Mann-Whitney U of MATD3's min-dist sums against "
+        "MADDPG's; with 3 seeds each the smallest p it can give is 0.1, so a p of 0.1 says every MATD3 seed was on one "
+        "side of every MADDPG seed, not that the difference is significant.",
     ]
     curve_lines = [
         "",
         "## Learning curves: min-dist sum (20-episode evaluations, mean over the seeds; lower is better)",
-        "",
-        "| setting | scheme | algorithm | " + " | ".join(f"{step // 1000}k" for step in CURVE_STEPS) + " |",
-        "|---|---|---|" + "---|" * len(CURVE_STEPS),
     ]
+    curve_steps: list[int] = []
     for setting, (short, label) in SETTINGS.items():
         names = [f"{setting}_{algorithm}" for algorithm in ALGORITHMS]
         if not all(any(s["experiment"] == name for s in summaries) for name in names):
             continue
         references = reference_scores(int(experiments[names[0]]["n_agents"]))
+        budget = int(experiments[names[0]]["episodes"]) * int(experiments[names[0]]["episode_length"])
+        steps = [round(fraction * budget) for fraction in CURVE_FRACTIONS]
+        if budget != 1_000_000:
+            label += f", {budget // 1000:,}k env steps per run"
+        if steps != curve_steps:
+            curve_steps = steps
+            curve_lines += [
+                "",
+                "| setting | scheme | algorithm | " + " | ".join(f"{step // 1000}k" for step in steps) + " |",
+                "|---|---|---|" + "---|" * len(steps),
+            ]
         lines += [
             "",
             f"## {label}",
@@ -120,13 +145,20 @@ def summarise(results: Path, update_cost: Path) -> str:
             }
             for name, algorithm in zip(names, ("MADDPG", "MATD3"), strict=True):
                 lines.append(f"| {scheme} " + algorithm_row(algorithm, runs[name], references))
-                curves = [read_curve(run["directory"]) for run in runs[name]]
-                means = []
-                for step in CURVE_STEPS:
-                    values = [curve_value_at(rows, step) for rows in curves]
-                    known = [value for value in values if value is not None]
-                    means.append(f"{sum(known) / len(known):.2f}" if known and len(known) == len(values) else "")
-                curve_lines.append(f"| {short} | {scheme} | {algorithm} | " + " | ".join(means) + " |")
+                curve_lines.append(
+                    f"| {short} | {scheme} | {algorithm} | " + " | ".join(curve_means(runs[name], curve_steps)) + " |"
+                )
+            if setting in REFERENCE_SETTING:
+                reference_setting, reference_label = REFERENCE_SETTING[setting]
+                for algorithm in ALGORITHMS:
+                    reference_runs = [
+                        s for s in summaries if s["experiment"] == f"{reference_setting}_{algorithm}" and s["scheme"] == scheme
+                    ]
+                    curve_lines.append(
+                        f"| {reference_label} | {scheme} | {algorithm.upper()} | "
+                        + " | ".join(curve_means(reference_runs, curve_steps))
+                        + " |"
+                    )
             u, p = mann_whitney(*([run["score"]["min_dist_sum"] for run in runs[name]] for name in reversed(names)))
             lines.append(f"| {scheme} | MATD3 against MADDPG | | U = {u:g}, p = {p:.2f} | | | | |")
     notes = [
