@@ -536,3 +536,54 @@ def test_curve_value_at_reads_the_nearest_evaluation_and_none_beyond_the_toleran
     assert curve_value_at(rows, 250_000, tolerance=0.25) == 1.5
     assert curve_value_at([], 200_000) is None
     assert curve_value_at([{"timesteps": 200_000.0, "min_dist_sum": 1.0, "return_mean": -5.0}], 200_000, "return_mean") == -5.0
+
+
+def _curve_run(directory: Path, experiment: str, scheme: str, values: list[float], every: int = 50_000) -> dict[str, Any]:
+    directory.mkdir(parents=True)
+    rows = ["timesteps,min_dist_sum"] + [f"{(index + 1) * every},{value}" for index, value in enumerate(values)]
+    (directory / "learning_curve.csv").write_text("\n".join(rows) + "\n")
+    return {"experiment": experiment, "scheme": scheme, "directory": str(directory)}
+
+
+def test_experiment_curves_draw_each_factor_against_env_and_gradient_steps(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from sb3_maddpg.experiments import plots
+
+    summaries = [
+        _curve_run(tmp_path / "a0", "paper", "full", [2.0, 1.8, 1.6]),
+        _curve_run(tmp_path / "a1", "paper", "full", [2.2, 2.0, 1.8]),
+        _curve_run(tmp_path / "b0", "utd25", "full", [1.5, 1.0, 0.5]),
+        _curve_run(tmp_path / "c0", "left_out", "full", [9.0, 9.0, 9.0]),
+    ]
+    drawn: dict[str, Any] = {}
+    monkeypatch.setattr(plots, "_save", lambda figure, path: drawn.update(figure=figure))
+    plots.plot_experiment_curves(
+        summaries,
+        "min_dist_sum",
+        tmp_path / "curves.png",
+        {"paper": "the paper's", "utd25": "one step per 25"},
+        transitions_per_update={"paper": 100, "utd25": 25},
+        learning_starts=50_000,
+        levels={"random": 2.9},
+        y_max=2.5,
+    )
+    env_axis, gradient_axis = drawn["figure"].axes
+    for axis, x_paper, x_utd25 in (
+        (env_axis, [50_000, 100_000, 150_000], [50_000, 100_000, 150_000]),
+        (gradient_axis, [0, 500, 1_000], [0, 2_000, 4_000]),  # (env steps - learning starts) / ratio
+    ):
+        lines = {line.get_label(): line for line in axis.get_lines()}
+        assert set(lines) == {"the paper's", "one step per 25", "random"}  # the unlisted experiment is not drawn
+        np.testing.assert_allclose(lines["the paper's"].get_xdata(), x_paper)
+        np.testing.assert_allclose(lines["the paper's"].get_ydata(), [2.1, 1.9, 1.7])  # IQM of two runs: their mean
+        np.testing.assert_allclose(lines["one step per 25"].get_xdata(), x_utd25)
+        np.testing.assert_allclose(lines["random"].get_ydata(), [2.9, 2.9])
+        assert axis.get_ylim() == (0.0, 2.5)
+    with pytest.raises(ValueError, match="no ratio for utd25"):
+        plots.plot_experiment_curves(
+            summaries, "min_dist_sum", tmp_path / "x.png", {"utd25": "x"}, transitions_per_update={"paper": 100}
+        )
+    mixed = [*summaries, _curve_run(tmp_path / "a2", "paper", "selected", [1.0, 1.0, 1.0])]
+    with pytest.raises(ValueError, match="'paper' has runs of 2 schemes"):
+        plots.plot_experiment_curves(mixed, "min_dist_sum", tmp_path / "x.png", {"paper": "x"})

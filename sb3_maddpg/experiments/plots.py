@@ -4,7 +4,7 @@ matplotlib is imported inside the functions (with the Agg backend), so the packa
 """
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -79,6 +79,11 @@ def iqm_curves(summaries: Sequence[dict[str, Any]], metric: str) -> dict[str, di
     return result
 
 
+def _never_negative(curves: Sequence[Curve]) -> bool:
+    """:return: Whether no curve nor band goes below 0 (a band of one run is ``nan``: its curve decides)."""
+    return all(float(np.nanmin(np.fmin(curve[1], curve[2]))) >= 0 for curve in curves)
+
+
 def plot_learning_curves(
     summaries: Sequence[dict[str, Any]],
     metric: str,
@@ -116,9 +121,80 @@ def plot_learning_curves(
         axis.grid(alpha=0.3)
         if curves.get(setting):
             axis.legend(fontsize=8)
-            if min(float(np.min(curve[2])) for curve in curves[setting].values()) >= 0:
+            if _never_negative(list(curves[setting].values())):
                 axis.set_ylim(bottom=0.0)  # a score that cannot be negative: its axis starts at 0
     figure.tight_layout()
+    _save(figure, path)
+    plt.close(figure)
+    return Path(path)
+
+
+def plot_experiment_curves(
+    summaries: Sequence[dict[str, Any]],
+    metric: str,
+    path: str | os.PathLike[str],
+    labels: Mapping[str, str],
+    transitions_per_update: Mapping[str, int] | None = None,
+    learning_starts: int = 25_600,
+    levels: Mapping[str, float] | None = None,
+    title: str = "",
+    y_max: float | None = None,
+) -> Path:
+    """
+    Experiments compared on one panel (a diagnosis's factors): one line per experiment, the interquartile mean of its
+    runs' learning curves with the 95% bootstrap band, against env steps; with ``transitions_per_update``, a second
+    panel draws the same curves against gradient steps, where runs with more updates per transition get first.
+
+    :param summaries: Run summaries with ``"directory"``; each experiment drawn must have runs of one scheme.
+    :param metric: The curves' column (e.g. ``min_dist_sum``).
+    :param path: The PNG file.
+    :param labels: The experiments to draw, in this order, by name: their legend labels.
+    :param transitions_per_update: Each drawn experiment's env transitions per gradient step, for the second panel.
+    :param learning_starts: The env steps of random actions before the first gradient step.
+    :param levels: Horizontal reference lines, by label (e.g. a random team's and a scripted controller's score).
+    :param title: The figure's title.
+    :param y_max: The panels' top, to cut early transients off (none: matplotlib's).
+    :return: The path.
+    """
+    plt = _pyplot()
+    curves = iqm_curves([summary for summary in summaries if summary["experiment"] in labels], metric)
+    for name, by_scheme in curves.items():
+        if len(by_scheme) != 1:
+            raise ValueError(
+                f"Experiment {name!r} has runs of {len(by_scheme)} schemes ({', '.join(sorted(by_scheme))}): pass the "
+                "summaries of one scheme per experiment."
+            )
+    missing = [name for name in labels if name in curves and transitions_per_update and name not in transitions_per_update]
+    if missing:
+        raise ValueError(f"transitions_per_update has no ratio for {', '.join(missing)}: give every drawn experiment's.")
+    panels = 2 if transitions_per_update else 1
+    figure, axes = plt.subplots(1, panels, figsize=(6.5 * panels, 4.5), squeeze=False)
+    colors = plt.get_cmap("tab10")
+    for index, (name, label) in enumerate((name, label) for name, label in labels.items() if name in curves):
+        steps, middle, low, high = next(iter(curves[name].values()))
+        xs = [steps]
+        if transitions_per_update:
+            xs.append(np.maximum(steps - learning_starts, 0) / transitions_per_update[name])
+        for axis, x in zip(axes[0], xs):
+            axis.plot(x, middle, label=label, color=colors(index % 10))
+            axis.fill_between(x, low, high, color=colors(index % 10), alpha=0.15, linewidth=0)
+    metric_label = METRICS.get(metric, Metric(metric, metric)).label
+    for axis, x_label in zip(axes[0], ("env steps", "gradient steps")):
+        for level_index, (level_label, value) in enumerate((levels or {}).items()):
+            axis.axhline(value, color="0.4", linestyle=("--", ":", "-.")[level_index % 3], linewidth=1, label=level_label)
+        axis.set_xlabel(x_label)
+        axis.set_ylabel(f"{metric_label}, IQM over runs (band: 95% CI)")
+        if _never_negative([curve for by_scheme in curves.values() for curve in by_scheme.values()]):
+            axis.set_ylim(bottom=0.0)  # a score that cannot be negative: its axis starts at 0
+        if y_max is not None:
+            axis.set_ylim(top=y_max)
+        axis.grid(alpha=0.3)
+    if title:
+        figure.suptitle(title, fontsize=10)
+    figure.tight_layout()
+    # Below the panels, so that it hides no curve.
+    handles, legend_labels = axes[0][0].get_legend_handles_labels()
+    figure.legend(handles, legend_labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, fontsize=8)
     _save(figure, path)
     plt.close(figure)
     return Path(path)
