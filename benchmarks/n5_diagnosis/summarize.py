@@ -88,7 +88,8 @@ def summarise(results: Path) -> str:
         "# N=5 diagnosis: each factor against the paper's configuration",
         "",
         "Setting: simple_spread N=5, full observability, `full` sharing, batched env of 100 worlds, 1M env steps per run "
-        "(40,000 episodes); score: mean of 20 checkpoint evaluations (100 episodes each) over the last 20% of training, "
+        "(40,000 episodes) unless a factor says otherwise; score: mean of 20 checkpoint evaluations (100 episodes "
+        "each) over the last 20% of training, "
         f"then mean (std) over the seeds listed (seeds the paper's configuration finished: {sorted(baseline_seeds)}). "
         "Min-dist sum: lower is better; success and coverage within 0.3, return and normalised scores: higher is "
         "better (normalised: 0 = uniformly random actions, 1 = the scripted controller; random min-dist sum "
@@ -118,8 +119,11 @@ def summarise(results: Path) -> str:
         scores = [run["score"] for run in runs]
         normalised = [normalised_scores(score, references) for score in scores]
         label = experiment.get("description", name).removeprefix("N=5 diagnosis: ").split(";")[0]
+        budget = int(experiment.get("episodes", 40_000)) * int(experiment.get("episode_length", 25))
+        if budget != 1_000_000:
+            label += f" ({budget // 1000:,}k env steps)"
         lines.append(
-            f"| {label} | {', '.join(str(run['seed']) for run in runs)} | {(1_000_000 - warm_up) // ratio:,} | "
+            f"| {label} | {', '.join(str(run['seed']) for run in runs)} | {(budget - warm_up) // ratio:,} | "
             f"{mean_std([s['min_dist_sum'] for s in scores])} | {mean_std([n['min_dist_sum'] for n in normalised])} | "
             f"{mean_std([s['success_rate_r0.3'] for s in scores])} | {mean_std([s['coverage_r0.3'] for s in scores])} | "
             f"{statistics.mean(s['return_mean'] for s in scores):.1f} | "
