@@ -36,7 +36,7 @@ PAPER_LEARNING_STARTS = 25_600
 BORROWED = {
     "n5_tpu10_maddpg": (
         HERE.parent / "matd3" / "results",
-        "one gradient step per 10 transitions (benchmarks/matd3's `n5_tpu10_maddpg`: the same configuration)",
+        "one gradient step per 10 transitions (run by benchmarks/matd3 as `n5_tpu10_maddpg`)",
     )
 }
 """Factors another sweep ran in this one's configuration, read from its results so as not to run them twice: by
