@@ -9,7 +9,8 @@
 # step per 10 transitions; on 2026-12-02 (later) the paper-based factors at 3 seeds moved ahead of the shared probes:
 # the shared configuration already has 3 seeds at 2.5M in benchmarks/n5_tuned; on 2026-12-02, the paper's
 # configuration at one step per 25 transitions (3 seeds) moved ahead of the probes, and one step per 10 transitions left
-# this queue: `n5_tpu10_maddpg` in benchmarks/matd3 is that run (same configuration, 3 seeds), which summarize.py reads).
+# this queue: `n5_tpu10_maddpg` in benchmarks/matd3 is that configuration at 200k steps, 3 seeds;
+# summarize.py reads it).
 # Resumable: run it again and finished runs are skipped. Usage: bash benchmarks/n5_diagnosis/run.sh
 # Then: python benchmarks/n5_diagnosis/summarize.py
 set -u

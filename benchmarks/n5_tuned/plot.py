@@ -38,7 +38,7 @@ def main() -> Path:
         experiments = load_experiments(results)
         for name in set(LABELS) & set(experiments):
             ratios[name] = int(experiments[name].get("model_kwargs", {}).get("transitions_per_update", 100))
-            summaries += [s for s in load_summaries(results) if s["experiment"] == name and s["scheme"] == "full"]
+        summaries += [s for s in load_summaries(results) if s["experiment"] in ratios and s["scheme"] == "full"]
     references = reference_scores(5)
     OUT.parent.mkdir(parents=True, exist_ok=True)
     return plot_experiment_curves(

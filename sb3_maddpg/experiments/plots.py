@@ -150,7 +150,8 @@ def plot_experiment_curves(
     :param path: The PNG file.
     :param labels: The experiments to draw, in this order, by name: their legend labels.
     :param transitions_per_update: Each drawn experiment's env transitions per gradient step, for the second panel.
-    :param learning_starts: The env steps of random actions before the first gradient step.
+    :param learning_starts: The env steps of random actions before the first gradient step (MADDPG's and MATD3's
+        default, the paper's).
     :param levels: Horizontal reference lines, by label (e.g. a random team's and a scripted controller's score).
     :param title: The figure's title.
     :param y_max: The panels' top, to cut early transients off (none: matplotlib's).
@@ -179,12 +180,13 @@ def plot_experiment_curves(
             axis.plot(x, middle, label=label, color=colors(index % 10))
             axis.fill_between(x, low, high, color=colors(index % 10), alpha=0.15, linewidth=0)
     metric_label = METRICS.get(metric, Metric(metric, metric)).label
+    never_negative = _never_negative([curve for by_scheme in curves.values() for curve in by_scheme.values()])
     for axis, x_label in zip(axes[0], ("env steps", "gradient steps")):
         for level_index, (level_label, value) in enumerate((levels or {}).items()):
             axis.axhline(value, color="0.4", linestyle=("--", ":", "-.")[level_index % 3], linewidth=1, label=level_label)
         axis.set_xlabel(x_label)
         axis.set_ylabel(f"{metric_label}, IQM over runs (band: 95% CI)")
-        if _never_negative([curve for by_scheme in curves.values() for curve in by_scheme.values()]):
+        if never_negative:
             axis.set_ylim(bottom=0.0)  # a score that cannot be negative: its axis starts at 0
         if y_max is not None:
             axis.set_ylim(top=y_max)
