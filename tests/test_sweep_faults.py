@@ -14,7 +14,6 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 import types
 from collections.abc import Callable
 from pathlib import Path
@@ -38,6 +37,7 @@ from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.sweep import SweepProgress, SweepResult, plan_sweep
 from sb3_maddpg.install_hint import extra_install_command
 from tests.fault_helpers import stalled_pid
+from tests.process_helpers import alive, wait_for
 
 REPO = Path(__file__).resolve().parents[1]
 STALLING = "tests.fault_helpers:StallingMADDPG"
@@ -59,22 +59,6 @@ def experiment(schemes: tuple[str, ...] = FOUR, stalls: dict[str, Path] | None =
         if stalls
         else None,
     )
-
-
-def wait_for(condition: Callable[[], object], what: str, timeout: float = 90.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
-        time.sleep(0.05)
-
-
-def alive(pid: int) -> bool:
-    """Whether a process runs (a zombie, dead but not reaped by its parent, does not)."""
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except (FileNotFoundError, ProcessLookupError):
-        return False
 
 
 def ignores_sigint(pid: int) -> bool:

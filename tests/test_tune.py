@@ -1,6 +1,7 @@
 """sb3-maddpg tune: the sampler gives MADDPG's arguments, a tiny study runs, is killed mid-trial, resumes (the killed
 trial failed and retried), prunes, and prints the best trial as a preset that `sb3-maddpg run` takes."""
 
+import contextlib
 import json
 import multiprocessing
 import os
@@ -31,6 +32,7 @@ from sb3_maddpg.experiments.tune import (
     run_study,
     sample_maddpg_params,
 )
+from tests.process_helpers import alive, spawned_workers, wait_for
 
 TINY = SMOKE.replace(schemes=("full",))
 
@@ -137,6 +139,37 @@ def test_a_killed_study_resumes_and_retries_the_killed_trial(tmp_path: Path) -> 
     assert states.count(optuna.trial.TrialState.COMPLETE) == 2, states
     killed, retried = load_study(study_settings).trials[:2]
     assert retried.system_attrs["failed_trial"] == 0 and retried.params == killed.params  # the same sample, again
+
+
+@pytest.mark.parametrize("kill", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
+def test_a_killed_study_takes_its_workers_with_it(tmp_path: Path, kill: signal.Signals) -> None:
+    # Two workers in trials that would run for minutes: killing the study's process must stop them too, or they go
+    # on training (a core each) on trials that the resumed study retries anyway.
+    db = tmp_path / "tune.db"
+    argv = [sys.executable, "-m", "sb3_maddpg.experiments", "tune", "--config", "smoke", "--scheme", "full"]
+    argv += ["--trials", "4", "--steps", "10000000", "--evaluations", "2", "--eval-episodes", "1"]
+    argv += ["--last-evaluations", "1", "--storage", f"sqlite:///{db}", "--heartbeat", "1", "--workers", "2"]
+    env = {**os.environ, "SDL_VIDEODRIVER": "dummy"}
+    process = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    workers: list[int] = []
+    try:
+        study_settings = settings(tmp_path, study_name="smoke_min_dist_sum", n_trials=4, budget=10_000_000)
+
+        def both_workers_in_a_trial() -> bool:
+            workers[:] = spawned_workers(process.pid)
+            running = optuna.trial.TrialState.RUNNING
+            return db.exists() and len(workers) == 2 and len(load_study(study_settings).get_trials(states=(running,))) == 2
+
+        wait_for(both_workers_in_a_trial, "two workers in a trial each", timeout=120)
+        process.send_signal(kill)
+        process.wait(timeout=30)
+        for worker in workers:
+            wait_for(lambda worker=worker: not alive(worker), f"worker {worker} to exit with the killed study", timeout=10)
+    finally:
+        process.kill()
+        for worker in workers:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(worker, signal.SIGKILL)
 
 
 @pytest.mark.parametrize(

@@ -60,18 +60,45 @@ def set_worker_threads(threads: int) -> None:
     th.set_num_threads(threads)
 
 
-def _init_pool_worker(threads: int, parent_pid: int) -> None:
+def _init_pool_worker(threads: int | None, parent_pid: int) -> None:
     """
-    Set up a local pool's worker process: its threads, Ctrl-C left to the sweep's process, and an exit with it.
+    Set up a local pool's worker process: its threads, Ctrl-C left to the pool's owner, and an exit with it.
 
-    :param threads: Torch threads.
-    :param parent_pid: The sweep's process.
+    :param threads: Torch threads, or ``None`` to leave them to the work it runs.
+    :param parent_pid: The process that owns the pool (a sweep, a tuning study).
     """
-    # Ctrl-C in a terminal reaches the whole process group: the sweep's process handles it (and stops the workers).
+    # Ctrl-C in a terminal reaches the whole process group: the owner handles it (and stops the workers).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    # A worker outliving a killed sweep would finish its run into a directory that the next sweep is redoing.
-    threading.Thread(target=_exit_with_parent, args=(parent_pid,), daemon=True, name="exit-with-sweep").start()
-    set_worker_threads(threads)
+    # A worker outliving a killed owner would go on with work that the next command redoes (a run into a directory
+    # that the next sweep is redoing, a trial that the resumed study retries) and hold a core meanwhile.
+    threading.Thread(target=_exit_with_parent, args=(parent_pid,), daemon=True, name="exit-with-owner").start()
+    if threads is not None:
+        set_worker_threads(threads)
+
+
+@contextmanager
+def worker_pool(workers: int, threads: int | None) -> Iterator[ProcessPoolExecutor]:
+    """
+    A local process pool (``spawn`` start method, so that no torch or env state is shared with this process) whose
+    workers go with this process: they ignore Ctrl-C, which this process handles; leaving the block by an exception
+    (Ctrl-C's ``KeyboardInterrupt``) stops them at once; and a worker whose owner is killed (SIGTERM, SIGKILL) exits.
+
+    :param workers: Worker processes.
+    :param threads: Torch threads per worker, or ``None`` to leave them to the work it runs.
+    :return: The pool, shut down on leaving.
+    """
+    children_before = set(multiprocessing.active_children())
+    pool = ProcessPoolExecutor(
+        max_workers=workers, mp_context=get_context("spawn"), initializer=_init_pool_worker, initargs=(threads, os.getpid())
+    )
+    try:
+        yield pool
+    except BaseException:  # Ctrl-C (KeyboardInterrupt): the workers ignore it, stop them now
+        for process in set(multiprocessing.active_children()) - children_before:
+            process.terminate()
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _exit_with_parent(parent_pid: int, interval_s: float = 0.5) -> None:
@@ -140,12 +167,8 @@ def _run_pool(
 
     :return: The runs in progress when a worker died (the queue keeps the runs not started), or none.
     """
-    children_before = set(multiprocessing.active_children())
-    pool = ProcessPoolExecutor(
-        max_workers=workers, mp_context=get_context("spawn"), initializer=_init_pool_worker, initargs=(threads, os.getpid())
-    )
     running: dict[Future[dict[str, Any]], RunConfig] = {}
-    try:
+    with worker_pool(workers, threads) as pool:
         while queue or running:
             pool_broke = False
             try:
@@ -170,13 +193,7 @@ def _run_pool(
                     on_result(config, None, "".join(traceback.format_exception(error)))
             if pool_broke:
                 return lost
-        return []
-    except BaseException:  # Ctrl-C (KeyboardInterrupt): the workers ignore it, stop them now
-        for process in set(multiprocessing.active_children()) - children_before:
-            process.terminate()
-        raise
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+    return []
 
 
 def run_ray(

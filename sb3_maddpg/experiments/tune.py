@@ -12,15 +12,14 @@ import copy
 import dataclasses
 import json
 import math
-import multiprocessing
 import os
 import time
 import warnings
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 from sb3_maddpg.evaluation import TeamEvalCallback
+from sb3_maddpg.experiments.backends import worker_pool
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
 from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig, merge_model_kwargs
 from sb3_maddpg.experiments.runner import load_algorithm, make_eval_env, make_train_env
@@ -421,7 +420,9 @@ def run_study(
     elif workers == 1:
         optimize(settings, threads)
     else:
-        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        # The workers go with this process: Ctrl-C stops them, and a killed study (SIGTERM, SIGKILL) leaves no worker
+        # training on: its trials stay "running" until their heartbeats go stale, and the resumed study retries them.
+        with worker_pool(workers, threads) as pool:
             for future in [pool.submit(_worker, settings, threads) for _ in range(workers)]:
                 future.result()
     return load_study(settings)
