@@ -15,7 +15,7 @@ from scipy.stats import mannwhitneyu
 
 from sb3_maddpg.experiments import EXP1, EXP1_TUNED, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
-from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL, PAPER_NAMES, setting_label
+from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL, PAPER_NAMES, algorithm_argument, setting_label
 from sb3_maddpg.experiments.report import format_markdown
 from sb3_maddpg.experiments.results import (
     DONE_FILE,
@@ -587,3 +587,19 @@ def test_experiment_curves_draw_each_factor_against_env_and_gradient_steps(
     mixed = [*summaries, _curve_run(tmp_path / "a2", "paper", "selected", [1.0, 1.0, 1.0])]
     with pytest.raises(ValueError, match="'paper' has runs of 2 schemes"):
         plots.plot_experiment_curves(mixed, "min_dist_sum", tmp_path / "x.png", {"paper": "x"})
+
+
+def test_an_experiments_algorithm_argument_is_its_own_else_its_algorithms_default() -> None:
+    from sb3_maddpg import MADDPG, MATD3
+    from sb3_maddpg.envs import make_simple_spread
+
+    env = make_simple_spread(n_agents=2)
+    paper = EXP1.to_dict()
+    assert algorithm_argument(paper, "transitions_per_update") == MADDPG("MlpPolicy", env).transitions_per_update
+    assert algorithm_argument(paper, "learning_starts") == MADDPG("MlpPolicy", env).learning_starts
+    stored = EXP1.replace(model_kwargs={"transitions_per_update": 25}).to_dict()
+    assert algorithm_argument(stored, "transitions_per_update") == 25
+    matd3 = EXP1.replace(algorithm="sb3_maddpg:MATD3").to_dict()
+    assert algorithm_argument(matd3, "policy_delay") == MATD3("MlpPolicy", env).policy_delay
+    with pytest.raises(ValueError, match=r"sb3_maddpg:MADDPG has no argument 'policy_delay' with a default"):
+        algorithm_argument(paper, "policy_delay")

@@ -24,6 +24,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from sb3_maddpg.experiments.config import algorithm_argument
 from sb3_maddpg.experiments.results import curve_value_at, load_experiments, load_summaries, read_curve
 from sb3_maddpg.normalised_score import normalised_scores, reference_scores
 
@@ -31,8 +32,6 @@ HERE = Path(__file__).resolve().parent
 BASELINE = "n5_paper"
 CURVE_STEPS = (200_000, 400_000, 600_000, 800_000, 1_000_000)
 GRADIENT_STEPS = (2_500, 5_000, 10_000)
-PAPER_TRANSITIONS_PER_UPDATE = 100
-PAPER_LEARNING_STARTS = 25_600
 BORROWED = {
     "n5_tpu10_maddpg": (
         HERE.parent / "matd3" / "results",
@@ -41,16 +40,6 @@ BORROWED = {
 }
 """Factors another sweep ran in this one's configuration, read from its results so as not to run them twice: by
 experiment, that sweep's results directory and the factor's label here."""
-
-
-def transitions_per_update(experiment: dict[str, Any]) -> int:
-    """:return: The run's transitions per gradient step (the paper's 100 unless its model_kwargs say otherwise)."""
-    return int(experiment.get("model_kwargs", {}).get("transitions_per_update", PAPER_TRANSITIONS_PER_UPDATE))
-
-
-def learning_starts(experiment: dict[str, Any]) -> int:
-    """:return: The env steps of random actions before the first gradient step (the paper's 25,600 by default)."""
-    return int(experiment.get("model_kwargs", {}).get("learning_starts", PAPER_LEARNING_STARTS))
 
 
 def mean_std(values: list[float]) -> str:
@@ -115,7 +104,8 @@ def summarise(results: Path) -> str:
         if not runs:
             continue
         experiment = experiments.get(name, {})
-        ratio, warm_up = transitions_per_update(experiment), learning_starts(experiment)
+        ratio = int(algorithm_argument(experiment, "transitions_per_update"))
+        warm_up = int(algorithm_argument(experiment, "learning_starts"))
         scores = [run["score"] for run in runs]
         normalised = [normalised_scores(score, references) for score in scores]
         label = experiment.get("description", name).removeprefix("N=5 diagnosis: ").split(";")[0]

@@ -9,6 +9,7 @@ the target as levels. Writes ``docs/_static/learning_n5/min_dist_sum_curves.png`
 
 from pathlib import Path
 
+from sb3_maddpg.experiments.config import algorithm_argument
 from sb3_maddpg.experiments.plots import plot_experiment_curves
 from sb3_maddpg.experiments.results import load_experiments, load_summaries
 from sb3_maddpg.normalised_score import reference_scores
@@ -37,7 +38,7 @@ def main() -> Path:
     for results in RESULTS:
         experiments = load_experiments(results)
         for name in set(LABELS) & set(experiments):
-            ratios[name] = int(experiments[name].get("model_kwargs", {}).get("transitions_per_update", 100))
+            ratios[name] = int(algorithm_argument(experiments[name], "transitions_per_update"))
         summaries += [s for s in load_summaries(results) if s["experiment"] in ratios and s["scheme"] == "full"]
     references = reference_scores(5)
     OUT.parent.mkdir(parents=True, exist_ok=True)

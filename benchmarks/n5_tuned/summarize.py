@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from sb3_maddpg.experiments.config import algorithm_argument
 from sb3_maddpg.experiments.results import curve_value_at, load_summaries, read_curve
 from sb3_maddpg.normalised_score import normalised_scores, reference_scores
 
@@ -21,8 +22,6 @@ HERE = Path(__file__).resolve().parent
 CURVE_STEPS = (200_000, 400_000, 1_000_000, 1_500_000, 2_000_000, 2_500_000)
 TARGET = {"min_dist_sum": 0.8, "success_rate_r0.3": 0.30}
 """Issue 21's target at N=5 within 2.5M steps: min-dist sum at most 0.8, success within 0.3 at least 30%."""
-LEARNING_STARTS = 25_600
-"""The env steps of random actions before the first gradient step (the paper's)."""
 PAPER_GRADIENT_STEPS = 25_000
 """The paper's gradient steps in its budget: 2.5M env steps at one per 100 transitions."""
 PAPER_AT_BUDGET = {"min_dist_sum": 1.79, "success_rate_r0.3": 0.03}
@@ -36,12 +35,7 @@ def mean_std(values: list[float], digits: int = 3) -> str:
     return f"{statistics.mean(values):.{digits}f} ({statistics.stdev(values):.{digits}f})"
 
 
-def transitions_per_update(experiment: dict[str, Any]) -> int:
-    """:return: The experiment's transitions per gradient step (the paper's 100 unless its model_kwargs say otherwise)."""
-    return int(experiment.get("model_kwargs", {}).get("transitions_per_update", 100))
-
-
-def score_lines(runs: list[dict[str, Any]], ratio: int, references: dict[str, dict[str, float]]) -> list[str]:
+def score_lines(runs: list[dict[str, Any]], ratio: int, warm_up: int, references: dict[str, dict[str, float]]) -> list[str]:
     """:return: The Markdown table of each seed's score, and their mean (std) against the target."""
     lines = [
         "| seed | min-dist sum | success within 0.3 | coverage within 0.3 | team return | normalised (min-dist, return) "
@@ -51,7 +45,7 @@ def score_lines(runs: list[dict[str, Any]], ratio: int, references: dict[str, di
     for summary in runs:
         score = summary["score"]
         normalised = normalised_scores(score, references)
-        gradient_steps = (summary["total_timesteps"] - LEARNING_STARTS) // ratio
+        gradient_steps = (summary["total_timesteps"] - warm_up) // ratio
         lines.append(
             f"| {summary['seed']} | {score['min_dist_sum']:.3f} | {score['success_rate_r0.3']:.1%} | "
             f"{score['coverage_r0.3']:.3f} | {score['return_mean']:.1f} | {normalised['min_dist_sum']:.2f}, "
@@ -72,7 +66,7 @@ def score_lines(runs: list[dict[str, Any]], ratio: int, references: dict[str, di
     return lines
 
 
-def curve_lines(results: Path, name: str, ratio: int) -> list[str]:
+def curve_lines(results: Path, name: str, ratio: int, warm_up: int) -> list[str]:
     """:return: The Markdown table of each seed's learning curve, finished or not, at equal env and gradient steps."""
     lines = [
         "| seed | "
@@ -83,7 +77,7 @@ def curve_lines(results: Path, name: str, ratio: int) -> list[str]:
     for path in sorted(results.glob(f"{name}/full/seed_*/learning_curve.csv")):
         rows = read_curve(path.parent)
         values = [curve_value_at(rows, step) for step in CURVE_STEPS]
-        values.append(curve_value_at(rows, LEARNING_STARTS + PAPER_GRADIENT_STEPS * ratio))
+        values.append(curve_value_at(rows, warm_up + PAPER_GRADIENT_STEPS * ratio))
         cells = ["" if value is None else f"{value:.2f}" for value in values]
         lines.append(f"| {int(path.parent.name.removeprefix('seed_'))} | " + " | ".join(cells) + " |")
     return lines
@@ -111,11 +105,12 @@ def summarise(results: Path) -> str:
     ]
     for name in sorted(experiments, key=lambda name: (name != "n5_tuned_shared", name)):
         experiment = experiments[name]
-        ratio = transitions_per_update(experiment)
+        ratio = int(algorithm_argument(experiment, "transitions_per_update"))
+        warm_up = int(algorithm_argument(experiment, "learning_starts"))
         lines += ["", f"## `{name}`: one gradient step per {ratio} transitions", ""]
-        lines += score_lines([summary for summary in summaries if summary["experiment"] == name], ratio, references)
+        lines += score_lines([summary for summary in summaries if summary["experiment"] == name], ratio, warm_up, references)
         lines += ["", "Learning curve: min-dist sum (20-episode evaluations; lower is better).", ""]
-        lines += curve_lines(results, name, ratio)
+        lines += curve_lines(results, name, ratio, warm_up)
     lines += ["", "Made by `bash benchmarks/n5_tuned/run.sh` (resumable), then `python benchmarks/n5_tuned/summarize.py`."]
     return "\n".join(lines) + "\n"
 

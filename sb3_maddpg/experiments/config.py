@@ -2,8 +2,10 @@
 
 import copy
 import dataclasses
+import importlib
+import inspect
 import json
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -18,6 +20,41 @@ SCHEMES = ("full", "independent", "observations", "actions", "selected")
 
 DEFAULT_ALGORITHM = "sb3_maddpg:MADDPG"
 """The algorithm every run trains, as ``"module:Class"``."""
+
+
+def load_algorithm(path: str) -> Any:
+    """
+    :param path: ``"module:Class"``, e.g. ``"sb3_maddpg:MADDPG"``.
+    :return: The class.
+    """
+    module_name, _, class_name = path.partition(":")
+    if not class_name:
+        raise ValueError(f"The algorithm must be given as 'module:Class', got {path!r}.")
+    return getattr(importlib.import_module(module_name), class_name)
+
+
+def algorithm_argument(experiment: Mapping[str, Any], name: str) -> Any:
+    """
+    One argument that an experiment's runs give their algorithm, for tables and figures that compare experiments
+    (e.g. gradient steps from ``transitions_per_update`` and ``learning_starts``).
+
+    :param experiment: An experiment as stored (``ExperimentConfig.to_dict()``, a results directory's
+        ``experiment.json``).
+    :param name: The argument, e.g. ``"transitions_per_update"``.
+    :return: The experiment's ``model_kwargs`` value, else its algorithm's default (MADDPG's: the paper's).
+    """
+    model_kwargs = experiment.get("model_kwargs") or {}
+    if name in model_kwargs:
+        return model_kwargs[name]
+    algorithm_path = experiment.get("algorithm") or DEFAULT_ALGORITHM
+    parameter = inspect.signature(load_algorithm(algorithm_path)).parameters.get(name)
+    if parameter is None or parameter.default is inspect.Parameter.empty:
+        raise ValueError(
+            f"{algorithm_path} has no argument {name!r} with a default, and the experiment's model_kwargs do not set it: "
+            "name one of the algorithm's constructor arguments."
+        )
+    return parameter.default
+
 
 VEC_ENVS = ("batched", "mpe2")
 """How a run steps simple_spread: ``"batched"`` (:class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`, the same MDP as

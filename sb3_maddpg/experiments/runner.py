@@ -1,7 +1,6 @@
 """One run of the protocol: train, save checkpoints over the last 20%, evaluate each, write the run directory."""
 
 import copy
-import importlib
 import math
 import os
 import shutil
@@ -11,14 +10,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
 
 from sb3_maddpg.behaviour import team_behaviour
 from sb3_maddpg.evaluation import TeamEvalCallback, eval_keys, evaluate_team, write_rows
-from sb3_maddpg.experiments.config import DEFAULT_ENV, PAPER_NAMES, RunConfig
+from sb3_maddpg.experiments.config import DEFAULT_ENV, PAPER_NAMES, RunConfig, load_algorithm
 from sb3_maddpg.experiments.results import (
     CHECKPOINT_DIR,
     CHECKPOINT_EVALS_FILE,
@@ -34,17 +32,6 @@ from sb3_maddpg.experiments.results import (
 )
 from sb3_maddpg.experiments.tasks import describe, make_task_vec_env, task_metrics
 from sb3_maddpg.progress import ProgressLogCallback, format_seconds
-
-
-def load_algorithm(path: str) -> type[BaseAlgorithm]:
-    """
-    :param path: ``"module:Class"``, e.g. ``"sb3_maddpg:MADDPG"``.
-    :return: The class.
-    """
-    module_name, _, class_name = path.partition(":")
-    if not class_name:
-        raise ValueError(f"The algorithm must be given as 'module:Class', got {path!r}.")
-    return getattr(importlib.import_module(module_name), class_name)
 
 
 def make_env(config: RunConfig, n_envs: int | None = None) -> VecEnv:

@@ -21,8 +21,8 @@ from typing import Any
 from sb3_maddpg.evaluation import TeamEvalCallback
 from sb3_maddpg.experiments.backends import worker_pool
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
-from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig, merge_model_kwargs
-from sb3_maddpg.experiments.runner import load_algorithm, make_eval_env, make_train_env
+from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig, load_algorithm, merge_model_kwargs
+from sb3_maddpg.experiments.runner import make_eval_env, make_train_env
 from sb3_maddpg.install_hint import extra_install_command
 from sb3_maddpg.torch_threads import use_torch_threads
 
