@@ -141,16 +141,19 @@ def test_a_killed_study_resumes_and_retries_the_killed_trial(tmp_path: Path) -> 
     assert retried.system_attrs["failed_trial"] == 0 and retried.params == killed.params  # the same sample, again
 
 
-@pytest.mark.parametrize("kill", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
-def test_a_killed_study_takes_its_workers_with_it(tmp_path: Path, kill: signal.Signals) -> None:
+@pytest.mark.parametrize("stop", ["SIGTERM", "SIGKILL", "Ctrl-C"])
+def test_a_stopped_study_takes_its_workers_with_it(tmp_path: Path, stop: str) -> None:
     # Two workers in trials that would run for minutes: killing the study's process must stop them too, or they go
-    # on training (a core each) on trials that the resumed study retries anyway.
+    # on training (a core each) on trials that the resumed study retries anyway. Ctrl-C in a terminal reaches the
+    # whole process group: the study stops its workers and says how to resume, without a traceback.
     db = tmp_path / "tune.db"
     argv = [sys.executable, "-m", "sb3_maddpg.experiments", "tune", "--config", "smoke", "--scheme", "full"]
     argv += ["--trials", "4", "--steps", "10000000", "--evaluations", "2", "--eval-episodes", "1"]
     argv += ["--last-evaluations", "1", "--storage", f"sqlite:///{db}", "--heartbeat", "1", "--workers", "2"]
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy"}
-    process = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    process = subprocess.Popen(
+        argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True
+    )
     workers: list[int] = []
     try:
         study_settings = settings(tmp_path, study_name="smoke_min_dist_sum", n_trials=4, budget=10_000_000)
@@ -161,15 +164,19 @@ def test_a_killed_study_takes_its_workers_with_it(tmp_path: Path, kill: signal.S
             return db.exists() and len(workers) == 2 and len(load_study(study_settings).get_trials(states=(running,))) == 2
 
         wait_for(both_workers_in_a_trial, "two workers in a trial each", timeout=120)
-        process.send_signal(kill)
-        process.wait(timeout=30)
+        if stop == "Ctrl-C":
+            os.killpg(process.pid, signal.SIGINT)
+        else:
+            process.send_signal(signal.SIGTERM if stop == "SIGTERM" else signal.SIGKILL)
+        out, _ = process.communicate(timeout=60)
         for worker in workers:
-            wait_for(lambda worker=worker: not alive(worker), f"worker {worker} to exit with the killed study", timeout=10)
+            wait_for(lambda worker=worker: not alive(worker), f"worker {worker} to exit with the stopped study", timeout=10)
     finally:
-        process.kill()
-        for worker in workers:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(worker, signal.SIGKILL)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)
+    if stop == "Ctrl-C":
+        assert process.returncode == 130 and "the same command resumes the study" in out, out
+        assert "Traceback" not in out, out
 
 
 @pytest.mark.parametrize(
