@@ -9,11 +9,13 @@ beside this file:
   0.3, the team return, and the normalised scores (0 = random, 1 = the scripted controller); the gradient steps a run
   takes; the measured training throughput and wall time per run;
 - per factor, learning curves in numbers: the mean over seeds of the min-dist sum at 200k, 400k, 600k, 800k and 1M env
-  steps, and at equal gradient steps (2,500, 5,000 and 10,000 after the 25,600 random steps: where a run with more
-  updates per transition gets there first).
+  steps, and at equal gradient steps (2,500, 5,000, 10,000 and the paper's budget of 25,000 after the 25,600 random
+  steps: where a run with more updates per transition gets there first).
 
 Only seeds the paper's configuration has finished too are compared (like with like). One step per 10 transitions is
-read from ``benchmarks/matd3/results`` (``BORROWED``): MATD3's comparison ran the same configuration, same code. Usage::
+read from ``benchmarks/matd3/results`` (``BORROWED``): MATD3's comparison ran the same configuration, same code; the
+paper's configuration to its full 2.5M steps (24,744 gradient steps) from ``benchmarks/paper_n5_outlook/results``
+(its `full` runs). Usage::
 
     python benchmarks/n5_diagnosis/summarize.py [results] [summary.md]
 """
@@ -31,12 +33,16 @@ from sb3_maddpg.normalised_score import normalised_scores, reference_scores
 HERE = Path(__file__).resolve().parent
 BASELINE = "n5_paper"
 CURVE_STEPS = (200_000, 400_000, 600_000, 800_000, 1_000_000)
-GRADIENT_STEPS = (2_500, 5_000, 10_000)
+GRADIENT_STEPS = (2_500, 5_000, 10_000, 25_000)
 BORROWED = {
     "n5_tpu10_maddpg": (
         HERE.parent / "matd3" / "results",
         "one gradient step per 10 transitions (run by benchmarks/matd3 as `n5_tpu10_maddpg`)",
-    )
+    ),
+    "n5_outlook": (
+        HERE.parent / "paper_n5_outlook" / "results",
+        "the paper's configuration to the paper's budget (run by benchmarks/paper_n5_outlook as `n5_outlook`)",
+    ),
 }
 """Factors another sweep ran in this one's configuration, read from its results so as not to run them twice: by
 experiment, that sweep's results directory and the factor's label here."""
@@ -67,7 +73,7 @@ def summarise(results: Path) -> str:
     summaries = load_summaries(results)
     experiments = load_experiments(results)
     for name, (elsewhere, label) in BORROWED.items():
-        summaries += [summary for summary in load_summaries(elsewhere) if summary["experiment"] == name]
+        summaries += [s for s in load_summaries(elsewhere) if s["experiment"] == name and s["scheme"] == "full"]
         if name in (borrowed := load_experiments(elsewhere)):
             experiments[name] = {**borrowed[name], "description": label}
     references = reference_scores(5)
@@ -151,7 +157,8 @@ def summarise(results: Path) -> str:
         "work (tests and development): read them as ratios between factors, not as this machine's rate.",
         "",
         "Made by `bash benchmarks/n5_diagnosis/run.sh` (resumable; the row of one gradient step per 10 transitions by "
-        "`bash benchmarks/matd3/run.sh`), then `python benchmarks/n5_diagnosis/summarize.py`.",
+        "`bash benchmarks/matd3/run.sh`; the paper's configuration to its budget by benchmarks/paper_n5_outlook, whose README "
+        "has its command), then `python benchmarks/n5_diagnosis/summarize.py`.",
     ]
     return "\n".join(lines + curve_lines + behaviour_lines + notes) + "\n"
 
