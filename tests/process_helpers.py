@@ -5,17 +5,18 @@ from collections.abc import Callable
 from pathlib import Path
 
 
-def wait_for(condition: Callable[[], object], what: str, timeout: float = 90.0) -> None:
+def wait_for(condition: Callable[[], object], what: str, timeout: float = 90.0, interval: float = 0.05) -> None:
     """
     :param condition: Polled until it is true.
     :param what: What is waited for, for the error.
     :param timeout: Seconds before the test fails.
+    :param interval: Seconds between polls (longer for a costly condition, on a machine the test's processes need).
     """
     deadline = time.monotonic() + timeout
     while not condition():
         if time.monotonic() > deadline:
             raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
-        time.sleep(0.05)
+        time.sleep(interval)
 
 
 def alive(pid: int) -> bool:
@@ -34,9 +35,13 @@ def spawned_workers(pid: int) -> list[int]:
     """
     workers = []
     for task in Path(f"/proc/{pid}/task").iterdir():
-        for child in (task / "children").read_text().split():
+        try:  # a thread or a child may end while it is read
+            children = (task / "children").read_text().split()
+        except FileNotFoundError:
+            continue
+        for child in children:
             try:
-                command = Path(f"/proc/{child}/cmdline").read_bytes().replace(b"\0", b" ")
+                command = Path(f"/proc/{child}/cmdline").read_bytes()
             except FileNotFoundError:
                 continue
             if b"spawn_main" in command:

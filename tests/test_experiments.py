@@ -601,5 +601,8 @@ def test_an_experiments_algorithm_argument_is_its_own_else_its_algorithms_defaul
     assert algorithm_argument(stored, "transitions_per_update") == 25
     matd3 = EXP1.replace(algorithm="sb3_maddpg:MATD3").to_dict()
     assert algorithm_argument(matd3, "policy_delay") == MATD3("MlpPolicy", env).policy_delay
+    per_scheme = EXP1.replace(scheme_model_kwargs={"selected": {"transitions_per_update": 50}}).to_dict()
+    assert algorithm_argument(per_scheme, "transitions_per_update", scheme="selected") == 50
+    assert algorithm_argument(per_scheme, "transitions_per_update", scheme="full") == 100
     with pytest.raises(ValueError, match=r"sb3_maddpg:MADDPG has no argument 'policy_delay' with a default"):
         algorithm_argument(paper, "policy_delay")

@@ -146,37 +146,46 @@ def test_a_stopped_study_takes_its_workers_with_it(tmp_path: Path, stop: str) ->
     # Two workers in trials that would run for minutes: killing the study's process must stop them too, or they go
     # on training (a core each) on trials that the resumed study retries anyway. Ctrl-C in a terminal reaches the
     # whole process group: the study stops its workers and says how to resume, without a traceback.
-    db = tmp_path / "tune.db"
+    db, log = tmp_path / "tune.db", tmp_path / "tune.log"
     argv = [sys.executable, "-m", "sb3_maddpg.experiments", "tune", "--config", "smoke", "--scheme", "full"]
     argv += ["--trials", "4", "--steps", "10000000", "--evaluations", "2", "--eval-episodes", "1"]
-    argv += ["--last-evaluations", "1", "--storage", f"sqlite:///{db}", "--heartbeat", "1", "--workers", "2"]
+    # Heartbeats far apart: a loaded machine must not see one worker fail the other's trial as stale meanwhile.
+    argv += ["--last-evaluations", "1", "--storage", f"sqlite:///{db}", "--heartbeat", "60", "--workers", "2"]
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy"}
-    process = subprocess.Popen(
-        argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True
-    )
+    with open(log, "w") as out:  # a file, not a pipe: an orphaned worker would hold a pipe open
+        process = subprocess.Popen(argv, env=env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
     workers: list[int] = []
     try:
         study_settings = settings(tmp_path, study_name="smoke_min_dist_sum", n_trials=4, budget=10_000_000)
 
         def both_workers_in_a_trial() -> bool:
+            if process.poll() is not None:
+                raise AssertionError(f"the study ended before it was stopped:\n{log.read_text()}")
             workers[:] = spawned_workers(process.pid)
             running = optuna.trial.TrialState.RUNNING
             return db.exists() and len(workers) == 2 and len(load_study(study_settings).get_trials(states=(running,))) == 2
 
-        wait_for(both_workers_in_a_trial, "two workers in a trial each", timeout=120)
+        wait_for(both_workers_in_a_trial, "two workers in a trial each", timeout=120, interval=0.5)
         if stop == "Ctrl-C":
             os.killpg(process.pid, signal.SIGINT)
         else:
             process.send_signal(signal.SIGTERM if stop == "SIGTERM" else signal.SIGKILL)
-        out, _ = process.communicate(timeout=60)
+        process.wait(timeout=60)
         for worker in workers:
             wait_for(lambda worker=worker: not alive(worker), f"worker {worker} to exit with the stopped study", timeout=10)
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(process.pid, signal.SIGKILL)
     if stop == "Ctrl-C":
-        assert process.returncode == 130 and "the same command resumes the study" in out, out
-        assert "Traceback" not in out, out
+        output = log.read_text()
+        assert process.returncode == 130 and "the same command resumes the study" in output, output
+        assert "Traceback" not in output, output
+
+
+def test_a_bad_thread_count_with_workers_is_refused_clearly(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["tune", "--config", "smoke", "--trials", "1", "--steps", "800", "--workers", "2", "--threads", "0"]
+    assert main([*argv, "--storage", f"sqlite:///{tmp_path / 'tune.db'}"]) == 2
+    assert "threads must be a positive integer, got 0" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -15,7 +15,8 @@ beside this file:
 Only seeds the paper's configuration has finished too are compared (like with like). One step per 10 transitions is
 read from ``benchmarks/matd3/results`` (``BORROWED``): MATD3's comparison ran the same configuration, same code; the
 paper's configuration to its full 2.5M steps (24,744 gradient steps) from ``benchmarks/paper_n5_outlook/results``
-(its `full` runs). Usage::
+(its `full` runs; its 25,000-gradient-step cell is its curve's last point, 24,744 steps, within
+:func:`~sb3_maddpg.experiments.results.curve_value_at`'s 5%). Usage::
 
     python benchmarks/n5_diagnosis/summarize.py [results] [summary.md]
 """

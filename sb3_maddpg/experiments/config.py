@@ -7,10 +7,13 @@ import inspect
 import json
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sb3_maddpg.compat import renamed_in_0_3
 from sb3_maddpg.hyperparams import load_hyperparams
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
 
 EPISODE_LENGTH = 25
 """Steps per simple_spread episode in the paper (``max_cycles``)."""
@@ -22,7 +25,7 @@ DEFAULT_ALGORITHM = "sb3_maddpg:MADDPG"
 """The algorithm every run trains, as ``"module:Class"``."""
 
 
-def load_algorithm(path: str) -> Any:
+def load_algorithm(path: str) -> "type[BaseAlgorithm]":
     """
     :param path: ``"module:Class"``, e.g. ``"sb3_maddpg:MADDPG"``.
     :return: The class.
@@ -33,7 +36,7 @@ def load_algorithm(path: str) -> Any:
     return getattr(importlib.import_module(module_name), class_name)
 
 
-def algorithm_argument(experiment: Mapping[str, Any], name: str) -> Any:
+def algorithm_argument(experiment: Mapping[str, Any], name: str, scheme: str | None = None) -> Any:
     """
     One argument that an experiment's runs give their algorithm, for tables and figures that compare experiments
     (e.g. gradient steps from ``transitions_per_update`` and ``learning_starts``).
@@ -41,9 +44,14 @@ def algorithm_argument(experiment: Mapping[str, Any], name: str) -> Any:
     :param experiment: An experiment as stored (``ExperimentConfig.to_dict()``, a results directory's
         ``experiment.json``).
     :param name: The argument, e.g. ``"transitions_per_update"``.
-    :return: The experiment's ``model_kwargs`` value, else its algorithm's default (MADDPG's: the paper's).
+    :param scheme: The scheme whose runs are meant, for an experiment with ``scheme_model_kwargs``; ``None``: the
+        experiment's ``model_kwargs`` alone.
+    :return: The scheme's ``scheme_model_kwargs`` value, else the experiment's ``model_kwargs`` value, else its
+        algorithm's default (MADDPG's: the paper's).
     """
-    model_kwargs = experiment.get("model_kwargs") or {}
+    model_kwargs = dict(experiment.get("model_kwargs") or {})
+    if scheme is not None:
+        model_kwargs |= (experiment.get("scheme_model_kwargs") or {}).get(scheme, {})
     if name in model_kwargs:
         return model_kwargs[name]
     algorithm_path = experiment.get("algorithm") or DEFAULT_ALGORITHM

@@ -421,8 +421,10 @@ def run_study(
         optimize(settings, threads)
     else:
         # The workers go with this process: Ctrl-C stops them, and a killed study (SIGTERM, SIGKILL) leaves no worker
-        # training on: its trials stay "running" until their heartbeats go stale, and the resumed study retries them.
-        with worker_pool(workers, threads) as pool:
+        # training on: its trials stay "running" until their heartbeats go stale, and the resumed study retries each
+        # once. Each worker sets its threads in optimize(), which refuses a bad count with a clear error.
+        use_torch_threads(threads)  # the same check here, before any worker starts
+        with worker_pool(workers, None) as pool:
             for future in [pool.submit(_worker, settings, threads) for _ in range(workers)]:
                 future.result()
     return load_study(settings)
