@@ -66,17 +66,18 @@ def score_lines(runs: list[dict[str, Any]], ratio: int, warm_up: int, references
     return lines
 
 
-def curve_lines(results: Path, name: str, ratio: int, warm_up: int) -> list[str]:
-    """:return: The Markdown table of each seed's learning curve, finished or not, at equal env and gradient steps."""
+def curve_lines(results: Path, name: str, ratio: int, warm_up: int, steps: tuple[int, ...] = CURVE_STEPS) -> list[str]:
+    """:return: The Markdown table of each seed's learning curve, finished or not, at ``steps`` env steps and at the
+    paper's gradient steps."""
     lines = [
         "| seed | "
-        + " | ".join(f"{step / 1e6:g}M" for step in CURVE_STEPS)
+        + " | ".join(f"{step / 1e6:g}M" for step in steps)
         + f" | at the paper's {PAPER_GRADIENT_STEPS:,} gradient steps |",
-        "|---|" + "---|" * (len(CURVE_STEPS) + 1),
+        "|---|" + "---|" * (len(steps) + 1),
     ]
     for path in sorted(results.glob(f"{name}/full/seed_*/learning_curve.csv")):
         rows = read_curve(path.parent)
-        values = [curve_value_at(rows, step) for step in CURVE_STEPS]
+        values = [curve_value_at(rows, step) for step in steps]
         values.append(curve_value_at(rows, warm_up + PAPER_GRADIENT_STEPS * ratio))
         cells = ["" if value is None else f"{value:.2f}" for value in values]
         lines.append(f"| {int(path.parent.name.removeprefix('seed_'))} | " + " | ".join(cells) + " |")
