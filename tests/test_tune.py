@@ -141,6 +141,48 @@ def test_a_killed_study_resumes_and_retries_the_killed_trial(tmp_path: Path) -> 
     assert retried.system_attrs["failed_trial"] == 0 and retried.params == killed.params  # the same sample, again
 
 
+def test_workers_and_resumed_runs_draw_samples_of_their_own(tmp_path: Path) -> None:
+    # Samplers seeded alike drew the same samples in every worker and again after each resume (three of a study's
+    # first seven trials were one sample).
+    shared = settings(tmp_path, fixed_params={"width": 64})
+
+    def draw(study: optuna.Study) -> dict[str, Any]:
+        trial = study.ask()
+        sample_maddpg_params(trial)
+        return trial.params
+
+    first = draw(load_study(shared, worker=0))
+    beside = draw(load_study(shared, worker=1))  # another worker of the same command
+    resumed = draw(load_study(shared, worker=0))  # the same command again, later
+    assert first != beside and resumed not in (first, beside) and first["width"] == beside["width"] == 64
+    # A new study of one worker still draws from the study's seed alone: reproducible.
+    again = settings(tmp_path, storage=f"sqlite:///{tmp_path / 'again.db'}", fixed_params={"width": 64})
+    assert draw(load_study(again)) == first
+
+
+@pytest.mark.parametrize("budget", [1_000_000, 1_000_050])
+@pytest.mark.parametrize("warmup", [0, 1, 2])
+def test_the_default_pruner_spares_the_warmup_evaluations(tmp_path: Path, warmup: int, budget: int) -> None:
+    # Five finished trials at 1.0 at every evaluation, then one at 10.0: the pruner may stop it only past the first
+    # `warmup` evaluations (a first evaluation, near the random warm-up, said nothing and pruned good samples).
+    # Reports land where a run's evaluations do: every eval_freq vectorised steps of 100 envs, at the interval's
+    # multiples when 100 divides it, else just below them.
+    study_settings = settings(tmp_path, budget=budget, n_evaluations=4, warmup_evaluations=warmup)
+    study = load_study(study_settings)
+    steps = [k * (study_settings.evaluation_interval // 100) * 100 for k in range(1, 5)]
+    for _ in range(5):
+        trial = study.ask()
+        for step in steps:
+            trial.report(1.0, step)
+        study.tell(trial, 1.0)
+    trial = study.ask()
+    prunes = []
+    for step in steps:
+        trial.report(10.0, step)
+        prunes.append(trial.should_prune())
+    assert prunes == [False] * warmup + [True] * (4 - warmup)
+
+
 @pytest.mark.parametrize("stop", ["SIGTERM", "SIGKILL", "Ctrl-C"])
 def test_a_stopped_study_takes_its_workers_with_it(tmp_path: Path, stop: str) -> None:
     # Two workers in trials that would run for minutes: killing the study's process must stop them too, or they go
@@ -194,6 +236,7 @@ def test_a_bad_thread_count_with_workers_is_refused_clearly(tmp_path: Path, caps
         ({"objective": "speed"}, r"objective must be one of"),
         ({"last_evaluations": 3}, r"last_evaluations \(3\) cannot exceed n_evaluations \(2\)"),
         ({"budget": 0}, r"budget must be at least 1"),
+        ({"warmup_evaluations": -1}, r"warmup_evaluations must be at least 0, got -1: 0 lets the pruner stop"),
         ({"experiment": TINY.replace(env="simple_tag")}, r"tune on a simple_spread setting"),
     ],
 )

@@ -74,14 +74,16 @@ def main(storage_path: Path, summary_path: Path) -> None:
         rows = trial_rows(study)
         rows_all += [{"study": name, **row} for row in rows]
         states = [row["state"] for row in rows]
-        ranked = sorted((row for row in rows if row["value"] is not None), key=lambda row: row["value"])
+        # Complete trials only: a pruned trial's value is its last report, at a step where the others were better.
+        ranked = sorted((row for row in rows if row["state"] == "complete"), key=lambda row: row["value"])
         lines += [
             f"Study `{name}`: {states.count('complete')} complete, {states.count('pruned')} pruned, "
             f"{states.count('running')} running, {states.count('fail')} failed trials. Setting: simple_spread N=5, full "
             "observability with agents and landmarks observed nearest first, `full` sharing, one gradient step per 25 "
             "transitions, one actor and one critic shared by all agents, batch 1024, 64-unit networks (fixed); 400k "
             "env steps per trial, seed 0; objective: min-dist "
-            "sum (lower is better) over the last 2 of 8 evaluations of 50 episodes. The paper's values of the searched "
+            "sum (lower is better) over the last 2 of 8 evaluations of 50 episodes; no trial is pruned before its 4th "
+            "evaluation (200k steps). The paper's values of the searched "
             "parameters (learning rate 0.01, noise 0.1, tau 0.01, gamma 0.95, regulariser 0.001) are a trial of the "
             "study (`enqueue_baseline.py`).",
             "",
@@ -93,7 +95,12 @@ def main(storage_path: Path, summary_path: Path) -> None:
             lines.append(f"| {rank} | {row['number']} | {row['value']:.3f} | {cells} | {fmt(row['minutes'], 1)} |")
         pruned = [row for row in rows if row["state"] == "pruned"]
         if pruned:
-            lines += ["", "Pruned (last reported min-dist sum at its step):"]
+            lines += [
+                "",
+                "Pruned (last reported min-dist sum at its step). A trial pruned before 200,000 steps was stopped before "
+                "the study's warm-up was set to 3 evaluations (at 50,000 steps, its first evaluation, by an off-by-one "
+                "fixed on 2026-12-02); its sample runs again as a later trial (`requeue_early_pruned.py`):",
+            ]
             lines += [
                 f"- trial {row['number']}: {fmt(row['last_reported'])} at {row['last_reported_step']:,} steps"
                 for row in pruned

@@ -160,6 +160,9 @@ def build_parser() -> argparse.ArgumentParser:
     tune.add_argument("--evaluations", type=int, default=10, help="evaluations per trial, reported to the pruner")
     tune.add_argument("--eval-episodes", type=int, default=100, help="episodes per evaluation (default 100)")
     tune.add_argument("--last-evaluations", type=int, default=3, help="a trial scores its mean over these last ones")
+    tune.add_argument(
+        "--warmup-evaluations", type=int, default=1, help="first evaluations at which no trial is pruned (default 1)"
+    )
     tune.add_argument("--objective", choices=sorted(TUNE_OBJECTIVES), default="min_dist_sum", help="what to optimise")
     tune.add_argument("--seed", type=int, default=0, help="seed of the sampler and of every trial's run")
     tune.add_argument("--workers", type=int, default=1, help="parallel worker processes sharing the study")
@@ -325,6 +328,7 @@ def tune_command(args: argparse.Namespace) -> int:
             n_evaluations=args.evaluations,
             eval_episodes=args.eval_episodes,
             last_evaluations=args.last_evaluations,
+            warmup_evaluations=args.warmup_evaluations,
             objective=args.objective,
             seed=args.seed,
             heartbeat_seconds=args.heartbeat,

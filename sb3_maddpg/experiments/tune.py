@@ -18,6 +18,8 @@ import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import numpy as np
+
 from sb3_maddpg.evaluation import TeamEvalCallback
 from sb3_maddpg.experiments.backends import worker_pool
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
@@ -119,7 +121,11 @@ class TuneSettings:
     :param objective: A key of :data:`OBJECTIVES`.
     :param seed: Seed of the sampler and of every trial's run.
     :param heartbeat_seconds: See :data:`HEARTBEAT_SECONDS`.
-    :param pruner: An Optuna pruner; ``None``: a median pruner (after 5 trials, from the second evaluation).
+    :param warmup_evaluations: The default pruner never stops a trial at its first ``warmup_evaluations`` evaluations
+        (early ones score little more than the random warm-up); 0 lets it stop one at any evaluation, and
+        ``n_evaluations`` or more at none.
+    :param pruner: An Optuna pruner; ``None``: a median pruner after 5 trials, past ``warmup_evaluations``
+        (:meth:`default_pruner`).
     :param fixed_params: Sampled parameters held at one value in every trial, by their names in the study (e.g.
         ``{"transitions_per_update": 25, "width": 64}``; Optuna's ``PartialFixedSampler``): the others are searched.
     """
@@ -132,6 +138,7 @@ class TuneSettings:
     n_evaluations: int = 10
     eval_episodes: int = 100
     last_evaluations: int = 3
+    warmup_evaluations: int = 1
     objective: str = "min_dist_sum"
     seed: int = 0
     heartbeat_seconds: int = HEARTBEAT_SECONDS
@@ -150,8 +157,29 @@ class TuneSettings:
         for name in ("n_trials", "budget", "n_evaluations", "eval_episodes", "last_evaluations", "heartbeat_seconds"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}.")
+        if self.warmup_evaluations < 0:
+            raise ValueError(
+                f"warmup_evaluations must be at least 0, got {self.warmup_evaluations}: 0 lets the pruner stop a trial at "
+                "any evaluation, 1 (the default) spares its first."
+            )
         if self.last_evaluations > self.n_evaluations:
             raise ValueError(f"last_evaluations ({self.last_evaluations}) cannot exceed n_evaluations ({self.n_evaluations}).")
+
+    @property
+    def evaluation_interval(self) -> int:
+        """Env steps between a trial's evaluations (each is reported at the env step it is made, at most this apart)."""
+        return max(1, self.budget // self.n_evaluations)
+
+    def default_pruner(self) -> Any:
+        """
+        :return: Optuna's median pruner: from the 6th trial, it stops a trial whose objective is worse than the median
+            of earlier trials at the same step, at any evaluation past the first ``warmup_evaluations``. Optuna prunes
+            at a step of at least ``n_warmup_steps``: the evaluation numbered ``warmup_evaluations`` reports at or
+            below ``warmup_evaluations`` intervals, so one step more keeps it, and the next one is past it.
+        """
+        optuna = import_optuna()
+        warmup_steps = self.warmup_evaluations * self.evaluation_interval + 1 if self.warmup_evaluations else 0
+        return optuna.pruners.MedianPruner(n_startup_trials=5, n_warmup_steps=warmup_steps)
 
     def run_config(self, model_kwargs: dict[str, Any]) -> RunConfig:
         """
@@ -253,7 +281,7 @@ def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | N
     env = make_train_env(config)
     algorithm: Any = load_algorithm(config.algorithm)
     model = algorithm("MlpPolicy", env, critic_sharing=config.scheme, seed=config.seed, **copy.deepcopy(config.model_kwargs))
-    interval = max(1, settings.budget // settings.n_evaluations)
+    interval = settings.evaluation_interval
     callback = TrialEvalCallback(
         trial,
         settings.objective,
@@ -306,11 +334,29 @@ def open_storage(open_once: Callable[[], Any], attempts: int = STORAGE_ATTEMPTS,
     return open_once()  # the last attempt's error, if any, is the caller's
 
 
-def load_study(settings: TuneSettings) -> Any:
+def sampler_seed(seed: int, trials_so_far: int, worker: int) -> int:
+    """
+    The seed of one worker's sampler. Workers of one study whose samplers share a seed draw the same samples (TPE's
+    first trials are random draws, and later ones start from the same random state): each worker, and each resumed
+    run, gets its own seed, drawn from the study's.
+
+    :param seed: The study's seed.
+    :param trials_so_far: The trials in the study when the worker starts.
+    :param worker: The worker's number among those started together (0 for one).
+    :return: ``seed`` itself for the first worker of a new study (so that a study of one worker is reproducible), else
+        a seed drawn from the three (numpy's ``SeedSequence``).
+    """
+    if trials_so_far == 0 and worker == 0:
+        return seed
+    return int(np.random.SeedSequence([seed, trials_so_far, worker]).generate_state(1)[0])
+
+
+def load_study(settings: TuneSettings, worker: int = 0) -> Any:
     """
     :param settings: The study.
-    :return: The Optuna study, created or resumed: TPE sampler seeded by ``settings.seed``, the settings' pruner,
-        heartbeats so that a killed worker's trial is failed and retried (once).
+    :param worker: The worker's number among those started together, for its sampler's seed (:func:`sampler_seed`).
+    :return: The Optuna study, created or resumed: a TPE sampler seeded from ``settings.seed``, the trials so far and
+        ``worker``, the settings' pruner, heartbeats so that a killed worker's trial is failed and retried (once).
     """
     optuna = import_optuna()
     storage = settings.storage
@@ -330,20 +376,27 @@ def load_study(settings: TuneSettings) -> Any:
                     **retry,
                 )
             )
-    interval = max(1, settings.budget // settings.n_evaluations)
-    sampler = optuna.samplers.TPESampler(seed=settings.seed, n_startup_trials=5)
-    if settings.fixed_params:
+
+    def make_sampler(seed: int) -> Any:
+        sampler = optuna.samplers.TPESampler(seed=seed, n_startup_trials=5)
+        if not settings.fixed_params:
+            return sampler
         with warnings.catch_warnings():  # "experimental" since Optuna 2.4: said on every start
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            sampler = optuna.samplers.PartialFixedSampler(settings.fixed_params, sampler)
-    return optuna.create_study(
+            return optuna.samplers.PartialFixedSampler(settings.fixed_params, sampler)
+
+    study = optuna.create_study(
         study_name=settings.study_name,
         storage=storage,
         direction=OBJECTIVES[settings.objective],
-        sampler=sampler,
-        pruner=settings.pruner or optuna.pruners.MedianPruner(n_startup_trials=5, n_warmup_steps=interval),
+        sampler=make_sampler(settings.seed),
+        pruner=settings.pruner or settings.default_pruner(),
         load_if_exists=True,
     )
+    seed = sampler_seed(settings.seed, len(study.get_trials(deepcopy=False)), worker)
+    if seed != settings.seed:
+        study.sampler = make_sampler(seed)
+    return study
 
 
 def finished_trials(study: Any) -> int:
@@ -358,19 +411,20 @@ def print_line(line: str) -> None:
     print(line, flush=True)
 
 
-def optimize(settings: TuneSettings, threads: int | None = 1, log: Callable[[str], None] = print_line) -> Any:
+def optimize(settings: TuneSettings, threads: int | None = 1, log: Callable[[str], None] = print_line, worker: int = 0) -> Any:
     """
     Run trials in this process until the study has ``n_trials`` finished ones.
 
     :param settings: The study.
     :param threads: Torch threads (see :func:`~sb3_maddpg.torch_threads.use_torch_threads`).
     :param log: Where each trial's lines go: one per evaluation (its progress) and one when it ends.
+    :param worker: This worker's number among those started together (its sampler's seed, :func:`sampler_seed`).
     :return: The study.
     """
     optuna = import_optuna()
     use_torch_threads(threads)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    study = load_study(settings)
+    study = load_study(settings, worker)
 
     def report(study: Any, trial: Any) -> None:
         value = "pruned" if trial.value is None else f"{settings.objective} {trial.value:.4f}"
@@ -384,8 +438,8 @@ def optimize(settings: TuneSettings, threads: int | None = 1, log: Callable[[str
     return study
 
 
-def _worker(settings: TuneSettings, threads: int | None) -> None:
-    optimize(settings, threads, log=lambda line: print(f"[worker {os.getpid()}] {line}", flush=True))
+def _worker(settings: TuneSettings, threads: int | None, worker: int) -> None:
+    optimize(settings, threads, log=lambda line: print(f"[worker {os.getpid()}] {line}", flush=True), worker=worker)
 
 
 def run_study(
@@ -416,7 +470,7 @@ def run_study(
             ) from error
         ray.init(address=address, ignore_reinit_error=True, include_dashboard=False, log_to_driver=True)
         remote = ray.remote(num_cpus=threads or 1)(_worker)
-        ray.get([remote.remote(settings, threads) for _ in range(workers)])
+        ray.get([remote.remote(settings, threads, worker) for worker in range(workers)])
     elif workers == 1:
         optimize(settings, threads)
     else:
@@ -425,7 +479,7 @@ def run_study(
         # once. Each worker sets its threads in optimize(), which refuses a bad count with a clear error.
         use_torch_threads(threads)  # the same check here, before any worker starts
         with worker_pool(workers, None) as pool:
-            for future in [pool.submit(_worker, settings, threads) for _ in range(workers)]:
+            for future in [pool.submit(_worker, settings, threads, worker) for worker in range(workers)]:
                 future.result()
     return load_study(settings)
 
