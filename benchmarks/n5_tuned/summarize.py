@@ -11,6 +11,7 @@ Unfinished runs show their curve so far. Usage::
 import json
 import statistics
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -84,10 +85,43 @@ def curve_lines(results: Path, name: str, ratio: int, warm_up: int, steps: tuple
     return lines
 
 
-def summarise(results: Path) -> str:
-    """:return: The Markdown of ``summary.md``."""
+def experiment_sections(
+    results: Path, first: str, title: Callable[[dict[str, Any], int], str], steps: tuple[int, ...] = CURVE_STEPS
+) -> list[str]:
+    """
+    :param results: A results directory.
+    :param first: The experiment shown first; the others follow by name.
+    :param title: An experiment's heading from its stored config and its transitions per gradient step.
+    :param steps: The env steps of the learning-curve table.
+    :return: For each experiment in ``results``: its heading, each seed's score and their mean (std), its curve.
+    """
     summaries = sorted(load_summaries(results), key=lambda summary: summary["seed"])
     experiments = {path.parent.name: json.loads(path.read_text()) for path in sorted(results.glob("*/experiment.json"))}
+    references = reference_scores(5)
+    lines: list[str] = []
+    for name in sorted(experiments, key=lambda name: (name != first, name)):
+        experiment = experiments[name]
+        ratio = int(algorithm_argument(experiment, "transitions_per_update"))
+        warm_up = int(algorithm_argument(experiment, "learning_starts"))
+        lines += ["", f"## `{name}`: {title(experiment, ratio)}", ""]
+        lines += score_lines([summary for summary in summaries if summary["experiment"] == name], ratio, warm_up, references)
+        lines += ["", "Learning curve: min-dist sum (20-episode evaluations; lower is better).", ""]
+        lines += curve_lines(results, name, ratio, warm_up, steps)
+    return lines
+
+
+def score_reading(references: dict[str, dict[str, float]]) -> str:
+    """:return: How to read the scores: what a score is, which direction is better, what 0 and 1 normalised are."""
+    return (
+        "Score: mean of 20 checkpoint evaluations (100 episodes each) over the last 20% of training. Min-dist sum: lower "
+        "is better; success within 0.3 and normalised scores: higher is better (0 = uniformly random actions, 1 = the "
+        f"scripted controller: min-dist sum {references['random']['min_dist_sum']:.2f} and "
+        f"{references['scripted']['min_dist_sum']:.2f})."
+    )
+
+
+def summarise(results: Path) -> str:
+    """:return: The Markdown of ``summary.md``."""
     references = reference_scores(5)
     lines = [
         "# N=5 against issue 21's target",
@@ -95,23 +129,15 @@ def summarise(results: Path) -> str:
         "Setting: simple_spread N=5, exp1 (full observability, `full` sharing), agents and landmarks observed nearest "
         "first, one actor and one critic shared by all agents, the paper's other hyperparameters, 100 batched worlds, "
         "2.5M env steps (the paper's budget); one gradient step per 25 transitions, and per the paper's 100 in the "
-        "second experiment. Score: mean of 20 checkpoint evaluations (100 episodes each) over the last 20% of "
-        "training. Min-dist sum: lower is better; success within 0.3 and normalised scores: higher is better (0 = "
-        "uniformly random actions, 1 = the scripted controller: min-dist sum "
-        f"{references['random']['min_dist_sum']:.2f} and {references['scripted']['min_dist_sum']:.2f}). "
+        "second experiment. " + score_reading(references) + " "
         f"Target: min-dist sum at most {TARGET['min_dist_sum']}, success within 0.3 at least "
         f"{TARGET['success_rate_r0.3']:.0%}; the paper's configuration after the same budget "
         f"({PAPER_GRADIENT_STEPS:,} gradient steps): {PAPER_AT_BUDGET['min_dist_sum']} and "
         f"{PAPER_AT_BUDGET['success_rate_r0.3']:.0%}.",
     ]
-    for name in sorted(experiments, key=lambda name: (name != "n5_tuned_shared", name)):
-        experiment = experiments[name]
-        ratio = int(algorithm_argument(experiment, "transitions_per_update"))
-        warm_up = int(algorithm_argument(experiment, "learning_starts"))
-        lines += ["", f"## `{name}`: one gradient step per {ratio} transitions", ""]
-        lines += score_lines([summary for summary in summaries if summary["experiment"] == name], ratio, warm_up, references)
-        lines += ["", "Learning curve: min-dist sum (20-episode evaluations; lower is better).", ""]
-        lines += curve_lines(results, name, ratio, warm_up)
+    lines += experiment_sections(
+        results, "n5_tuned_shared", lambda experiment, ratio: f"one gradient step per {ratio} transitions"
+    )
     lines += ["", "Made by `bash benchmarks/n5_tuned/run.sh` (resumable), then `python benchmarks/n5_tuned/summarize.py`."]
     return "\n".join(lines) + "\n"
 
