@@ -4,12 +4,12 @@ and one exploring evaluation, hashed bit for bit.
 
 A refactoring that keeps the algorithm's results keeps these hashes (on the same CPU and library versions):
 ``tests/test_same_results.py`` compares against ``tests/data/same_results.json``, which holds one recording per
-machine (its :func:`versions`). The first was recorded before the refactoring of issue 19 (update schedule, noise
-and losses out of ``maddpg.py``), on a machine whose CPU it does not name; it serves any CPU without a recording of
-its own. The same code gives other bits on another CPU (the BLAS kernels differ: on an AVX-512 Xeon, MKL limited to
-SSE4.2 changes 35 of 50 hashes), so a machine whose CPU computes differently gets its own recording, made with the
-code that passed on a recorded one: ``python tests/same_results.py`` adds or replaces this machine's. Record again
-for every machine only for a change that is meant to change results, and say so.
+machine (its :func:`versions`); on a machine without one the test is skipped. The first was recorded before the
+refactoring of issue 19 (update schedule, noise and losses out of ``maddpg.py``), on a machine whose CPU it does not
+name, so it serves none now. The same code gives other bits on another CPU (the BLAS kernels differ: on an AVX-512
+Xeon, MKL limited to SSE4.2 changes 35 of 50 hashes), so each CPU gets its own recording, made with code that passed
+on a recorded one: ``python tests/same_results.py`` adds or replaces this machine's. Record again for every machine
+only for a change that is meant to change results, and say so.
 """
 
 import hashlib
@@ -117,8 +117,8 @@ def recording_for(recordings: list[dict[str, Any]], here: dict[str, str]) -> dic
     """
     :param recordings: The reference file's recordings, each with its ``versions`` and ``runs``.
     :param here: This machine's :func:`versions`.
-    :return: The recording made here: the one whose versions all equal this machine's, naming the most of them (a
-        recording that does not name the CPU serves any CPU without one of its own); ``None`` if none is.
+    :return: The recording made here: the one whose versions all equal this machine's, naming the most of them;
+        ``None`` if none is.
     """
     matching = [r for r in recordings if all(here.get(key) == value for key, value in r["versions"].items())]
     return max(matching, key=lambda recording: len(recording["versions"]), default=None)

@@ -165,11 +165,11 @@ def test_workers_and_resumed_runs_draw_samples_of_their_own(tmp_path: Path) -> N
 def test_the_default_pruner_spares_the_warmup_evaluations(tmp_path: Path, warmup: int, budget: int) -> None:
     # Five finished trials at 1.0 at every evaluation, then one at 10.0: the pruner may stop it only past the first
     # `warmup` evaluations (a first evaluation, near the random warm-up, said nothing and pruned good samples).
-    # Reports land where a run's evaluations do: every eval_freq vectorised steps of 100 envs, at the interval's
-    # multiples when 100 divides it, else just below them.
+    # Reports land where a run's evaluations do: at the multiples of the evaluation step (whole steps of every world).
     study_settings = settings(tmp_path, budget=budget, n_evaluations=4, warmup_evaluations=warmup)
     study = load_study(study_settings)
-    steps = [k * (study_settings.evaluation_interval // 100) * 100 for k in range(1, 5)]
+    n_envs = study_settings.experiment.n_envs
+    steps = [k * (budget // 4 // n_envs) * n_envs for k in range(1, 5)]
     for _ in range(5):
         trial = study.ask()
         for step in steps:

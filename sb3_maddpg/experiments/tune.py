@@ -166,19 +166,23 @@ class TuneSettings:
             raise ValueError(f"last_evaluations ({self.last_evaluations}) cannot exceed n_evaluations ({self.n_evaluations}).")
 
     @property
-    def evaluation_interval(self) -> int:
-        """Env steps between a trial's evaluations (each is reported at the env step it is made, at most this apart)."""
-        return max(1, self.budget // self.n_evaluations)
+    def evaluation_step(self) -> int:
+        """
+        Env steps between a trial's evaluations: the budget over ``n_evaluations``, rounded down to whole steps of the
+        experiment's ``n_envs`` worlds (at least one), so that evaluation k reports at exactly k times this.
+        """
+        n_envs = self.experiment.n_envs
+        return max(1, self.budget // self.n_evaluations // n_envs) * n_envs
 
     def default_pruner(self) -> Any:
         """
-        :return: Optuna's median pruner: from the 6th trial, it stops a trial whose objective is worse than the median
-            of earlier trials at the same step, at any evaluation past the first ``warmup_evaluations``. Optuna prunes
-            at a step of at least ``n_warmup_steps``: the evaluation numbered ``warmup_evaluations`` reports at or
-            below ``warmup_evaluations`` intervals, so one step more keeps it, and the next one is past it.
+        :return: Optuna's median pruner: once 5 trials completed, it stops a trial whose objective is worse than the
+            median of earlier trials at the same step, at any evaluation past the first ``warmup_evaluations``. Optuna
+            prunes at a step of at least ``n_warmup_steps``, and evaluation k reports at k times
+            :attr:`evaluation_step`: one step past evaluation ``warmup_evaluations`` spares it and no later one.
         """
         optuna = import_optuna()
-        warmup_steps = self.warmup_evaluations * self.evaluation_interval + 1 if self.warmup_evaluations else 0
+        warmup_steps = self.warmup_evaluations * self.evaluation_step + 1 if self.warmup_evaluations else 0
         return optuna.pruners.MedianPruner(n_startup_trials=5, n_warmup_steps=warmup_steps)
 
     def run_config(self, model_kwargs: dict[str, Any]) -> RunConfig:
@@ -281,7 +285,6 @@ def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | N
     env = make_train_env(config)
     algorithm: Any = load_algorithm(config.algorithm)
     model = algorithm("MlpPolicy", env, critic_sharing=config.scheme, seed=config.seed, **copy.deepcopy(config.model_kwargs))
-    interval = settings.evaluation_interval
     callback = TrialEvalCallback(
         trial,
         settings.objective,
@@ -289,7 +292,7 @@ def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | N
         log=log,
         budget=settings.budget,
         eval_env=make_eval_env(config, settings.eval_episodes),
-        eval_freq=max(1, interval // env.num_envs),
+        eval_freq=settings.evaluation_step // env.num_envs,
         n_eval_episodes=settings.eval_episodes,
         seed=config.eval_seed,
     )
@@ -341,14 +344,16 @@ def sampler_seed(seed: int, trials_so_far: int, worker: int) -> int:
     run, gets its own seed, drawn from the study's.
 
     :param seed: The study's seed.
-    :param trials_so_far: The trials in the study when the worker starts.
+    :param trials_so_far: The trials in the study when the worker starts (enqueued ones count).
     :param worker: The worker's number among those started together (0 for one).
-    :return: ``seed`` itself for the first worker of a new study (so that a study of one worker is reproducible), else
-        a seed drawn from the three (numpy's ``SeedSequence``).
+    :return: ``seed`` itself for the first worker of a study without trials (so that a study of one worker is
+        reproducible), else a seed drawn from the three and this process's id (numpy's ``SeedSequence``), so that
+        commands started apart (other shells, other machines) differ too. Two commands that start a new study at the
+        same moment both draw from ``seed``: give the second another ``--seed``.
     """
     if trials_so_far == 0 and worker == 0:
         return seed
-    return int(np.random.SeedSequence([seed, trials_so_far, worker]).generate_state(1)[0])
+    return int(np.random.SeedSequence([seed, trials_so_far, worker, os.getpid()]).generate_state(1)[0])
 
 
 def load_study(settings: TuneSettings, worker: int = 0) -> Any:
