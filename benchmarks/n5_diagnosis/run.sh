@@ -10,7 +10,8 @@
 # the shared configuration already has 3 seeds at 2.5M in benchmarks/n5_tuned; on 2026-12-02, the paper's
 # configuration at one step per 25 transitions (3 seeds) moved ahead of the probes, and one step per 10 transitions left
 # this queue: `n5_tpu10_maddpg` in benchmarks/matd3 is that configuration at 200k steps, 3 seeds;
-# summarize.py reads it).
+# summarize.py reads it); on 2026-12-03 the tuning study's best trial (benchmarks/n5_tuning) moved to the front, beside
+# the shared configuration's seeds 1 and 2 it is measured against.
 # Resumable: run it again and finished runs are skipped. Usage: bash benchmarks/n5_diagnosis/run.sh
 # Then: python benchmarks/n5_diagnosis/summarize.py
 set -u
@@ -19,9 +20,10 @@ RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-2}"
 export SDL_VIDEODRIVER=dummy
 configs=()
-for factor in paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 sorted_obs_batch256_utd25 \
+for factor in sorted_obs_utd25_shared_params_tuned sorted_obs_utd25_shared_params \
+    paper sorted_obs utd400 lr1e-3 sorted_obs_utd25 sorted_obs_batch256_utd25 \
     noise0.3 obs_norm layer_norm batch256 width128 shared_params utd25 \
-    sorted_obs_utd25_shared_params sorted_obs_utd25_shared_params_matd3 sorted_obs_utd25_shared_params_layer_norm \
+    sorted_obs_utd25_shared_params_matd3 sorted_obs_utd25_shared_params_layer_norm \
     sorted_obs_utd25_shared_params_lr1e-3 sorted_obs_utd10_shared_params \
     sorted_obs_utd25_matd3 sorted_obs_utd25_layer_norm sorted_obs_batch256_utd10 sorted_obs_utd25_lr1e-3; do
     configs+=(--config "benchmarks/n5_diagnosis/$factor.json")
