@@ -27,6 +27,8 @@ PAPER_GRADIENT_STEPS = 25_000
 """The paper's gradient steps in its budget: 2.5M env steps at one per 100 transitions."""
 PAPER_AT_BUDGET = {"min_dist_sum": 1.79, "success_rate_r0.3": 0.03}
 """The paper's configuration after the same 2.5M steps (the committed N=5 outlook, 3 seeds)."""
+TUNED_PARAMETERS = {"learning_rate": "learning rate", "noise_std": "noise", "tau": "tau", "gamma": "gamma"}
+"""The parameters the tuning study (``benchmarks/n5_tuning``) set away from the paper's, by their names in headings."""
 
 
 def mean_std(values: list[float], digits: int = 3) -> str:
@@ -120,6 +122,18 @@ def score_reading(references: dict[str, dict[str, float]]) -> str:
     )
 
 
+def heading(experiment: dict[str, Any], ratio: int) -> str:
+    """:return: An experiment's heading: its update ratio and any values the tuning study set."""
+    tuned = [
+        f"{label} {experiment['model_kwargs'][key]:.2g}"
+        for key, label in TUNED_PARAMETERS.items()
+        if key in experiment["model_kwargs"]
+    ]
+    return f"one gradient step per {ratio} transitions" + (
+        f", the tuning study's best trial ({', '.join(tuned)})" if tuned else ""
+    )
+
+
 def summarise(results: Path) -> str:
     """:return: The Markdown of ``summary.md``."""
     references = reference_scores(5)
@@ -128,16 +142,15 @@ def summarise(results: Path) -> str:
         "",
         "Setting: simple_spread N=5, exp1 (full observability, `full` sharing), agents and landmarks observed nearest "
         "first, one actor and one critic shared by all agents, the paper's other hyperparameters, 100 batched worlds, "
-        "2.5M env steps (the paper's budget); one gradient step per 25 transitions, and per the paper's 100 in the "
-        "second experiment. " + score_reading(references) + " "
+        "2.5M env steps (the paper's budget); one gradient step per 25 transitions (`n5_tuned_shared`, the shipped "
+        "`exp1_tuned`), the same with the tuning study's best values (`n5_tuned_shared_best`), and one step per the "
+        "paper's 100 transitions (`n5_tuned_shared_tpu100`). " + score_reading(references) + " "
         f"Target: min-dist sum at most {TARGET['min_dist_sum']}, success within 0.3 at least "
         f"{TARGET['success_rate_r0.3']:.0%}; the paper's configuration after the same budget "
         f"({PAPER_GRADIENT_STEPS:,} gradient steps): {PAPER_AT_BUDGET['min_dist_sum']} and "
         f"{PAPER_AT_BUDGET['success_rate_r0.3']:.0%}.",
     ]
-    lines += experiment_sections(
-        results, "n5_tuned_shared", lambda experiment, ratio: f"one gradient step per {ratio} transitions"
-    )
+    lines += experiment_sections(results, "n5_tuned_shared", heading)
     lines += ["", "Made by `bash benchmarks/n5_tuned/run.sh` (resumable), then `python benchmarks/n5_tuned/summarize.py`."]
     return "\n".join(lines) + "\n"
 
