@@ -20,7 +20,7 @@ from sb3_maddpg.experiments.results import curve_value_at, load_summaries, read_
 from sb3_maddpg.normalised_score import normalised_scores, reference_scores
 
 HERE = Path(__file__).resolve().parent
-CURVE_STEPS = (200_000, 400_000, 1_000_000, 1_500_000, 2_000_000, 2_500_000)
+CURVE_STEPS = (200_000, 400_000, 600_000, 800_000, 1_000_000, 1_500_000, 2_000_000, 2_500_000)
 TARGET = {"min_dist_sum": 0.8, "success_rate_r0.3": 0.30}
 """Issue 21's target at N=5 within 2.5M steps: min-dist sum at most 0.8, success within 0.3 at least 30%."""
 PAPER_GRADIENT_STEPS = 25_000
