@@ -1,7 +1,7 @@
 """
 The N=5 learning curves for the docs' "Learning at N=5" page: the paper's configuration, the diagnosis's main factors
 (``benchmarks/n5_diagnosis``, 1M steps), the configurations that meet the target (``benchmarks/n5_tuned``, 2.5M
-steps) and the tuning study's best trial on the shipped one (``benchmarks/n5_diagnosis``, 1M steps), min-dist sum
+steps), among them the tuning study's best trial on the shipped one (``n5_tuned_shared_best``), min-dist sum
 against env steps and against gradient steps, with the random team, the scripted controller and the target as levels.
 Writes ``docs/_static/learning_n5/min_dist_sum_curves.png``. Usage::
 
@@ -28,7 +28,7 @@ LABELS = {
     "n5_sorted_obs_utd25": "nearest-first, 1 step per 25",
     "n5_tuned_shared_tpu100": "nearest-first, shared networks, 1 step per 100",
     "n5_tuned_shared": "nearest-first, shared networks, 1 step per 25 (exp1_tuned)",
-    "n5_sorted_obs_utd25_shared_params_tuned": "the same, tuning's best (tau 0.02, gamma 0.9, lr 7.7e-4)",
+    "n5_tuned_shared_best": "the same with tuning's best (tau 0.02, gamma 0.9, lr 7.7e-4, noise 0.098)",
 }
 """The experiments drawn (those with finished runs), by name: their legend labels."""
 OUT = HERE.parent.parent / "docs" / "_static" / "learning_n5" / "min_dist_sum_curves.png"
