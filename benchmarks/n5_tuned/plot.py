@@ -27,8 +27,8 @@ LABELS = {
     "n5_sorted_obs": "nearest-first observations",
     "n5_sorted_obs_utd25": "nearest-first, 1 step per 25",
     "n5_tuned_shared_tpu100": "nearest-first, shared networks, 1 step per 100",
-    "n5_tuned_shared": "nearest-first, shared networks, 1 step per 25 (exp1_tuned)",
-    "n5_tuned_shared_best": "the same with tuning's best (tau 0.02, gamma 0.9, lr 7.7e-4, noise 0.098)",
+    "n5_tuned_shared": "nearest-first, shared networks, 1 step per 25",
+    "n5_tuned_shared_best": "the same with tuning's best: tau 0.02, gamma 0.9, lr 7.7e-4, noise 0.098 (exp1_tuned)",
 }
 """The experiments drawn (those with finished runs), by name: their legend labels."""
 OUT = HERE.parent.parent / "docs" / "_static" / "learning_n5" / "min_dist_sum_curves.png"

@@ -141,9 +141,10 @@ def summarise(results: Path) -> str:
         "# N=5 against issue 21's target",
         "",
         "Setting: simple_spread N=5, exp1 (full observability, `full` sharing), agents and landmarks observed nearest "
-        "first, one actor and one critic shared by all agents, the paper's other hyperparameters, 100 batched worlds, "
-        "2.5M env steps (the paper's budget); one gradient step per 25 transitions (`n5_tuned_shared`, the shipped "
-        "`exp1_tuned`), the same with the tuning study's best values (`n5_tuned_shared_best`), and one step per the "
+        "first, one actor and one critic shared by all agents, the paper's other hyperparameters unless a heading says "
+        "otherwise, 100 batched worlds, "
+        "2.5M env steps (the paper's budget); one gradient step per 25 transitions (`n5_tuned_shared`), the same with "
+        "the tuning study's best values (`n5_tuned_shared_best`, the shipped `exp1_tuned`), and one step per the "
         "paper's 100 transitions (`n5_tuned_shared_tpu100`). " + score_reading(references) + " "
         f"Target: min-dist sum at most {TARGET['min_dist_sum']}, success within 0.3 at least "
         f"{TARGET['success_rate_r0.3']:.0%}; the paper's configuration after the same budget "
