@@ -4,8 +4,8 @@ loss terms.
 
 Every tensor has a leading member dimension ``M``: the networks of ``M`` teams (runs trained together, each with its
 own batch) are evaluated at once, and each member's losses depend on its own networks and batch only. One team is
-``M = 1`` (:func:`one_member` and :class:`TeamNetworks`). The networks are passed as functions, so that a sibling
-algorithm changes them, not the math: MATD3's target actor adds its smoothing noise, its target critic returns the
+``M = 1`` (:func:`one_member`). The networks are passed as functions
+(:class:`~sb3_maddpg.update_step.UpdateNetworks`), so that a sibling algorithm changes them, not the math: MATD3's target actor adds its smoothing noise, its target critic returns the
 minimum of its twins, and its critic returns both twins stacked in front (``[2, M, batch, n_agents]``), which
 :func:`critic_losses` broadcasts over.
 """
@@ -19,7 +19,6 @@ from torch.nn import functional as F
 
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.policies import MultiAgentActor, MultiAgentCritic
 
 SATURATION_THRESHOLD = 0.99
 """An action component with ``|a| >`` this, in the policy's [-1, 1] space, counts as saturated in the logs."""
@@ -168,30 +167,3 @@ def one_member(batch: MultiAgentReplayBufferSamples) -> MultiAgentReplayBufferSa
     selections = None if batch.selections is None else batch.selections.unsqueeze(0)
     observations, actions, next_observations, dones, rewards = (field.unsqueeze(0) for field in batch[:5])
     return MultiAgentReplayBufferSamples(observations, actions, next_observations, dones, rewards, selections)
-
-
-class TeamNetworks(NamedTuple):
-    """One team's networks as the functions of the losses, of tensors with a member dimension in front (``M = 1``)."""
-
-    actor: MultiAgentActor
-    critic: MultiAgentCritic
-    actor_target: MultiAgentActor
-    critic_target: MultiAgentCritic
-
-    def policy(self, observations: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        """The actors' actions and pre-activations (a discrete agent's: straight-through Gumbel-softmax)."""
-        actions, preactivations = self.actor.forward_with_preactivation(observations[0])
-        return actions.unsqueeze(0), preactivations.unsqueeze(0)
-
-    def q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """The critics."""
-        return self.critic(observations[0], actions[0], None if selections is None else selections[0]).unsqueeze(0)
-
-    def target_actions(self, observations: th.Tensor) -> th.Tensor:
-        """The target actors (a discrete agent's: a Gumbel-max sample)."""
-        return self.actor_target.sample(observations[0]).unsqueeze(0)
-
-    def target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """The target critics."""
-        selections = None if selections is None else selections[0]
-        return self.critic_target(observations[0], actions[0], selections).unsqueeze(0)

@@ -9,21 +9,12 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
-from stable_baselines3.common.utils import polyak_update
 
 from sb3_maddpg.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.compat import renamed_argument
 from sb3_maddpg.env_checks import refuse_unsupported_env
 from sb3_maddpg.losses import SATURATION_THRESHOLD as SATURATION_THRESHOLD  # import paths of 0.2.0.dev
-from sb3_maddpg.losses import (
-    ActionParts,
-    TeamNetworks,
-    actor_loss_terms,
-    check_loss_settings,
-    critic_losses,
-    critic_targets,
-    one_member,
-)
+from sb3_maddpg.losses import ActionParts, check_loss_settings, critic_targets, one_member
 from sb3_maddpg.losses import ActorLossTerms as ActorLossTerms
 from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.selection import Selector
@@ -32,6 +23,14 @@ from sb3_maddpg.team_algorithm import LOG_INTERVAL as LOG_INTERVAL  # import pat
 from sb3_maddpg.team_algorithm import TeamOffPolicyAlgorithm
 from sb3_maddpg.train_logs import record_critic_diagnostics, record_losses
 from sb3_maddpg.update_schedule import UpdateSchedule
+from sb3_maddpg.update_step import (
+    MemberModules,
+    StepSettings,
+    TeamModules,
+    UpdateNetworks,
+    summarise_steps,
+    update_step,
+)
 
 
 class MADDPG(TeamOffPolicyAlgorithm):
@@ -189,93 +188,50 @@ class MADDPG(TeamOffPolicyAlgorithm):
 
     def _setup_model(self) -> None:
         super()._setup_model()
-        self._create_aliases()
         assert self.agent_layout is not None
         self._action_parts = ActionParts.of(self.agent_layout, self.device)  # whose each action component is
+        self._create_aliases()
 
     def _create_aliases(self) -> None:
         self.actor = self.policy.actor
         self.actor_target = self.policy.actor_target
         self.critic = self.policy.critic
         self.critic_target = self.policy.critic_target
-        self._team = TeamNetworks(self.actor, self.critic, self.actor_target, self.critic_target)  # for the losses
+        # The losses' view of the networks: a member dimension of 1 in front
+        self._team = self._update_networks(TeamModules(self.actor, self.critic, self.actor_target, self.critic_target))
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         # Switch to train mode (this affects batch norm / dropout)
         self.policy.set_training_mode(True)
         # Update learning rate according to lr schedule
         self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
-        team = self._team  # the losses' view of the networks: a member dimension of 1 in front
-        critic_log, actor_log, reg_log, saturation_log = [], [], [], []
-        actor_params = list(self.actor.parameters())
+        settings, optimizers = self._step_settings(), (self.actor.optimizer, self.critic.optimizer)
+        steps = []
         for _ in range(gradient_steps):
             self._n_updates += 1
             # Sample replay buffer: one joint batch, the same rows for every agent (and every critic of one)
             replay_data = one_member(self.replay_buffer.sample(batch_size, env=self._vec_normalize_env))
-            # Critic targets (no gradient), then the losses of the critics trained on them, while the critics'
-            # extractors record their diagnostics (this batch, as replayed)
-            target_q = self._member_critic_targets(replay_data)
-            with self.critic.recording_diagnostics():
-                critic_loss = self._member_critic_losses(replay_data, target_q)
-            # Optimize the critics: agents' parameters are disjoint, each gets its own loss's gradient
-            self.critic.optimizer.zero_grad()
-            critic_loss.sum().backward()
-            if self.max_grad_norm is not None:
-                self.critic.clip_grad_norm_per_agent(self.max_grad_norm)
-            self.critic.optimizer.step()
-            # Kept on the device: one transfer per train() call, not one per gradient step. Per agent, the mean over
-            # the agent's critics (one here).
-            critic_log.append(critic_loss.detach().reshape(-1, critic_loss.shape[-1]).mean(0))
-            if not self._actor_update_due():
-                continue
-            # Actor losses: -Q_i with only a_i replaced by mu_i(o_i), plus the regulariser
-            actor_terms = actor_loss_terms(team.policy, team.q, replay_data, self._action_parts, self.actor_reg_coef)
-            # Optimize the actors, computing only the actors' gradients (the critics' are not needed here)
-            self.actor.optimizer.zero_grad()
-            for param, grad in zip(actor_params, th.autograd.grad(actor_terms.total.sum(), actor_params)):
-                param.grad = grad
-            if self.max_grad_norm is not None:
-                self.actor.clip_grad_norm_per_agent(self.max_grad_norm)
-            self.actor.optimizer.step()
-            # Update the target networks (Polyak averaging)
-            polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
-            polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
-            actor_log.append(actor_terms.policy_loss[0].detach())
-            reg_log.append(actor_terms.reg_loss[0].detach())
-            saturation_log.append(actor_terms.saturation[0])
+            # The critics (their extractors recording their diagnostics on this batch, as replayed), then the actors
+            # and the targets when due: the one step every trainer shares (sb3_maddpg.update_step)
+            due = settings.actor_due(self._n_updates)
+            steps.append(update_step(self._team, optimizers, replay_data, settings, due, self.critic.recording_diagnostics))
+        # Kept on the device until here: one transfer per train() call, not one per gradient step.
+        self._log_losses(**{name: value[0] for name, value in summarise_steps(steps).items()})
 
-        means = {"critic_loss": th.stack(critic_log).mean(0)}
-        if actor_log:  # else no actor update in this call (a delayed one, as TD3's): its losses are not recorded
-            logs = {"actor_loss": actor_log, "actor_reg_loss": reg_log, "action_saturation": saturation_log}
-            means.update({name: th.stack(log).mean(0) for name, log in logs.items()})
-        self._log_losses(**means)
-
-    def _member_critic_targets(self, replay_data: MultiAgentReplayBufferSamples) -> th.Tensor:
+    def _update_networks(self, modules: MemberModules) -> UpdateNetworks:
         """
-        The critic targets: every target actor on its next observation, then every target critic.
-
-        :param replay_data: A replay batch with a member dimension of 1 in front (:func:`~sb3_maddpg.losses.one_member`).
-        :return: The targets, ``[1, batch, n_agents]`` (no gradient).
+        :param modules: The modules of ``M`` teams of this model's configuration (this model's own, or a run group's).
+        :return: The algorithm's networks over them, as the update step and the losses use them.
         """
-        return critic_targets(self._team.target_actions, self._team.target_q, replay_data, self.gamma)
+        return UpdateNetworks(modules)
 
-    def _member_critic_losses(self, replay_data: MultiAgentReplayBufferSamples, target_q: th.Tensor) -> th.Tensor:
-        """
-        The losses of the critics trained at this step against the targets: one critic per agent here.
-
-        :param replay_data: The replay batch, with a member dimension of 1 in front.
-        :param target_q: Its critic targets, ``[1, batch, n_agents]``.
-        :return: Each critic's loss, ``[1, n_agents]`` (``[critics, 1, n_agents]`` where an agent has several).
-        """
-        return critic_losses(self._team.q, replay_data, target_q)
-
-    def _actor_update_due(self) -> bool:
-        """:return: Whether this critic update is followed by an actor and target update (always, for MADDPG)."""
-        return True
+    def _step_settings(self) -> StepSettings:
+        """:return: The update step's hyperparameters, as they are now (a user may change ``gamma`` between calls)."""
+        return StepSettings(self.gamma, self.tau, self.actor_reg_coef, self.max_grad_norm, self._action_parts)
 
     def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
-        """The team's critic targets (:meth:`_member_critic_targets`) on a replay batch, ``[batch, n_agents]``."""
-        return self._member_critic_targets(one_member(data))[0]
+        """The team's critic targets on a replay batch (no gradient), ``[batch, n_agents]``."""
+        return critic_targets(self._team.target_actions, self._team.target_q, one_member(data), self.gamma)[0]
 
     def _log_losses(self, **losses: th.Tensor) -> None:
         """Record the train call's per-agent means (``[n_agents]`` each, by name), each agent's and the team's."""

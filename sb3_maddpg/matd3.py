@@ -1,7 +1,7 @@
 """MATD3: SB3's TD3 choices (twin critics, target policy smoothing, delayed policy updates) on MADDPG's base."""
 
 from collections.abc import Sequence
-from typing import Any, ClassVar, cast
+from typing import Any, ClassVar
 
 import torch as th
 from stable_baselines3.common.buffers import ReplayBuffer
@@ -9,16 +9,17 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.compat import renamed_argument
-from sb3_maddpg.losses import TeamNetworks, critic_losses, critic_targets
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.matd3_policies import MATD3Policy, MlpPolicy, TwinMultiAgentCritic
 from sb3_maddpg.selection import Selector
 from sb3_maddpg.sharing import CriticSharing
+from sb3_maddpg.update_step import MemberModules, StepSettings, UpdateNetworks
 
 
-def smooth_target_actions(actions: th.Tensor, noise_std: float, noise_clip: float, continuous: th.Tensor) -> th.Tensor:
+def smooth_target_actions(
+    actions: th.Tensor, noise_std: float, noise_clip: float, continuous: th.Tensor, noise: th.Tensor | None = None
+) -> th.Tensor:
     """
     TD3's target policy smoothing, in the policy's [-1, 1] space: Gaussian noise of ``noise_std``, clipped to
     ``[-noise_clip, noise_clip]``, added to the continuous agents' components, the sum clipped to [-1, 1]. A discrete
@@ -28,27 +29,42 @@ def smooth_target_actions(actions: th.Tensor, noise_std: float, noise_clip: floa
     :param noise_std: The noise's standard deviation (TD3's ``target_policy_noise``).
     :param noise_clip: The largest noise magnitude (TD3's ``target_noise_clip``).
     :param continuous: The continuous agents' components, ``[action_dim]`` (bool).
+    :param noise: Standard normal noise shaped as ``actions`` (it is scaled in place), each member's from its own stream;
+        None: drawn from torch's global generator.
     :return: The smoothed actions, the shape of ``actions``.
     """
-    noise = th.randn_like(actions).mul_(noise_std).clamp_(-noise_clip, noise_clip)
+    noise = (th.randn_like(actions) if noise is None else noise).mul_(noise_std).clamp_(-noise_clip, noise_clip)
     return th.where(continuous, (actions + noise).clamp(-1.0, 1.0), actions)
 
 
-class TwinTeamNetworks(TeamNetworks):
-    """One team's networks as the functions of the losses (``M = 1``), with the twin critics' two views."""
+class TwinUpdateNetworks(UpdateNetworks):
+    """
+    MATD3's networks as the functions of the losses, over :class:`~sb3_maddpg.update_step.MemberModules`: both twins
+    trained, the minimum of the target twins, target actions with clipped smoothing noise.
 
-    __slots__ = ()
+    :param modules: The members' modules (their critics :class:`~sb3_maddpg.matd3_policies.TwinMultiAgentCritic`).
+    :param noise_std: The smoothing noise's standard deviation (``target_policy_noise``).
+    :param noise_clip: Its clip (``target_noise_clip``).
+    :param continuous: The continuous agents' action components, ``[action_dim]`` (bool).
+    """
 
-    def q_twins(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """Both twin critics stacked in front, ``[2, 1, batch, n_agents]`` (what :func:`critic_losses` broadcasts over)."""
-        critic = cast(TwinMultiAgentCritic, self.critic)
-        return critic.twins(observations[0], actions[0], None if selections is None else selections[0]).unsqueeze(1)
+    def __init__(self, modules: MemberModules, noise_std: float, noise_clip: float, continuous: th.Tensor) -> None:
+        super().__init__(modules)
+        self.noise_std, self.noise_clip, self.continuous = noise_std, noise_clip, continuous
 
-    def target_q_min(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """The minimum of the two target critics, agent by agent, ``[1, batch, n_agents]``."""
-        critic_target = cast(TwinMultiAgentCritic, self.critic_target)
-        selections = None if selections is None else selections[0]
-        return critic_target.twins(observations[0], actions[0], selections).amin(dim=0).unsqueeze(0)
+    def trained_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        """Both twin critics stacked in front, ``[2, M, batch, n_agents]`` (what :func:`critic_losses` broadcasts over)."""
+        return self.modules.call("critic", "twins", observations, actions, selections).movedim(1, 0)
+
+    def target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        """The minimum of the two target critics, agent by agent, ``[M, batch, n_agents]``."""
+        return self.modules.call("critic_target", "twins", observations, actions, selections).amin(dim=1)
+
+    def target_actions(self, observations: th.Tensor) -> th.Tensor:
+        """Every target actor on its next observation, plus the clipped smoothing noise (continuous agents only)."""
+        actions = super().target_actions(observations)
+        noise = self.modules.normal_like(actions)
+        return smooth_target_actions(actions, self.noise_std, self.noise_clip, self.continuous, noise)
 
 
 class MATD3(MADDPG):
@@ -110,7 +126,7 @@ class MATD3(MADDPG):
     policy: MATD3Policy
     critic: TwinMultiAgentCritic
     critic_target: TwinMultiAgentCritic
-    _team: TwinTeamNetworks
+    _team: TwinUpdateNetworks
 
     def __init__(
         self,
@@ -188,36 +204,11 @@ class MATD3(MADDPG):
             _init_setup_model=_init_setup_model,
         )
 
-    def _create_aliases(self) -> None:
-        super()._create_aliases()
-        self._team = TwinTeamNetworks(self.actor, self.critic, self.actor_target, self.critic_target)
+    def _update_networks(self, modules: MemberModules) -> UpdateNetworks:
+        """:return: MATD3's networks over ``modules``: twin critics, smoothed targets."""
+        continuous = self._action_parts.continuous
+        return TwinUpdateNetworks(modules, self.target_policy_noise, self.target_noise_clip, continuous)
 
-    def _smoothed_target_actions(self, next_observations: th.Tensor) -> th.Tensor:
-        """Every target actor on its next observation, plus the clipped smoothing noise (continuous agents only)."""
-        actions = self._team.target_actions(next_observations)
-        return smooth_target_actions(actions, self.target_policy_noise, self.target_noise_clip, self._action_parts.continuous)
-
-    def _member_critic_targets(self, replay_data: MultiAgentReplayBufferSamples) -> th.Tensor:
-        """
-        The critic targets: every target actor on its next observation plus the clipped smoothing noise, then the
-        minimum of the agent's two target critics.
-
-        :param replay_data: A replay batch with a member dimension of 1 in front (:func:`~sb3_maddpg.losses.one_member`).
-        :return: The targets, ``[1, batch, n_agents]`` (no gradient).
-        """
-        twins = cast(TwinTeamNetworks, self._team)
-        return critic_targets(self._smoothed_target_actions, twins.target_q_min, replay_data, self.gamma)
-
-    def _member_critic_losses(self, replay_data: MultiAgentReplayBufferSamples, target_q: th.Tensor) -> th.Tensor:
-        """
-        Both twins' losses against the one target (the first twin's extractors record the diagnostics).
-
-        :param replay_data: The replay batch, with a member dimension of 1 in front.
-        :param target_q: Its critic targets, ``[1, batch, n_agents]``.
-        :return: Each twin's loss, ``[2, 1, n_agents]``.
-        """
-        return critic_losses(cast(TwinTeamNetworks, self._team).q_twins, replay_data, target_q)
-
-    def _actor_update_due(self) -> bool:
-        """:return: Whether this critic update is followed by an actor and target update: every ``policy_delay``-th."""
-        return self._n_updates % self.policy_delay == 0
+    def _step_settings(self) -> StepSettings:
+        """:return: MADDPG's settings with the actors delayed by ``policy_delay`` critic updates."""
+        return super()._step_settings()._replace(policy_delay=self.policy_delay)

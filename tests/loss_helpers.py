@@ -4,14 +4,15 @@ import torch as th
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.losses import ActorLossTerms, actor_loss_terms, one_member
+from sb3_maddpg.losses import ActorLossTerms, actor_loss_terms, critic_losses, critic_targets, one_member
 
 
 def critic_losses_by_critic(model: MADDPG, data: MultiAgentReplayBufferSamples) -> th.Tensor:
     """:return: Each critic's loss, ``[critics per agent, n_agents]`` (1 for MADDPG, 2 for MATD3), as ``train()``
     computes it (its hooks)."""
     batch = one_member(data)
-    losses = model._member_critic_losses(batch, model._member_critic_targets(batch))
+    team = model._team
+    losses = critic_losses(team.trained_q, batch, critic_targets(team.target_actions, team.target_q, batch, model.gamma))
     return losses.reshape(-1, losses.shape[-1])
 
 

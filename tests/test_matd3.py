@@ -97,7 +97,7 @@ def test_the_critic_update_descends_both_twins_losses_at_that_target(scheme: str
     data = model.replay_buffer.sample(BATCH)
     th.manual_seed(7)
     targets = model._critic_targets(data)
-    losses = critic_losses(model._team.q_twins, one_member(data), targets.unsqueeze(0))
+    losses = critic_losses(model._team.trained_q, one_member(data), targets.unsqueeze(0))
     params = list(model.critic.parameters())
     grads = th.autograd.grad(losses.sum(), params, allow_unused=True)
     expected = [p.detach() - (0 if g is None else g) for p, g in zip(params, grads)]
@@ -146,7 +146,7 @@ def test_a_mixed_teams_target_actions_keep_the_one_hot_and_smooth_the_continuous
     model = MATD3("MlpPolicy", PettingZooToGym(MixedTeam()), learning_starts=1_000, target_policy_noise=1.0, seed=0)
     model.learn(40)
     next_obs = th.as_tensor(model.replay_buffer.next_observations[:40, 0]).unsqueeze(0)
-    smoothed = model._smoothed_target_actions(next_obs)[0]
+    smoothed = model._team.target_actions(next_obs)[0]
     assert is_one_hot(smoothed[:, 1:])
     with th.no_grad():
         offset = smoothed[:, 0] - model.actor_target(next_obs[0])[:, 0]
@@ -228,8 +228,9 @@ def test_each_critics_loss_reaches_exactly_the_inputs_its_scheme_allows(
     data = one_member(replay_batch(model))
     obs, actions = data.observations.clone().requires_grad_(True), data.actions.clone().requires_grad_(True)
     # As train() computes them: its hooks give MATD3's smoothed min target and both twins' losses
-    targets = model._member_critic_targets(data)
-    losses = model._member_critic_losses(data._replace(observations=obs, actions=actions), targets)
+    team = model._team
+    targets = critic_targets(team.target_actions, team.target_q, data, model.gamma)
+    losses = critic_losses(team.trained_q, data._replace(observations=obs, actions=actions), targets)
     twins = losses.reshape(-1, N_AGENTS)  # [n_twins, n_agents]: 1 for MADDPG, 2 for MATD3
     assert twins.shape[0] == (2 if algorithm == "MATD3" else 1)
     selections = None if data.selections is None else data.selections[0]
@@ -250,7 +251,7 @@ def test_each_twins_loss_moves_only_its_own_agents_own_twin(scheme: str, collect
     model = collected_model(scheme)
     data = one_member(replay_batch(model))
     team = model._team
-    losses = critic_losses(team.q_twins, data, critic_targets(team.target_actions, team.target_q, data, model.gamma))
+    losses = critic_losses(team.trained_q, data, critic_targets(team.target_actions, team.target_q, data, model.gamma))
     critics = (model.critic, model.critic.twin)
     for twin in range(2):
         for i in range(N_AGENTS):
