@@ -33,7 +33,7 @@ from torch import nn
 
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.networks import AgentEnsembleMLP, stack_padded
-from sb3_maddpg.sharing.base import CriticFeaturesExtractor
+from sb3_maddpg.sharing.base import CriticFeaturesExtractor, check_agent_index
 
 DEFAULT_POSITION_SLICE = slice(2, 4)
 """Where an MPE observation holds the agent's own position: the diagnostics rank the others by distance from it."""
@@ -276,6 +276,7 @@ class LearnedSelectionCriticFeatures(_ListeningExtractor):
         position_slice: slice | None = DEFAULT_POSITION_SLICE,
     ) -> None:
         self.check_layout(layout)  # first: k's range would read "up to 0"
+        check_agent_index(layout, agent_index)  # before the sizes below index the layout with it
         k = int(k if k is not None else (selection_size or default_selection_size(layout.n_agents)))
         if not 1 <= k <= layout.n_agents - 1:
             raise ValueError(
