@@ -10,6 +10,7 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
+from sb3_maddpg.compat import renamed_argument
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.networks import AgentEnsembleMLP, clip_coefficients, stack_padded
 from sb3_maddpg.sharing import CriticFeaturesExtractor, CriticSharing, kwargs_per_agent, schemes_per_agent
@@ -407,7 +408,13 @@ class MADDPGPolicy(BasePolicy):
         """Agent i's critic, ``critics[i](obs, actions, selections) -> Q_i`` (views into the team's critic)."""
         return self._critic_views
 
-    def q_values(self, obs: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
+    def q_values(
+        self,
+        obs: th.Tensor,
+        actions: th.Tensor,
+        selections: th.Tensor | None = None,
+        selection: th.Tensor | None = None,
+    ) -> th.Tensor:
         """
         Every agent's critic on a joint batch.
 
@@ -415,8 +422,10 @@ class MADDPGPolicy(BasePolicy):
         :param actions: Joint actions in the policy's [-1, 1] space ``[batch, action_dim]``.
         :param selections: LongTensor ``[batch, n_agents, k]`` of the agents each agent selected (itself
             excluded); needed by schemes that use a selection.
+        :param selection: The name ``selections`` had before sb3-maddpg 0.3 (it warns).
         :return: ``[batch, n_agents]``.
         """
+        selections = renamed_argument(selections, selection, "selection", "selections")
         return self.critic(obs, actions, selections)
 
     def forward(self, observation: th.Tensor, deterministic: bool = False) -> th.Tensor:
