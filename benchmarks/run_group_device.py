@@ -90,6 +90,8 @@ def main() -> None:
     print("|---|---|---|---|---|---|")
     for n_runs in args.runs:
         needed = n_runs * buffer_bytes(args.n_agents, args.buffer_size, args.worlds)
+        if device.type == "cuda":
+            th.cuda.empty_cache()  # the last R's blocks, cached by the allocator, are free for this R
         if device.type == "cuda" and needed > th.cuda.mem_get_info(device)[0]:
             # The buffers alone do not fit: the protocol then runs in smaller groups (--runs-per-process).
             print(f"| {n_runs} | does not fit: {needed / 1e9:.0f} GB of replay buffers | | | | |", flush=True)

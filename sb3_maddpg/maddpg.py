@@ -198,7 +198,8 @@ class MADDPG(TeamOffPolicyAlgorithm):
         self.critic = self.policy.critic
         self.critic_target = self.policy.critic_target
         # The losses' view of the networks: a member dimension of 1 in front
-        self._team = self._update_networks(TeamModules(self.actor, self.critic, self.actor_target, self.critic_target))
+        modules = TeamModules(self.actor, self.critic, self.actor_target, self.critic_target)
+        self._team = self._update_networks(modules, self._action_parts)
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         # Switch to train mode (this affects batch norm / dropout)
@@ -218,9 +219,10 @@ class MADDPG(TeamOffPolicyAlgorithm):
         # Kept on the device until here: one transfer per train() call, not one per gradient step.
         self._log_losses(**{name: value[0] for name, value in summarise_steps(steps).items()})
 
-    def _update_networks(self, modules: MemberModules) -> UpdateNetworks:
+    def _update_networks(self, modules: MemberModules, parts: ActionParts) -> UpdateNetworks:
         """
         :param modules: The modules of ``M`` teams of this model's configuration (this model's own, or a run group's).
+        :param parts: The layout's action parts on the modules' device.
         :return: The algorithm's networks over them, as the update step and the losses use them.
         """
         return UpdateNetworks(modules)

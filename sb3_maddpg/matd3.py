@@ -10,6 +10,7 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_maddpg.compat import renamed_argument
+from sb3_maddpg.losses import ActionParts
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.matd3_policies import MATD3Policy, MlpPolicy, TwinMultiAgentCritic
 from sb3_maddpg.selection import Selector
@@ -204,10 +205,9 @@ class MATD3(MADDPG):
             _init_setup_model=_init_setup_model,
         )
 
-    def _update_networks(self, modules: MemberModules) -> UpdateNetworks:
-        """:return: MATD3's networks over ``modules``: twin critics, smoothed targets."""
-        continuous = self._action_parts.continuous
-        return TwinUpdateNetworks(modules, self.target_policy_noise, self.target_noise_clip, continuous)
+    def _update_networks(self, modules: MemberModules, parts: ActionParts) -> UpdateNetworks:
+        """:return: MATD3's networks over ``modules``: twin critics, smoothed targets (continuous agents only)."""
+        return TwinUpdateNetworks(modules, self.target_policy_noise, self.target_noise_clip, parts.continuous)
 
     def _step_settings(self) -> StepSettings:
         """:return: MADDPG's settings with the actors delayed by ``policy_delay`` critic updates."""

@@ -227,7 +227,7 @@ def summarise_steps(steps: Sequence[StepLosses]) -> dict[str, th.Tensor]:
     """
     means: dict[str, th.Tensor] = {}
     for index, name in enumerate(LOSS_NAMES):
-        values = [step[index] for step in steps if step[index] is not None]
+        values: list[th.Tensor] = [value for step in steps if (value := step[index]) is not None]
         if values:
             means[name] = th.stack(values).mean(0)
     return means

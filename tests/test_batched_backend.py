@@ -28,6 +28,7 @@ from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.results import DONE_FILE, load_summaries
 from sb3_maddpg.experiments.runner import make_eval_env
 from sb3_maddpg.run_group import RunGroup
+from sb3_maddpg.run_group.trainer import STATE_VERSION
 
 
 def tiny(**changes: Any) -> ExperimentConfig:
@@ -252,7 +253,7 @@ def test_a_state_not_used_says_why_and_stale_temporary_files_are_removed(
     saved = torch.load(state, map_location="cpu", weights_only=True)
     saved["group"]["version"] = 1
     torch.save(saved, state)
-    restart_says("group_seeds_0-1.pt is of another layout (version 1; this package reads version 2)")
+    restart_says(f"group_seeds_0-1.pt is of another layout (version 1; this package reads version {STATE_VERSION})")
     # A killed save's temporary file goes with the runs' stale states; another group's stays.
     ours, theirs = state.with_name(f".{state.name}.123.tmp"), state.with_name(".group_seeds_5.pt.123.tmp")
     ours.write_bytes(b"")

@@ -18,11 +18,11 @@ from scipy import stats
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import VecNormalize
 
-from sb3_maddpg import MADDPG
+from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.envs import SimpleSpreadVecEnv
 from sb3_maddpg.losses import one_member
-from sb3_maddpg.run_group import RunGroup, RunReplayBuffers, SpreadTask, clip_grad_norm_per_run_and_agent
+from sb3_maddpg.run_group import RunGroup, RunReplayBuffers, RunStreams, SpreadTask, clip_grad_norm_per_run_and_agent
 from sb3_maddpg.run_group.buffer import replay_nbytes
 from sb3_maddpg.run_group.selection import select_on_device
 from sb3_maddpg.selection import FixedGraph, NearestAgents
@@ -31,7 +31,9 @@ N_AGENTS = 3
 SMALL = {"net_arch": [16, 16]}
 
 
-def make_model(seed: int | None = 0, n_agents: int = N_AGENTS, n_envs: int = 2, **kwargs: Any) -> MADDPG:
+def make_model(
+    seed: int | None = 0, n_agents: int = N_AGENTS, n_envs: int = 2, algorithm: type[MADDPG] = MADDPG, **kwargs: Any
+) -> MADDPG:
     settings: dict[str, Any] = {
         "learning_starts": 100,
         "batch_size": 32,
@@ -39,7 +41,7 @@ def make_model(seed: int | None = 0, n_agents: int = N_AGENTS, n_envs: int = 2, 
         "policy_kwargs": SMALL,
         **kwargs,
     }
-    return MADDPG("MlpPolicy", SimpleSpreadVecEnv(n_envs, n_agents=n_agents), seed=seed, **settings)
+    return algorithm("MlpPolicy", SimpleSpreadVecEnv(n_envs, n_agents=n_agents), seed=seed, **settings)
 
 
 def random_batch(model: MADDPG, batch_size: int, generator: th.Generator) -> MultiAgentReplayBufferSamples:
@@ -140,6 +142,39 @@ def test_one_update_of_a_group_of_one_equals_maddpg_train(
     assert model._n_updates == reference._n_updates == 3
 
 
+def fixed_noise() -> Any:
+    """Standard normal noise, the n-th call's from seed n: what two trainers draw alike."""
+    calls = iter(range(1_000))
+    return lambda tensor: th.randn(tensor.shape, generator=th.Generator().manual_seed(next(calls)), dtype=tensor.dtype)
+
+
+@pytest.mark.parametrize(("scheme", "extra"), [("full", {}), ("selected", {"selector": 1})])
+def test_updates_of_a_matd3_group_of_one_equal_matd3_train(
+    scheme: str, extra: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Four steps (the actors at steps 2 and 4, policy_delay 2), the target smoothing noise the same in both: the
+    group runs MATD3's own step (twins, min target, smoothing, delay), not MADDPG's."""
+    settings: dict[str, Any] = {"critic_sharing": scheme, "max_grad_norm": 0.05, "learning_rate": 3e-3, **extra}
+    settings.update(algorithm=MATD3, target_policy_noise=0.3)
+    reference, model = make_model(**settings), make_model(**settings)
+    reference.set_logger(Logger(folder=None, output_formats=[]))
+    group = RunGroup([model])
+    monkeypatch.setattr(reference._team.modules, "normal_like", fixed_noise())
+    monkeypatch.setattr(group.teams, "normal_like", fixed_noise())
+    generator = th.Generator().manual_seed(1)
+    for _ in range(4):
+        batch = random_batch(reference, 32, generator)
+        monkeypatch.setattr(reference.replay_buffer, "sample", lambda *args, _batch=batch, **kwargs: _batch)
+        reference.train(gradient_steps=1, batch_size=32)
+        group.update(one_member(batch))
+    group.write_back(0, model)
+    expected, actual = model_state(reference), model_state(model)
+    assert expected.keys() == actual.keys() and any("twin" in name for name in expected)
+    for name, value in expected.items():
+        th.testing.assert_close(actual[name], value, atol=1e-6, rtol=1e-5, msg=name)
+    assert model._n_updates == reference._n_updates == 4
+
+
 # ----- 2, 3. runs never touch each other -----
 
 
@@ -147,10 +182,10 @@ def three_runs(**kwargs: Any) -> list[MADDPG]:
     return [make_model(seed, **kwargs) for seed in (0, 1, 2)]
 
 
-@pytest.mark.parametrize("scheme", ["full", "selected"])
+@pytest.mark.parametrize(("scheme", "algorithm"), [("full", MADDPG), ("selected", MADDPG), ("full", MATD3)])
 @pytest.mark.parametrize("perturb", ["batch", "weights"])
-def test_perturbing_one_run_leaves_the_others_bit_identical(scheme: str, perturb: str) -> None:
-    extra: dict[str, Any] = {"critic_sharing": scheme, "max_grad_norm": 0.05}
+def test_perturbing_one_run_leaves_the_others_bit_identical(scheme: str, algorithm: type[MADDPG], perturb: str) -> None:
+    extra: dict[str, Any] = {"critic_sharing": scheme, "max_grad_norm": 0.05, "algorithm": algorithm}
     if scheme == "selected":
         extra["selector"] = 1
     models = three_runs(**extra)
@@ -326,14 +361,14 @@ def test_written_back_models_go_on_learning_with_the_groups_update_rule() -> Non
     assert models[0]._n_updates - before == 1
 
 
-def test_a_state_for_saving_holds_full_buffers_without_a_copy() -> None:
+def test_a_state_for_saving_holds_full_buffers_without_a_copy_by_default() -> None:
     group = RunGroup(three_runs(buffer_size=200)).learn(100)  # 100 of 200 rows: partly filled
-    partial = group.state_dict(copy_buffers=False)["buffers"]["observations"]
+    partial = group.state_dict()["buffers"]["observations"]
     assert partial.shape[1] == 100 and partial.untyped_storage().nbytes() == partial.nbytes  # the rows alone
     assert th.equal(partial, group.buffers.observations[:, :100])
     group.learn(200)
-    full = group.state_dict(copy_buffers=False)["buffers"]
-    copied = group.state_dict()["buffers"]
+    full = group.state_dict()["buffers"]  # the default: groups are sized to fill the device, a copy would not fit
+    copied = group.state_dict(copy_buffers=True)["buffers"]
     for name in ("observations", "rewards"):
         assert full[name].data_ptr() == getattr(group.buffers, name).data_ptr()  # no second copy on the device
         assert th.equal(copied[name], full[name]) and copied[name].data_ptr() != full[name].data_ptr()
@@ -342,14 +377,15 @@ def test_a_state_for_saving_holds_full_buffers_without_a_copy() -> None:
 # ----- the parts -----
 
 
-def test_each_run_samples_its_own_rows_from_its_own_generator() -> None:
+def test_each_run_samples_its_own_rows_from_its_own_stream() -> None:
     buffers = RunReplayBuffers(2, capacity=6, obs_dim=1, action_dim=1, n_agents=1, rows_per_step=2, episode_length=3)
     for step in range(4):  # 8 rows into 6: the first two are overwritten
         values = th.tensor([[[step * 2.0], [step * 2.0 + 1]], [[-step * 2.0], [-step * 2.0 - 1]]])
         buffers.add(values, values, values, values, values)
     assert buffers.size == 6 and buffers.observations[0, :, 0].tolist() == [6, 7, 2, 3, 4, 5]
-    rows = buffers.sample_rows(10, [th.Generator().manual_seed(11), th.Generator().manual_seed(12)])
-    assert th.equal(rows[1], th.randint(0, 6, (10,), generator=th.Generator().manual_seed(12)))
+    rows = buffers.sample_rows(400, RunStreams([11, 12]))
+    assert th.equal(rows[1], RunStreams([12]).integers(th.tensor(6), (400,))[0])  # run 1's stream alone
+    assert set(rows[0].tolist()) == set(range(6)) and not th.equal(rows[0], rows[1])  # every held row, its own draws
     batch = buffers.get(rows)
     assert th.equal(batch.observations[0, :, 0], buffers.observations[0, rows[0], 0])
 

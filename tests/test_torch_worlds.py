@@ -242,26 +242,23 @@ def test_resets_have_mpe2s_distribution() -> None:
         assert stats.kstest(values.ravel(), "uniform", args=(-1, 2)).pvalue > 0.01
 
 
-def test_one_generator_per_run() -> None:
-    """Run r's worlds come from generator r alone: the same seed gives the same episodes, another run's seed changes
-    nothing in this one's."""
-    n_runs, per_run, n_agents = 3, 4, 3
-    worlds = TorchSpreadWorlds(n_runs * per_run, n_agents)
-    worlds.reset([th.Generator().manual_seed(seed) for seed in (10, 11, 12)])
-    first = worlds.agent_pos.clone(), worlds.landmark_pos.clone()
-    worlds.reset([th.Generator().manual_seed(seed) for seed in (10, 99, 12)])
-    for before, after in zip(first, (worlds.agent_pos, worlds.landmark_pos)):
-        assert th.equal(before[:per_run], after[:per_run]) and th.equal(before[2 * per_run :], after[2 * per_run :])
-        assert not th.equal(before[per_run : 2 * per_run], after[per_run : 2 * per_run])
-    alone = TorchSpreadWorlds(per_run, n_agents)
-    alone.reset(th.Generator().manual_seed(12))
-    assert th.equal(alone.agent_pos, first[0][2 * per_run :]) and th.equal(alone.landmark_pos, first[1][2 * per_run :])
+def test_draws_given_by_the_caller_place_the_worlds() -> None:
+    """Draws made by the caller (a run group's streams) are the episodes, scaled as a generator's: agents first, then
+    landmarks, u in [0, 1) to 2u - 1; the same numbers through a generator give the same worlds."""
+    worlds, draws = TorchSpreadWorlds(4, 3), th.rand((4, 6, 2), generator=th.Generator().manual_seed(5), dtype=th.float64)
+    worlds.reset(draws)
+    assert th.equal(worlds.agent_pos, draws[:, :3] * 2 - 1) and th.equal(worlds.landmark_pos, draws[:, 3:] * 2 - 1)
+    assert th.equal(worlds.agent_vel, th.zeros_like(worlds.agent_pos))
+    through_generator = TorchSpreadWorlds(4, 3)
+    through_generator.reset(th.Generator().manual_seed(5))
+    assert th.equal(through_generator.agent_pos, worlds.agent_pos)
 
 
 def test_bad_arguments_are_refused() -> None:
     worlds = TorchSpreadWorlds(4, 3)
-    with pytest.raises(ValueError, match="cannot split 4 worlds"):
-        worlds.reset([th.Generator() for _ in range(3)])
+    with pytest.raises(ValueError, match=r"must be uniform numbers of shape \(4, 6, 2\)"):
+        worlds.reset(th.rand(3, 6, 2, dtype=th.float64))
+    worlds.reset(th.rand(4, 6, 2, dtype=th.float64))  # the shape the refusal names is taken
     with pytest.raises(ValueError, match="must have shape"):
         worlds.set_state(np.zeros((4, 2, 2)), np.zeros((4, 3, 2)), np.zeros((4, 3, 2)))
     with pytest.raises(ValueError, match="floating dtype"):
@@ -301,7 +298,7 @@ def test_on_cuda() -> None:
         largest, obs_largest, _ = run_both(*setting, resync=False, seed=7, device="cuda")
         assert largest <= 1e-10 and obs_largest <= OBS_TOLERANCE, setting
     worlds = TorchSpreadWorlds(1000, 5, num_agent_neighbors=2, device="cuda", dtype=th.float32)
-    worlds.reset([th.Generator(device="cuda").manual_seed(seed) for seed in range(4)])
+    worlds.reset(th.Generator(device="cuda").manual_seed(4))
     assert worlds.agent_pos.is_cuda and worlds.agent_pos.abs().max() <= 1
     distances = worlds.step(th.rand((1000, 5, 5), device="cuda"))
     assert worlds.observations(distances).shape == (1000, 5, worlds.obs_size)

@@ -166,6 +166,8 @@ class SpreadWorldRules(Generic[ArrayT]):
         # [N, N-1] table, flattened, because the standard's `take` reads one axis through a 1-D index.
         others = [j for i in range(n_agents) for j in range(n_agents) if j != i]
         self._others = xp.asarray(others, dtype=xp.int64, device=agent_pos.device)  # type: ignore[attr-defined]
+        # The softplus's zero, made once on the device: a literal 0 would become a new device tensor every step.
+        self._zero = xp.zeros((), dtype=agent_pos.dtype, device=agent_pos.device)  # type: ignore[attr-defined]
 
     @property
     def obs_size(self) -> int:
@@ -190,7 +192,7 @@ class SpreadWorldRules(Generic[ArrayT]):
         offsets = self._other_offsets()  # other minus self, [E, N, N-1, 2]
         distances = _norm(xp, offsets)
         # Softplus penetration on every pair (no cutoff, as mpe2): force on i from j along (p_i - p_j).
-        penetration = xp.logaddexp(0, -(distances - 2 * AGENT_SIZE) / CONTACT_MARGIN) * CONTACT_MARGIN
+        penetration = xp.logaddexp(self._zero, -(distances - 2 * AGENT_SIZE) / CONTACT_MARGIN) * CONTACT_MARGIN
         contact = CONTACT_FORCE * -offsets / distances[..., None] * penetration[..., None]
         # mpe2 adds each pair's force to the action force in turn, others in index order: a running sum
         # (cumsum is sequential) gives its bits exactly, where sum() would add the contacts first.

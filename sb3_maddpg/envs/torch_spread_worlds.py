@@ -1,12 +1,11 @@
 """
 simple_spread's worlds as torch tensors on any device: :class:`~sb3_maddpg.envs.simple_spread_worlds.SimpleSpreadWorlds`'
-rules, new episodes from torch generators.
+rules, new episodes from a torch generator or from draws the caller makes.
 
 The one module of :mod:`sb3_maddpg.envs` that imports torch: import it from here
 (``from sb3_maddpg.envs.torch_spread_worlds import TorchSpreadWorlds``); the env package itself does not.
 """
 
-from collections.abc import Sequence
 from typing import Any
 
 import torch as th
@@ -22,9 +21,10 @@ class TorchSpreadWorlds(SpreadWorldRules[th.Tensor]):
     on its GPU and step them without a copy to the host.
 
     The worlds lie on the first axis: ``R`` runs of ``E`` worlds each are ``n_worlds = R * E`` worlds, run ``r`` the
-    ``r``-th block of ``E``. New episodes (:meth:`reset`) are drawn from one ``torch.Generator`` per run, from the
-    distribution mpe2 draws them from (positions uniform in [-1, 1], agents and landmarks, velocities zero), but not
-    from mpe2's seed stream: replaying mpe2's seeds is :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`'s job.
+    ``r``-th block of ``E``. New episodes (:meth:`reset`) are drawn from a ``torch.Generator`` or from uniform draws
+    the caller makes (a run group: each run's block from its own stream), from the distribution mpe2 draws them from
+    (positions uniform in [-1, 1], agents and landmarks, velocities zero), but not from mpe2's seed stream:
+    replaying mpe2's seeds is :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`'s job.
     Truncation after ``max_cycles`` steps is the caller's: every world's episode has the same length, so a caller
     counts steps and calls :meth:`reset` for all worlds at once.
 
@@ -66,30 +66,29 @@ class TorchSpreadWorlds(SpreadWorldRules[th.Tensor]):
         """The state's floating dtype."""
         return self.agent_pos.dtype
 
-    def reset(self, generators: th.Generator | Sequence[th.Generator]) -> None:
+    def reset(self, source: th.Generator | th.Tensor) -> None:
         """
         New episodes in every world, drawn as mpe2's ``Scenario.reset_world`` draws them: each world's agents, then
         its landmarks, uniform in [-1, 1] per coordinate; velocities zero.
 
-        :param generators: One generator for all worlds, or one per run: the worlds are then split into
-            ``len(generators)`` equal consecutive blocks, block ``r`` drawn from ``generators[r]``, so that a run's
-            episodes depend on its own seed only. Each must live on the worlds' device type.
+        :param source: A generator on the worlds' device type, or the draws themselves: uniform numbers in [0, 1),
+            ``[n_worlds, 2 * n_agents, 2]`` on the worlds' device (e.g. each run's block of worlds from its own stream,
+            :class:`~sb3_maddpg.run_group.streams.RunStreams`).
         """
-        generators = [generators] if isinstance(generators, th.Generator) else list(generators)
-        if not generators or self.n_worlds % len(generators):
-            raise ValueError(
-                f"{len(generators)} generators cannot split {self.n_worlds} worlds into equal runs: give one generator, "
-                "or one per run with n_worlds a multiple of the number of runs."
-            )
-        for generator in generators:
-            if generator.device.type != self.device.type:
+        shape = (self.n_worlds, 2 * self.n_agents, DIM_P)
+        if isinstance(source, th.Generator):
+            if source.device.type != self.device.type:
                 raise ValueError(
-                    f"A generator on {generator.device} cannot draw on {self.device}: make it with "
+                    f"A generator on {source.device} cannot draw on {self.device}: make it with "
                     f"th.Generator(device={str(self.device)!r}).manual_seed(seed)."
                 )
-        per_run = (self.n_worlds // len(generators), 2 * self.n_agents, DIM_P)
-        draws = [th.rand(per_run, generator=generator, dtype=self.dtype, device=self.device) for generator in generators]
-        positions = th.cat(draws) * 2 - 1  # numpy's uniform(-1, 1): low + (high - low) * u
+            source = th.rand(shape, generator=source, dtype=self.dtype, device=self.device)
+        elif tuple(source.shape) != shape or source.device != self.device:
+            raise ValueError(
+                f"The draws must be uniform numbers of shape {shape} (n_worlds, 2 * n_agents, 2) on {self.device}, "
+                f"got shape {tuple(source.shape)} on {source.device}."
+            )
+        positions = source * 2 - 1  # numpy's uniform(-1, 1): low + (high - low) * u
         self.agent_pos = positions[:, : self.n_agents].contiguous()
         self.landmark_pos = positions[:, self.n_agents :].contiguous()
         self.agent_vel = th.zeros_like(self.agent_pos)

@@ -7,12 +7,12 @@ successor is not stored yet. That keeps the buffers at about half the memory (an
 half the disk) of storing both, with the same transitions.
 """
 
-from collections.abc import Sequence
 from typing import Any
 
 import torch as th
 
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.run_group.streams import RunStreams
 
 ROW_FIELDS = ("observations", "actions", "rewards", "dones", "selections")
 """The tensors with one row per transition (``[R, capacity, ...]``)."""
@@ -134,6 +134,12 @@ class RunReplayBuffers:
         self.pos = 0
         self.size = 0
         """Transitions each run holds."""
+        # The counters sampling reads, on the device: no host value that changes per step in the kernels' arguments.
+        self.filled = th.zeros((), dtype=th.long, device=device)
+        """:attr:`size`, on the device."""
+        self.newest_step = th.full((), -1, dtype=th.long, device=device)
+        """The step slot written last, on the device (its next observations are :attr:`newest_next_observations`)."""
+        self._runs = th.arange(n_runs, device=device).unsqueeze(1)
         self.finals_written = 0
         """Episode ends stored so far (the next one goes to slot ``finals_written % n_final``)."""
         # Host-side copies for the check that no episode end overwrites one still held (no device sync per step).
@@ -192,8 +198,11 @@ class RunReplayBuffers:
             self.finals_written += 1
         self.final_slot[step] = slot
         self._final_slot_host[step] = slot
+        self.newest_step.fill_(step)
         self.pos = (self.pos + n) % self.capacity
-        self.size = min(self.size + n, self.capacity)
+        if self.size < self.capacity:
+            self.size = min(self.size + n, self.capacity)
+            self.filled.fill_(self.size)
 
     def _free_final_slot(self, step: int) -> int:
         """
@@ -211,31 +220,28 @@ class RunReplayBuffers:
             )
         return slot
 
-    def sample_rows(self, batch_size: int, generators: Sequence[th.Generator]) -> th.Tensor:
+    def sample_rows(self, batch_size: int, streams: RunStreams) -> th.Tensor:
         """
         :param batch_size: Transitions per run.
-        :param generators: One generator per run, on the buffers' device.
-        :return: Rows drawn uniformly from what each run holds, run r's from ``generators[r]``, ``[R, batch_size]``.
+        :param streams: The runs' random streams, on the buffers' device.
+        :return: Rows drawn uniformly from what each run holds, run r's from its own stream, ``[R, batch_size]``.
         """
         if self.size == 0:
             raise ValueError("The replay buffers are empty: add transitions before sampling.")
-        if len(generators) != self.n_runs:
-            raise ValueError(f"Need one generator per run ({self.n_runs}), got {len(generators)}.")
-        return th.stack(
-            [th.randint(0, self.size, (batch_size,), generator=g, device=self.device) for g in generators]  # own stream
-        )
+        if streams.n_runs != self.n_runs:
+            raise ValueError(f"Need one random stream per run ({self.n_runs}), got {streams.n_runs}.")
+        return streams.integers(self.filled, (batch_size,))
 
     def next_observations_of(self, rows: th.Tensor) -> th.Tensor:
         """
         :param rows: Row indices per run, ``[R, batch]``.
         :return: Their transitions' next observations, ``[R, batch, obs_dim]``.
         """
-        runs = th.arange(self.n_runs, device=self.device).unsqueeze(1)
+        runs = self._runs
         step, world = rows // self.rows_per_step, rows % self.rows_per_step
         following = self.observations[runs, (rows + self.rows_per_step) % self.capacity]
-        newest_step = (self.pos // self.rows_per_step - 1) % self.steps
         newest = self.newest_next_observations[runs, world]
-        following = th.where((step == newest_step).unsqueeze(-1), newest, following)
+        following = th.where((step == self.newest_step).unsqueeze(-1), newest, following)
         slot = self.final_slot[step]
         final = self.final_observations[runs, slot.clamp(min=0), world]
         return th.where((slot >= 0).unsqueeze(-1), final, following)
@@ -245,7 +251,7 @@ class RunReplayBuffers:
         :param rows: Row indices per run, ``[R, batch]``.
         :return: Those transitions, ``[R, batch, ...]`` each field (selections as int64, or None when not stored).
         """
-        runs = th.arange(self.n_runs, device=self.device).unsqueeze(1)
+        runs = self._runs
         selections = self.selections[runs, rows].long() if self.selection_size > 0 else None
         return MultiAgentReplayBufferSamples(
             observations=self.observations[runs, rows],
@@ -256,13 +262,13 @@ class RunReplayBuffers:
             selections=selections,
         )
 
-    def sample(self, batch_size: int, generators: Sequence[th.Generator]) -> MultiAgentReplayBufferSamples:
+    def sample(self, batch_size: int, streams: RunStreams) -> MultiAgentReplayBufferSamples:
         """
         :param batch_size: Transitions per run.
-        :param generators: One generator per run, on the buffers' device.
+        :param streams: The runs' random streams, on the buffers' device.
         :return: Each run's batch, ``[R, batch_size, ...]`` each field.
         """
-        return self.get(self.sample_rows(batch_size, generators))
+        return self.get(self.sample_rows(batch_size, streams))
 
     # ----- save and resume -----
 
@@ -301,6 +307,8 @@ class RunReplayBuffers:
         for name in ("final_observations", "final_slot", "newest_next_observations"):
             getattr(self, name).copy_(state[name].to(self.device))
         self.pos, self.size, self.finals_written = int(state["pos"]), filled, int(state["finals_written"])
+        self.filled.fill_(filled)
+        self.newest_step.fill_((self.pos // self.rows_per_step - 1) % self.steps)
         self._final_owner = [int(owner) for owner in state["final_owner"]]
         self._final_slot_host = [int(slot) for slot in self.final_slot.tolist()]
 

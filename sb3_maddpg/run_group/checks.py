@@ -7,6 +7,7 @@ import numpy as np
 from stable_baselines3.common.noise import NormalActionNoise
 
 from sb3_maddpg.maddpg import MADDPG
+from sb3_maddpg.matd3 import MATD3
 from sb3_maddpg.noise import per_env_noise
 from sb3_maddpg.selection import FixedGraph, NearestAgents, Selector
 from sb3_maddpg.sharing import LEARNED_SCHEMES, schemes_per_agent
@@ -48,10 +49,11 @@ def check_models(models: Sequence[MADDPG]) -> None:
 
 def check_model(model: MADDPG, index: int) -> None:
     """Refuse one model the group cannot train (its algorithm, its env, its team, its scheme, its schedule, its seed)."""
-    if type(model) is not MADDPG:
+    if type(model) not in (MADDPG, MATD3):
         raise TypeError(
-            f"Model {index} is a {type(model).__name__}, but a run group trains MADDPG models only (a sibling's "
-            "critics and update order differ): train it with its own learn(), or pass MADDPG models."
+            f"Model {index} is a {type(model).__name__}, but a run group trains MADDPG and MATD3 models only (it runs "
+            "their own update step; a subclass's train() may differ): train it with its own learn(), or pass MADDPG "
+            "or MATD3 models."
         )
     if model.get_vec_normalize_env() is not None:
         raise ValueError(
@@ -69,7 +71,8 @@ def check_model(model: MADDPG, index: int) -> None:
         )
     schemes = schemes_per_agent(model.critic_sharing, layout.agent_ids)
     learned = [scheme.__name__ for scheme in schemes if scheme in LEARNED_SCHEMES.values()]
-    extractor_params = [name for name, _ in model.critic.named_parameters() if not name.startswith("mlp.")]
+    networks = ("mlp.", "twin.mlp.")  # the critics' networks (MATD3's twins too); anything else is an extractor's
+    extractor_params = [name for name, _ in model.critic.named_parameters() if not name.startswith(networks)]
     if learned or extractor_params:
         raise ValueError(
             f"Model {index}'s critics use a learned scheme ({', '.join(dict.fromkeys(learned)) or 'an extractor'} with "
@@ -120,6 +123,13 @@ def settings(model: MADDPG) -> dict[str, Any]:
         "max_grad_norm": model.max_grad_norm,
         "actor_reg_coef": model.actor_reg_coef,
         "n_envs": model.n_envs,
+        "algorithm": type(model).__name__,
+        # MATD3's own (none for MADDPG)
+        **{
+            name: getattr(model, name)
+            for name in ("policy_delay", "target_policy_noise", "target_noise_clip")
+            if hasattr(model, name)
+        },
         "policy_class": type(policy).__name__,
         # The policy's whole configuration (net_arch, activation_fn, share_parameters, layer_norm, ...) but what is
         # compared above, the schedule (a function object; learning_rate is compared) and the spaces (the layout).
@@ -135,6 +145,9 @@ def settings(model: MADDPG) -> dict[str, Any]:
         "update_credit": (model.update_rule.credit, model.update_rule.counted_at),
     }
 
+
+MATD3_SETTINGS = ("policy_delay", "target_policy_noise", "target_noise_clip")
+"""MATD3's own settings, compared between the models that have them."""
 
 _MODEL_SETTINGS = ("critic_sharing", "critic_sharing_kwargs")
 """The policy's constructor parameters :func:`settings` reads from the model instead."""

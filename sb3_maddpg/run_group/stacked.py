@@ -17,6 +17,8 @@ from torch.func import functional_call, vmap
 
 from sb3_maddpg.networks import clip_coefficients
 from sb3_maddpg.policies import MultiAgentActor, MultiAgentCritic
+from sb3_maddpg.run_group.streams import RunStreams
+from sb3_maddpg.update_step import polyak_update_foreach
 
 
 class _Method(nn.Module):
@@ -96,14 +98,15 @@ class StackedModule:
 
 class StackedTeams:
     """
-    The actors, critics and their targets of ``R`` teams, stacked, as the functions of :mod:`sb3_maddpg.losses`: the
-    many-runs counterpart of :class:`~sb3_maddpg.losses.TeamNetworks` (member dimension ``M = R``).
+    The actors, critics and their targets of ``R`` teams, stacked: :class:`~sb3_maddpg.update_step.MemberModules` of
+    ``M = R`` members, the many-runs counterpart of :class:`~sb3_maddpg.update_step.TeamModules`.
 
     :param actors: Each run's team actor.
-    :param critics: Each run's team critic.
+    :param critics: Each run's team critic (MATD3's: both twins).
     :param actor_targets: Each run's target actor.
     :param critic_targets: Each run's target critic.
     :param device: Where the stacked parameters live.
+    :param streams: Each run's random stream (for MATD3's smoothing noise).
     """
 
     def __init__(
@@ -113,38 +116,49 @@ class StackedTeams:
         actor_targets: Sequence[MultiAgentActor],
         critic_targets: Sequence[MultiAgentCritic],
         device: th.device | str,
+        streams: RunStreams,
     ) -> None:
         self.actor = StackedModule(actors, device, requires_grad=True)
         self.critic = StackedModule(critics, device, requires_grad=True)
         self.actor_target = StackedModule(actor_targets, device, requires_grad=False)
         self.critic_target = StackedModule(critic_targets, device, requires_grad=False)
+        self.streams = streams
+        # Each network whose gradient is clipped on its own: the actors; each of MATD3's twin critics.
+        first = [self.critic.params[name] for name in self.critic.names if not name.startswith("twin.")]
+        twin = [self.critic.params[name] for name in self.critic.names if name.startswith("twin.")]
+        self._clip_groups = {"actor": [self.actor.parameters()], "critic": [group for group in (first, twin) if group]}
+        self._target_pairs = (
+            [*self.critic.parameters(), *self.actor.parameters()],
+            [*self.critic_target.parameters(), *self.actor_target.parameters()],
+        )
 
-    def policy(self, observations: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        """The actors' actions and pre-activations, ``[R, batch, action_dim]`` each."""
-        return self.actor.call("forward_with_preactivation", observations)
+    def call(self, module: str, method: str, *args: th.Tensor | None) -> Any:
+        return getattr(self, module).call(method, *args)
+
+    def parameters(self, module: str) -> list[th.Tensor]:
+        return getattr(self, module).parameters()
+
+    def clip_gradients(self, module: str, max_norm: float) -> None:
+        for params in self._clip_groups[module]:
+            clip_grad_norm_per_run_and_agent(params, max_norm)
+
+    def update_targets(self, tau: float) -> None:
+        polyak_update_foreach(*self._target_pairs, tau)
+
+    def normal_like(self, tensor: th.Tensor) -> th.Tensor:
+        return self.streams.normal(tensor.shape[1:], tensor.dtype)
 
     def actions(self, observations: th.Tensor) -> th.Tensor:
         """The actors' actions when acting, ``[R, batch, action_dim]``."""
         return self.actor.call("forward", observations)
-
-    def q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """The critics, ``[R, batch, n_agents]``."""
-        return self.critic.call("forward", observations, actions, selections)
-
-    def target_actions(self, observations: th.Tensor) -> th.Tensor:
-        """The target actors, ``[R, batch, action_dim]``."""
-        return self.actor_target.call("sample", observations)
-
-    def target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """The target critics, ``[R, batch, n_agents]``."""
-        return self.critic_target.call("forward", observations, actions, selections)
 
 
 def clip_grad_norm_per_run_and_agent(params: Sequence[th.Tensor], max_norm: float) -> None:
     """
     Clip each run's and agent's gradient norm separately, as ``clip_grad_norm_per_agent`` does within one run: the
     gradients of an :class:`~sb3_maddpg.networks.AgentEnsembleMLP`, stacked, are ``[R, n_members, ...]``, and slice
-    ``[r, i]`` is agent i's network in run r (one slice for all agents with shared parameters).
+    ``[r, i]`` is agent i's network in run r (one slice for all agents with shared parameters). A fixed number of
+    operations whatever ``R`` and the number of parameters: one concatenation for the norms, one multi-tensor scale.
 
     :param params: Stacked ensemble parameters with their ``.grad`` set, ``[R, n_members, ...]`` each.
     :param max_norm: The largest norm of each slice.
@@ -152,9 +166,6 @@ def clip_grad_norm_per_run_and_agent(params: Sequence[th.Tensor], max_norm: floa
     grads = [param.grad for param in params if param.grad is not None]
     if not grads:
         return
-    squared = th.zeros(grads[0].shape[:2], device=grads[0].device)
-    for grad in grads:
-        squared += grad.pow(2).sum(dim=tuple(range(2, grad.dim())))
+    squared = th.cat([grad.flatten(2) for grad in grads], dim=2).pow(2).sum(dim=2)
     coefficients = clip_coefficients(squared, max_norm)
-    for grad in grads:
-        grad.mul_(coefficients.view(*coefficients.shape, *(1,) * (grad.dim() - 2)))
+    th._foreach_mul_(grads, [coefficients.view(*coefficients.shape, *(1,) * (grad.dim() - 2)) for grad in grads])

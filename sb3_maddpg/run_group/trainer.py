@@ -1,6 +1,6 @@
 """
-``R`` independent MADDPG runs trained together in one process, on one device: the runs' networks stacked, one
-optimiser over them, the replay buffers and the worlds on the device, each run's randomness from its own seed.
+``R`` independent MADDPG (or MATD3) runs trained together in one process, on one device: the runs' networks stacked,
+one optimiser over them, the replay buffers and the worlds on the device, each run's randomness from its own seed.
 """
 
 from collections.abc import Sequence
@@ -8,23 +8,23 @@ from typing import Any
 
 import numpy as np
 import torch as th
-from stable_baselines3.common.utils import polyak_update
+from stable_baselines3.common.utils import update_learning_rate
 
 from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
+from sb3_maddpg.losses import ActionParts
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.noise import per_env_noise
 from sb3_maddpg.run_group.buffer import RunReplayBuffers, buffer_capacity
 from sb3_maddpg.run_group.checks import check_models
-from sb3_maddpg.run_group.selection import select_on_device
-from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams, clip_grad_norm_per_run_and_agent
+from sb3_maddpg.run_group.selection import DeviceSelector
+from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams
+from sb3_maddpg.run_group.streams import RunStreams
 from sb3_maddpg.run_group.worlds import METRICS, SpreadRuns, SpreadTask
 from sb3_maddpg.update_schedule import UpdateSchedule
+from sb3_maddpg.update_step import LOSS_NAMES as LOSS_NAMES  # its import path of 0.3.0.dev
+from sb3_maddpg.update_step import StepLosses, summarise_steps, update_step
 
-LOSS_NAMES = ("critic_loss", "actor_loss", "actor_reg_loss", "action_saturation")
-"""The per-run, per-agent means each :meth:`RunGroup.train` call records in :attr:`RunGroup.losses`."""
-
-STATE_VERSION = 2
+STATE_VERSION = 3
 """The layout of :meth:`RunGroup.state_dict`'s value (a state of another version is refused)."""
 
 
@@ -53,22 +53,23 @@ class GroupCallback:
 
 class RunGroup:
     """
-    ``R`` independent MADDPG runs of one configuration, differing only in their seeds, trained at once.
+    ``R`` independent MADDPG (or MATD3) runs of one configuration, differing only in their seeds, trained at once.
 
-    Each run's actors, critics and targets are the parameters of its :class:`~sb3_maddpg.maddpg.MADDPG` model stacked
-    along a run dimension (:class:`~sb3_maddpg.run_group.stacked.StackedTeams`); one update of every run is one pass
-    of :mod:`sb3_maddpg.losses`' functions with ``M = R`` members, then one optimiser step (the models' optimiser,
-    element-wise: Adam's state of run r is run r's), gradient clipping per run and agent, and Polyak updates: what
-    ``MADDPG.train`` does for one run. Data come from ``R`` runs of ``E`` simple_spread worlds in torch on the same
-    device, into replay buffers there; each run's new episodes, exploration noise, warm-up actions and replay
-    batches are drawn from one ``torch.Generator`` seeded by its model's ``seed``, so that a run's data depend on
-    its seed only, not on the other runs. The update ratio is the models' (the paper's one gradient step per
+    Each run's actors, critics and targets are the parameters of its model stacked along a run dimension
+    (:class:`~sb3_maddpg.run_group.stacked.StackedTeams`); one update of every run is the algorithm's own update step
+    (:func:`~sb3_maddpg.update_step.update_step`, which ``MADDPG.train`` and ``MATD3.train`` run with ``M = 1``) with
+    ``M = R`` members: one optimiser step (the models' optimiser, element-wise: Adam's state of run r is run r's),
+    gradient clipping per run and agent, Polyak updates. Data come from ``R`` runs of ``E`` simple_spread worlds in
+    torch on the same device, into replay buffers there; each run's new episodes, exploration noise, warm-up actions,
+    replay batches (and MATD3's smoothing noise) are drawn from its own counter-based stream of its model's ``seed``
+    (:class:`~sb3_maddpg.run_group.streams.RunStreams`), every run's at once, so that a run's data depend on its seed
+    only, not on the other runs. The update ratio is the models' (the paper's one gradient step per
     ``transitions_per_update`` transitions of each run, after ``learning_starts``).
 
     The models are read once, when the group is built; :meth:`write_back` puts each run's weights, optimiser state
     and counters into a model, which then saves as any MADDPG model (``MADDPG.load`` reads it).
 
-    :param models: One MADDPG model per run: the same layout and hyperparameters, each with its own ``seed``.
+    :param models: One MADDPG (or MATD3) model per run: the same layout and hyperparameters, each with its own ``seed``.
     :param worlds_per_run: Worlds ``E`` each run collects in (default: the models' ``n_envs``).
     :param task: simple_spread's settings (default: read from the models' env, a
         :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`); only :meth:`learn` needs them.
@@ -91,33 +92,34 @@ class RunGroup:
         self.device = th.device(device)
         self.layout = first.agent_layout
         self.seeds = [int(model.seed) for model in models]  # type: ignore[arg-type]  # checked: not None
+        self.streams = RunStreams(self.seeds, self.device)
+        """Each run's random stream: episodes, warm-up actions, noise, replay batches."""
         self.teams = StackedTeams(
             [model.actor for model in models],
             [model.critic for model in models],
             [model.actor_target for model in models],
             [model.critic_target for model in models],
             self.device,
+            self.streams,
         )
         self.actor_optimizer = _stacked_optimizer(self.teams.actor, [model.actor.optimizer for model in models])
         self.critic_optimizer = _stacked_optimizer(self.teams.critic, [model.critic.optimizer for model in models])
-        self.gamma = first.gamma
-        self.tau = first.tau
+        # The algorithm's own networks and step settings (checked: the same in every model), over the stacked runs.
+        parts = ActionParts.of(self.layout, self.device)
+        self.networks = first._update_networks(self.teams, parts)
+        self.settings = first._step_settings()._replace(parts=parts)
         self.batch_size = first.batch_size
         self.learning_starts = first.learning_starts
-        self.max_grad_norm = first.max_grad_norm
-        self.actor_reg_coef = first.actor_reg_coef
         self.lr_schedule = first.lr_schedule
-        self.parts = ActionParts.of(self.layout, self.device)
         self.update_rule = UpdateSchedule.from_arguments(first.transitions_per_update, None, None)
         # The models' credit (checked: the same in each): a group of written-back models earns no steps twice.
         self.update_rule.credit, self.update_rule.counted_at = first.update_rule.credit, first.update_rule.counted_at
         self.selector = first.selector
+        self.select = None if self.selector is None else DeviceSelector(self.selector, self.layout, self.device)
         self.num_timesteps = first.num_timesteps
         """Env steps of each run (all its worlds counted)."""
         self.n_updates = first._n_updates
         """Gradient steps of each run."""
-        self.generators = [th.Generator(device=self.device).manual_seed(seed) for seed in self.seeds]
-        """Each run's random stream: episodes, warm-up actions, noise, replay batches."""
         noise = None if first.action_noise is None else per_env_noise(first.action_noise)
         # Checked: a NormalActionNoise (or none); its mean and std per action component, on the device.
         self.noise_mean: th.Tensor | None = None if noise is None else _tensor(noise._mu, self.device)  # type: ignore[attr-defined]
@@ -144,44 +146,30 @@ class RunGroup:
 
     def update(self, batch: MultiAgentReplayBufferSamples) -> dict[str, th.Tensor]:
         """
-        One gradient step of every run on its batch, as one step of ``MADDPG.train``: the critics, then the actors
-        (against the updated critics), then the targets.
+        One gradient step of every run on its batch, as one step of the models' ``train``: the critics, then the
+        actors (against the updated critics) and the targets when due.
 
         :param batch: Each run's batch, ``[R, batch, ...]`` each field, on the group's device.
-        :return: This step's :data:`LOSS_NAMES`, ``[R, n_agents]`` each.
+        :return: This step's :data:`~sb3_maddpg.update_step.LOSS_NAMES` (the actors' only when they were updated),
+            ``[R, n_agents]`` each.
         """
-        teams = self.teams
-        self.n_updates += 1
-        target_q = critic_targets(teams.target_actions, teams.target_q, batch, self.gamma)
-        critic_loss = critic_losses(teams.q, batch, target_q)
-        self._step(self.critic_optimizer, teams.critic.parameters(), critic_loss.sum())
-        actor_terms = actor_loss_terms(teams.policy, teams.q, batch, self.parts, self.actor_reg_coef)
-        # Only the actors' gradients: the critics' are not needed for the actor step.
-        self._step(self.actor_optimizer, teams.actor.parameters(), actor_terms.total.sum())
-        polyak_update(teams.critic.parameters(), teams.critic_target.parameters(), self.tau)
-        polyak_update(teams.actor.parameters(), teams.actor_target.parameters(), self.tau)
-        values = (critic_loss, actor_terms.policy_loss, actor_terms.reg_loss, actor_terms.saturation)
-        return {name: value.detach() for name, value in zip(LOSS_NAMES, values)}
+        return summarise_steps([self._step(batch)])
 
-    def _step(self, optimizer: th.optim.Optimizer, params: list[th.Tensor], loss: th.Tensor) -> None:
-        for param, grad in zip(params, th.autograd.grad(loss, params)):
-            param.grad = grad
-        if self.max_grad_norm is not None:
-            clip_grad_norm_per_run_and_agent(params, self.max_grad_norm)
-        optimizer.step()
+    def _step(self, batch: MultiAgentReplayBufferSamples) -> StepLosses:
+        self.n_updates += 1
+        optimizers = (self.actor_optimizer, self.critic_optimizer)
+        return update_step(self.networks, optimizers, batch, self.settings, self.settings.actor_due(self.n_updates))
 
     def train(self, gradient_steps: int) -> None:
         """
-        ``gradient_steps`` updates of every run, each on a batch of ``batch_size`` rows its generator draws from its
-        buffer; the steps' mean losses go to :attr:`losses` (no transfer to the host).
+        ``gradient_steps`` updates of every run, each on a batch of ``batch_size`` rows drawn from its buffer by its
+        stream; the steps' mean losses go to :attr:`losses` (no transfer to the host).
 
         :param gradient_steps: Gradient steps of each run.
         """
-        logs: list[dict[str, th.Tensor]] = []
-        for _ in range(gradient_steps):
-            logs.append(self.update(self.buffers.sample(self.batch_size, self.generators)))
-        if logs:
-            self.losses = {name: th.stack([log[name] for log in logs]).mean(0) for name in LOSS_NAMES}
+        steps = [self._step(self.buffers.sample(self.batch_size, self.streams)) for _ in range(gradient_steps)]
+        if steps:
+            self.losses = summarise_steps(steps)
 
     # ----- data -----
 
@@ -195,13 +183,12 @@ class RunGroup:
         """
         shape = (observations.shape[1], self.layout.action_dim)
         if self.num_timesteps < self.learning_starts:
-            actions = th.stack([th.rand(shape, generator=g, device=self.device) for g in self.generators]) * 2.0 - 1.0
+            actions = self.streams.uniform(shape) * 2.0 - 1.0
         else:
             with th.no_grad():
                 actions = self.teams.actions(observations)
         if self.noise_std is not None and self.noise_mean is not None:
-            noise = th.stack([th.randn(shape, generator=g, device=self.device) for g in self.generators])
-            actions = (actions + self.noise_mean + noise * self.noise_std).clamp(-1.0, 1.0)
+            actions = (actions + self.noise_mean + self.streams.normal(shape) * self.noise_std).clamp(-1.0, 1.0)
         return actions
 
     def collect_step(self) -> None:
@@ -210,7 +197,7 @@ class RunGroup:
         observations = worlds.observations
         actions = self.explore(observations)
         step = worlds.step(actions)
-        selections = None if self.selector is None else select_on_device(self.selector, observations, self.layout)
+        selections = None if self.select is None else self.select(observations)
         dones = th.zeros_like(step.rewards)  # simple_spread never terminates: its truncations bootstrap
         self.buffers.add(observations, actions, step.next_observations, step.rewards, dones, selections, step.truncated)
         self.num_timesteps += self.worlds_per_run
@@ -244,8 +231,7 @@ class RunGroup:
     def _update_learning_rate(self, progress_remaining: float) -> None:
         """Every optimiser's learning rate from the models' schedule, as SB3's ``_update_learning_rate``."""
         for optimizer in (self.actor_optimizer, self.critic_optimizer):
-            for group in optimizer.param_groups:
-                group["lr"] = self.lr_schedule(progress_remaining)
+            update_learning_rate(optimizer, self.lr_schedule(progress_remaining))
 
     def _worlds(self) -> SpreadRuns:
         if self.worlds is None:
@@ -254,7 +240,7 @@ class RunGroup:
                     "The run group does not know its worlds' settings: the models' env is not a SimpleSpreadVecEnv. "
                     "Pass RunGroup(models, task=SpreadTask(n_agents=..., num_agent_neighbors=...))."
                 )
-            worlds = SpreadRuns(self.task, self.worlds_per_run, self.generators, self.device, self.world_dtype)
+            worlds = SpreadRuns(self.task, self.worlds_per_run, self.streams, self.world_dtype)
             expected = self.task.layout(worlds.obs_size)
             if expected != self.layout:
                 raise ValueError(
@@ -278,17 +264,19 @@ class RunGroup:
 
     # ----- save and resume -----
 
-    def state_dict(self, copy_buffers: bool = True) -> dict[str, Any]:
+    def state_dict(self, copy_buffers: bool = False) -> dict[str, Any]:
         """
         Everything the group's training goes on from, as tensors (on the group's device) and plain values, for
         ``torch.save``: the stacked weights and targets, the optimisers' states, the replay buffers (the rows
-        filled so far), every run's generator, the worlds (positions, velocities, the episodes' steps and returns,
+        filled so far), the runs' random streams, the worlds (positions, velocities, the episodes' steps and returns,
         the finished episodes' records), the counters and the update rule's credit. Taken at the end of a round
-        (:meth:`GroupCallback.on_round_end`), :meth:`load_state_dict` continues the same training exactly.
+        (:meth:`GroupCallback.on_round_end`), :meth:`load_state_dict` continues the same training exactly, on this
+        device or another (the random streams' state means the same on every device).
 
-        :param copy_buffers: Copy the buffers' filled rows (on the device). ``False``, to ``torch.save`` the state at
-            once: full buffers are the group's own tensors (no second copy on the device) and partly filled ones'
-            rows are copied to host memory; such a state changes as the group trains on.
+        :param copy_buffers: Copy the buffers' filled rows on the device, for a state kept in memory while the group
+            trains on. ``False`` (the default), to ``torch.save`` the state at once: full buffers are the group's own
+            tensors (no second copy on the device: groups are sized to fill it) and partly filled ones' rows are
+            copied to host memory; such a state changes as the group trains on.
         :return: The state.
         """
         teams, buffers = self.teams, self.buffers
@@ -302,7 +290,7 @@ class RunGroup:
             "num_timesteps": self.num_timesteps,
             "n_updates": self.n_updates,
             "update_rule": (self.update_rule.credit, self.update_rule.counted_at),
-            "generators": [generator.get_state() for generator in self.generators],
+            "streams": self.streams.state_dict(),
             "buffers": buffers.state_dict(copy=copy_buffers),
             "worlds": None
             if worlds is None
@@ -343,9 +331,8 @@ class RunGroup:
         self.n_updates = int(state["n_updates"])
         self.update_rule.credit, self.update_rule.counted_at = state["update_rule"]
         if state["worlds"] is not None:
-            self._worlds()  # built first: building them draws new episodes from the generators, set next
-        for generator, generator_state in zip(self.generators, state["generators"]):
-            generator.set_state(generator_state.cpu())
+            self._worlds()  # built first: building them draws new episodes from the streams, set next
+        self.streams.load_state_dict(state["streams"])
         self.buffers.load_state_dict(state["buffers"])
         saved_worlds = state["worlds"]
         if saved_worlds is not None:
@@ -418,7 +405,12 @@ def _stacked_optimizer(stacked: StackedModule, optimizers: Sequence[th.optim.Opt
     :param optimizers: Each run's optimiser (over the same parameters, in the same order).
     :return: The optimiser.
     """
-    optimizer = type(optimizers[0])(stacked.parameters(), **optimizers[0].defaults)
+    defaults = dict(optimizers[0].defaults)
+    if stacked.parameters()[0].device.type != "cpu" and "foreach" in defaults and defaults["foreach"] is None:
+        # Multi-tensor steps (a few launches for all parameters): torch's own choice on CUDA, made on any device
+        # (the meta device of an audit counts what CUDA launches).
+        defaults["foreach"] = True
+    optimizer = type(optimizers[0])(stacked.parameters(), **defaults)
     states = [opt.state_dict()["state"] for opt in optimizers]
     if not any(states):
         return optimizer

@@ -1,15 +1,15 @@
 """The worlds a run group learns in: ``R`` runs of ``E`` simple_spread worlds each, on the group's device."""
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import torch as th
 
 from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS
-from sb3_maddpg.envs.simple_spread_worlds import ACTION_SIZE
+from sb3_maddpg.envs.simple_spread_worlds import ACTION_SIZE, DIM_P
 from sb3_maddpg.envs.torch_spread_worlds import TorchSpreadWorlds
 from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.run_group.streams import RunStreams
 
 METRICS = ("coverage", "success", "collisions", "min_dist_sum")
 """The task metrics recorded at the end of every episode (:class:`~sb3_maddpg.envs.SimpleSpreadMetrics`'s)."""
@@ -69,13 +69,12 @@ class SpreadRuns:
     """
     ``n_runs`` runs of ``worlds_per_run`` simple_spread worlds in one
     :class:`~sb3_maddpg.envs.torch_spread_worlds.TorchSpreadWorlds` (run r the r-th block of worlds), each run's new
-    episodes drawn from its own generator; an episode's end resets every world, as
+    episodes drawn from its own random stream; an episode's end resets every world, as
     :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`'s.
 
     :param task: The worlds' settings.
     :param worlds_per_run: Worlds ``E`` per run.
-    :param generators: One generator per run, on ``device``.
-    :param device: Where the worlds live.
+    :param streams: The runs' random streams (one per run), on the worlds' device.
     :param dtype: The worlds' floating dtype (float64 is mpe2's arithmetic; float32 is faster).
     """
 
@@ -83,14 +82,14 @@ class SpreadRuns:
         self,
         task: SpreadTask,
         worlds_per_run: int,
-        generators: Sequence[th.Generator],
-        device: th.device | str,
+        streams: RunStreams,
         dtype: th.dtype = th.float32,
     ) -> None:
         self.task = task
-        self.n_runs = len(generators)
+        self.n_runs = streams.n_runs
         self.worlds_per_run = worlds_per_run
-        self.generators = list(generators)
+        self.streams = streams
+        device = streams.device
         self.worlds = TorchSpreadWorlds(
             self.n_runs * worlds_per_run,
             task.n_agents,
@@ -120,7 +119,8 @@ class SpreadRuns:
 
     def reset(self) -> th.Tensor:
         """:return: New episodes' observations, ``[R, E, obs_dim]``."""
-        self.worlds.reset(self.generators)
+        shape = (self.worlds_per_run, 2 * self.task.n_agents, DIM_P)  # each world's agents, then its landmarks
+        self.worlds.reset(self.streams.uniform(shape, self.worlds.dtype).reshape(-1, *shape[1:]))
         self.steps = 0
         return self._joint(self.worlds.observations(self.worlds.distances()))
 
