@@ -108,7 +108,7 @@ class RunStreams:
 
     def state_dict(self) -> dict[str, th.Tensor]:
         """:return: The keys and the counter (on the host: they mean the same on any device)."""
-        return {"keys": self.keys.cpu(), "counter": self.counter.cpu()}
+        return {"keys": self.keys.cpu().clone(), "counter": self.counter.cpu().clone()}  # a copy, also on the host
 
     def load_state_dict(self, state: dict[str, th.Tensor]) -> None:
         """:param state: A state of :meth:`state_dict`, of streams of the same seeds."""
