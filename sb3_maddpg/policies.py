@@ -387,9 +387,17 @@ class MADDPGPolicy(BasePolicy):
     def make_critic(self) -> MultiAgentCritic:
         """A new team critic."""
         agent_ids = self.agent_layout.agent_ids
+        schemes = schemes_per_agent(self.critic_sharing, agent_ids)
+        if self.share_parameters and len(set(schemes)) > 1:
+            # Inputs of equal size may still mean different things (e.g. 'full' and 'selected' with k = N - 1).
+            raise ValueError(
+                f"share_parameters=True needs one scheme for every agent (one critic network reads one input layout), "
+                f"got {dict(zip(agent_ids, (scheme.__name__ for scheme in schemes)))}: give every agent the same "
+                "critic_sharing, or use share_parameters=False."
+            )
         return self.critic_class(
             self.agent_layout,
-            schemes_per_agent(self.critic_sharing, agent_ids),
+            schemes,
             kwargs_per_agent(self.critic_sharing_kwargs, agent_ids),
             self.selection_size,
             self.net_arch["qf"],

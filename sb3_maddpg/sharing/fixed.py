@@ -15,6 +15,9 @@ observations   fo      ``[o_i, o_others..., a_i]``
 actions        fa      ``[o_i, a_i, a_others...]``
 selected       soa     ``[o_i, o_s1 .. o_sk, a_i, a_s1 .. a_sk]`` (selection order, nearest first)
 ============== ======= ===================================================================
+
+So critic i's input is critic 0's with agent i called agent 0 (the others keeping their order): one critic network
+shared by interchangeable agents (``share_parameters=True``) reads the same thing in the same place for each.
 """
 
 from collections.abc import Sequence
