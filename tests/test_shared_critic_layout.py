@@ -64,7 +64,9 @@ def test_index_order_alone_would_not_do_for_a_shared_critic() -> None:
 
 
 @pytest.mark.parametrize(("num_agent_neighbors", "num_landmark_neighbors"), [(None, None), (3, 4), (2, 4)])
-def test_mpe2s_observations_relabel_with_the_agents(num_agent_neighbors: int | None, num_landmark_neighbors: int | None) -> None:
+def test_mpe2s_observations_relabel_with_the_agents(
+    num_agent_neighbors: int | None, num_landmark_neighbors: int | None
+) -> None:
     """In mpe2 itself, agent i's observation in a world equals agent 0's in the same world with agent i called agent 0:
     simple_spread's agents are interchangeable under that relabelling (index-ordered and nearest-first observations,
     the paper's two nearest agents), so the critics' inputs above mean the same for every agent."""
