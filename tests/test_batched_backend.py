@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from sb3_maddpg import MADDPG
+from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.evaluation import evaluate_team
 from sb3_maddpg.experiments import SMOKE, ExperimentConfig, make_report, run_sweep, runner
 from sb3_maddpg.experiments.batched import (
@@ -274,13 +274,26 @@ def test_runs_a_group_cannot_train_are_refused_first(tmp_path: Path, capsys: pyt
     assert not (tmp_path / "smoke").exists()  # nothing trained, nothing written
     for changes, cause in (
         ({"vec_env": "mpe2"}, "steps simple_spread's batched worlds only"),
-        ({"algorithm": "sb3_maddpg:MATD3"}, "trains MADDPG"),
+        ({"normalize_observations": True}, "VecNormalize"),
         ({"env_kwargs": {"continuous_actions": False}}, "discrete agents"),
     ):
         with pytest.raises(BatchedRunRefused, match=cause):
             check_batched(dataclasses.replace(tiny(), **changes).runs())
     with pytest.raises(ValueError, match="runs_per_process must be at least 1"):
         plan_groups([], 0)
+
+
+def test_a_matd3_group_trains_and_writes_matd3_checkpoints(tmp_path: Path) -> None:
+    """Run groups take MATD3 (its own update step: twins, smoothing, delay): its runs finish, their checkpoints are
+    MATD3 files whose twin critics trained."""
+    config = tiny(name="tiny_matd3", seeds=(0, 1), algorithm="sb3_maddpg:MATD3")
+    result = run_sweep([config], tmp_path, backend="batched", verbose=0, device="cpu")
+    assert result.ok and len(result.completed) == 2, result.failed
+    for run in config.runs():
+        checkpoints = sorted((tmp_path / run.run_id / "checkpoints").iterdir(), key=lambda path: int(path.stem.split("_")[1]))
+        first, last = (MATD3.load(path, device="cpu") for path in (checkpoints[0], checkpoints[-1]))
+        assert isinstance(last, MATD3) and last._n_updates > first._n_updates
+        assert not torch.equal(first.critic.twin.mlp.weights[0], last.critic.twin.mlp.weights[0])
 
 
 def test_a_device_the_groups_cannot_train_on_is_refused_before_anything_is_written(

@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from sb3_maddpg.experiments import SMOKE, ExperimentConfig, run_sweep
+from sb3_maddpg.experiments import SMOKE, run_sweep
 from sb3_maddpg.experiments.backends import LOST_RUN, RAY_MAX_RETRIES, ray_task_options
 from sb3_maddpg.experiments.batched import BatchedRunRefused, run_batched_ray
 from sb3_maddpg.experiments.cli import main
@@ -157,8 +157,8 @@ def test_refusals_come_before_ray_starts(
     assert capsys.readouterr().err.startswith(
         "sb3-maddpg run: smoke/attention/seed_000 (and its other seeds) cannot train in a run group"
     )
-    with pytest.raises(BatchedRunRefused, match="trains MADDPG"):
-        run_sweep([tiny_matd3()], tmp_path, backend="batched", on_ray=True, verbose=0)
+    with pytest.raises(BatchedRunRefused, match="batched worlds only"):
+        run_sweep([dataclasses.replace(WARM_UP_ONLY, vec_env="mpe2")], tmp_path, backend="batched", on_ray=True, verbose=0)
     assert not (tmp_path / "smoke").exists() and not (tmp_path / "tiny").exists()  # nothing trained or written
 
     # --ray is the batched backend's; --ray-address without it would be ignored.
@@ -168,7 +168,3 @@ def test_refusals_come_before_ray_starts(
     assert "add --ray to run the groups as Ray tasks" in capsys.readouterr().err
     with pytest.raises(ValueError, match="on_ray runs the batched backend's groups"):
         run_sweep([WARM_UP_ONLY], tmp_path, backend="local", on_ray=True)
-
-
-def tiny_matd3() -> ExperimentConfig:
-    return dataclasses.replace(WARM_UP_ONLY, algorithm="sb3_maddpg:MATD3")

@@ -31,7 +31,7 @@ from sb3_maddpg.experiments.backends import (
     ray_task_options,
     set_worker_threads,
 )
-from sb3_maddpg.experiments.config import DEFAULT_ALGORITHM, DEFAULT_ENV, RunConfig
+from sb3_maddpg.experiments.config import DEFAULT_ENV, RunConfig
 from sb3_maddpg.experiments.results import (
     CHECKPOINT_DIR,
     CONFIG_FILE,
@@ -193,9 +193,7 @@ def check_batched(configs: Sequence[RunConfig], device: str | None = None) -> No
         check_device(device)
     for group in plan_groups(configs):
         config = group[0]
-        if config.algorithm != DEFAULT_ALGORITHM:
-            cause = f"its algorithm is {config.algorithm}, but a run group trains MADDPG ({DEFAULT_ALGORITHM}) only."
-        elif config.env != DEFAULT_ENV or config.vec_env != "batched":
+        if config.env != DEFAULT_ENV or config.vec_env != "batched":
             cause = (
                 f"it trains on {config.env} (vec_env {config.vec_env!r}), but a run group steps simple_spread's batched "
                 "worlds only (env 'simple_spread', vec_env 'batched')."
