@@ -18,7 +18,8 @@ def critic_listening(model: Any, observations: Any, actions: Any = None) -> dict
         deterministic actions.
     :return: ``weights``: ``[batch, n_agents, n_agents]`` numpy, row i the weights critic i gives the others (0 on the
         diagonal; for ``attention``, the heads' mean); ``chosen``: ``[batch, n_agents, k]`` agent indices (highest
-        score first) for a learned selection, else ``None``.
+        score first) when some critic is a learned selection (``k`` its largest), row i critic i's, ``-1`` where it
+        chooses no agent (an ``attention`` critic, or a smaller ``k``); else ``None``.
     """
     policy = model.policy
     extractors = list(policy.critic.extractors)
@@ -36,14 +37,20 @@ def critic_listening(model: Any, observations: Any, actions: Any = None) -> dict
     act_tensor = th.as_tensor(scaled, dtype=th.float32, device=policy.device)
     n_agents = len(extractors)
     weights = np.zeros((observations.shape[0], n_agents, n_agents), dtype=np.float32)
-    chosen = []
+    chosen: dict[int, np.ndarray] = {}
     with th.no_grad():
         for i, extractor in enumerate(extractors):
             weights[:, i, extractor.encoder.others] = extractor.listening_weights(obs_tensor, act_tensor).cpu().numpy()
             choice = extractor.chosen_agents(obs_tensor, act_tensor)
             if choice is not None:
-                chosen.append(choice.cpu().numpy())
-    return {"weights": weights, "chosen": np.stack(chosen, axis=1) if chosen else None}
+                chosen[i] = choice.cpu().numpy()
+    if not chosen:
+        return {"weights": weights, "chosen": None}
+    # Row i is critic i's, whichever critics choose (a per-agent mapping may mix attention and learned selection).
+    table = np.full((observations.shape[0], n_agents, max(c.shape[1] for c in chosen.values())), -1, dtype=np.int64)
+    for i, choice in chosen.items():
+        table[:, i, : choice.shape[1]] = choice
+    return {"weights": weights, "chosen": table}
 
 
 def _to_numpy(array: Any) -> Any:

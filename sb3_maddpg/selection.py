@@ -93,6 +93,14 @@ class NearestAgents(Selector):
                     "pass NearestAgents(position_slice=...) pointing at the position inside each agent's observation, "
                     "or select by another rule (FixedGraph, CallableSelector)."
                 )
+        # An open-ended slice fits each observation but may cut positions of different lengths from unequal ones.
+        lengths = {len(range(*self.position_slice.indices(size))) for size in layout.obs_sizes}
+        if len(lengths) > 1:
+            raise ValueError(
+                f"position_slice={self.position_slice} cuts positions of different lengths {sorted(lengths)} from the "
+                f"agents' observations of sizes {list(layout.obs_sizes)}: give it a stop (e.g. slice(2, 4)), so that "
+                "every agent's position has the same length."
+            )
         super().validate(layout)
 
     def _select(self, observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
@@ -226,8 +234,12 @@ def warn_if_selecting_everyone(selector: Selector, layout: AgentLayout) -> None:
     if selector.k == layout.n_agents - 1:
         warnings.warn(
             f"critic_sharing='selected' with k={selector.k} selects every other agent of this {layout.n_agents}-agent "
-            f"team: each critic sees what 'full' sees, in another order. Select fewer (e.g. selector=1, the nearest "
-            "agent) for a critic that selects.",
+            "team: each critic sees what 'full' sees, in another order. "
+            + (
+                "Select fewer (e.g. selector=1, the nearest agent) for a critic that selects."
+                if layout.n_agents > 2
+                else "A team of 2 has one other agent to select: compare 'selected' with 'full' on a larger team."
+            ),
             UserWarning,
             stacklevel=user_stacklevel(),
         )

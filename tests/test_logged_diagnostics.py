@@ -254,3 +254,20 @@ def test_critic_listening_takes_actions_in_the_env_units(collected_model: Any) -
         th.testing.assert_close(weights[:, i, others], expected, rtol=1e-5, atol=1e-6)
         assert listening["chosen"][:, i, 0].tolist() == [others[j] for j in expected.argmax(dim=1).tolist()]
     assert model.action_space.low.min() == 0.0 and model.action_space.high.max() == 1.0  # 2 a - 1 is the scaling
+
+
+def test_critic_listening_keeps_row_i_for_critic_i_in_a_mixed_team(collected_model: Any) -> None:
+    """A per-agent mapping of an attention critic and learned selections of different k: ``chosen``'s row i is critic
+    i's choice (-1 where it chooses none, or fewer than the largest k), never the next choosing critic's."""
+    sharing = {"agent_0": "attention", "agent_1": "learned_selection", "agent_2": "learned_selection"}
+    kwargs = {"agent_0": {"embed_dim": 8}, "agent_1": {"embed_dim": 8, "k": 1}, "agent_2": {"embed_dim": 8, "k": 2}}
+    model = collected_model(sharing, critic_sharing_kwargs=kwargs)
+    data = model.replay_buffer.sample(BATCH)
+    chosen = critic_listening(model, data.observations.numpy())["chosen"]
+    assert chosen.shape == (BATCH, 3, 2)
+    assert (chosen[:, 0] == -1).all() and (chosen[:, 1, 1] == -1).all()  # attention: none; k=1: one of two slots
+    actions = th.as_tensor(model.policy.scale_action(model.predict(data.observations.numpy(), deterministic=True)[0]))
+    for i, k in ((1, 1), (2, 2)):
+        with th.no_grad():
+            expected = model.critic.extractors[i].chosen_agents(data.observations, actions.float())
+        assert np.array_equal(chosen[:, i, :k], expected.numpy()), i

@@ -169,7 +169,8 @@ def test_maddpg_names_a_team_of_one_as_the_cause_for_selected_sharing(selector: 
     """MADDPG says the team is too small for 'selected', not what the selector (whatever its k) fails at later."""
     with pytest.raises(ValueError, match="critic_sharing='selected' needs at least 2 agents, got 1"):
         MADDPG("MlpPolicy", PettingZooToGym(Solo()), critic_sharing="selected", selector=selector, **FAST)
-    with pytest.warns(UserWarning, match="selects every other agent of this 2-agent team"):
+    # The warning's advice fits the team: a team of 2 cannot select fewer than its one other agent.
+    with pytest.warns(UserWarning, match="selects every other agent of this 2-agent team.*A team of 2 has one other"):
         model = MADDPG("MlpPolicy", make_simple_spread(n_agents=2), critic_sharing="selected", selector=1, **FAST)
     assert model.critic.extractors[0].selection_size == 1  # two agents: accepted
 
@@ -304,6 +305,10 @@ def test_nearest_agents_position_slice_fits_every_agent() -> None:
     NearestAgents(k=1, position_slice=slice(4, 6)).validate(layout)
     with pytest.raises(ValueError, match=does_not_fit(slice(5, 7), "small")):
         NearestAgents(k=1, position_slice=slice(5, 7)).validate(layout)
+    # Open-ended, it fits both but cuts positions of 4 and 2 values: refused before select() fails in numpy.
+    with pytest.raises(ValueError, match=r"cuts positions of different lengths \[2, 4\]"):
+        NearestAgents(k=1, position_slice=slice(4, None)).validate(layout)
+    NearestAgents(k=1, position_slice=slice(4, None)).validate(AgentLayout(("a", "b"), (6, 6), (2, 2)))  # equal: fine
 
 
 @pytest.mark.parametrize(
