@@ -127,6 +127,54 @@ def mann_whitney(x: Sequence[float], y: Sequence[float]) -> tuple[float, float]:
     return float(result.statistic), float(result.pvalue)
 
 
+def seeds_to_separate(
+    x: Sequence[float],
+    y: Sequence[float],
+    alpha: float = 0.05,
+    power: float = 0.8,
+    max_seeds: int = 200,
+    n_simulations: int = 400,
+    seed: int = 0,
+) -> int | None:
+    """
+    How many seeds per method a Mann-Whitney U test would need to tell ``x`` from ``y`` at ``alpha`` with probability
+    ``power``, if each method's scores were spread as measured: experiments of ``n`` seeds are simulated by drawing
+    ``n`` scores with replacement from each sample (a bootstrap power analysis; it trusts the measured spread, so a
+    handful of seeds gives a rough answer), and the smallest ``n`` (doubling, then bisecting) whose share of
+    significant tests reaches ``power`` is returned.
+
+    :param x: One method's per-run scores (at least 2).
+    :param y: The other's (at least 2).
+    :param alpha: The test's significance level (two-sided).
+    :param power: The share of simulated experiments that must find the difference.
+    :param max_seeds: The largest ``n`` tried.
+    :param n_simulations: Simulated experiments per ``n``.
+    :param seed: Seed of the simulations.
+    :return: The seeds per method, or None when even ``max_seeds`` do not reach ``power`` (e.g. equal samples).
+    """
+    from scipy.stats import mannwhitneyu
+
+    a, b = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    if a.size < 2 or b.size < 2:
+        raise ValueError(f"seeds_to_separate needs at least 2 scores per method, got {a.size} and {b.size}.")
+    rng = np.random.default_rng(seed)
+
+    def reaches(n: int) -> bool:
+        xs, ys = rng.choice(a, (n_simulations, n)), rng.choice(b, (n_simulations, n))
+        p_values = mannwhitneyu(xs, ys, alternative="two-sided", axis=1).pvalue
+        return bool(np.mean(np.nan_to_num(p_values, nan=1.0) < alpha) >= power)
+
+    low, high = 1, 2
+    while not reaches(high):
+        if high >= max_seeds:
+            return None
+        low, high = high, min(2 * high, max_seeds)
+    while high - low > 1:  # reaches(high), not reaches(low)
+        middle = (low + high) // 2
+        low, high = (low, middle) if reaches(middle) else (middle, high)
+    return high
+
+
 def mean_std(values: Sequence[float]) -> tuple[float, float]:
     """
     :param values: Per-run scores.
