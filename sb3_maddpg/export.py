@@ -1,14 +1,20 @@
-"""Each agent's actor alone, for decentralised execution: one file per agent (ONNX or TorchScript) and a manifest.
+"""Each agent's actor alone, for decentralised execution: one self-contained file per agent (ONNX or TorchScript) and a
+manifest.
 
 Centralised training, decentralised execution: at deployment each agent runs on its own, with its own observation.
 :func:`export_actors` writes, for every agent, a network that takes that agent's observation (``[batch, obs_size]``,
 float32, as the env gives it) and returns its action in the env's units: a continuous agent's action rescaled from the
 policy's [-1, 1] to its ``Box`` (what ``model.predict(..., deterministic=True)`` gives for its slice), a discrete agent's
-action index (int64). An observation normalisation (``VecNormalize``) stays outside: normalise before calling it.
+action index (int64). Each file holds its weights (no ``.onnx.data`` beside it): copy it alone to the agent's machine.
+An observation normalisation (``VecNormalize``) stays outside: normalise before calling it.
 """
 
 import json
+import logging
 import os
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +24,7 @@ from torch import nn
 
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.networks import LAYER_NORM_EPS, AgentEnsembleMLP
+from sb3_maddpg.user_code import user_stacklevel
 from sb3_maddpg.version import __version__
 
 FORMATS = {"onnx": ".onnx", "torchscript": ".pt"}
@@ -27,6 +34,23 @@ MANIFEST = "manifest.json"
 ONNX_OPSET = 18
 """The ONNX operator set of the exported files (onnxruntime 1.14 and newer run it): torch's exporter writes 18 itself,
 so that no version conversion (which it warns may fail) is needed."""
+ABOUT = {
+    "onnx": (
+        "Each agent's <agent_id>.onnx is its actor alone, self-contained (its weights inside, no .onnx.data file): "
+        "copy it alone and run it with onnxruntime.InferenceSession(path). Input 'observation': the agent's own "
+        "observation, [batch, observation_size] float32. Output 'action': its action in the env's units (a Box "
+        "agent's floats, a discrete agent's int64 index). This manifest is for people and tools; no file needs it."
+    ),
+    "torchscript": (
+        "Each agent's <agent_id>.pt is its actor alone, self-contained (its weights inside): copy it alone and load it "
+        "with torch.jit.load(path). It takes the agent's own observation, [batch, observation_size] float32, and "
+        "returns its action in the env's units (a Box agent's floats, a discrete agent's int64 index). This manifest "
+        "is for people and tools; no file needs it."
+    ),
+}
+"""What the files of each format are, in the manifest's ``about``."""
+EXPORTER_LOGGER = "torch.onnx._internal.exporter._registration"
+"""The logger of torch's ONNX exporter that reports, on every export, each torchvision operator it skips."""
 
 
 class AgentActor(nn.Module):
@@ -104,8 +128,10 @@ def agent_actors(model: Any) -> dict[str, AgentActor]:
 def export_actors(model: Any, directory: str | os.PathLike[str], format: str = "onnx") -> dict[str, Path]:
     """
     Write each agent's actor to ``<directory>/<agent_id><suffix>`` and a manifest, ``<directory>/manifest.json``
-    (agent ids, each agent's file, observation and action spaces, the format, the package version). An observation
-    bound that is infinite is written as ``null``: strict JSON has no infinity.
+    (what the files are, agent ids, each agent's file, observation and action spaces, the format, the package
+    version). Each agent's file is self-contained, its weights inside: it runs alone, without the other files, the
+    manifest, the package or (ONNX) PyTorch. An observation bound that is infinite is written as ``null``: strict JSON
+    has no infinity. The export is quiet: torch's exporter's notices that concern no actor are filtered out.
 
     :param model: A :class:`~sb3_maddpg.MADDPG` model.
     :param directory: Where to write (created if missing).
@@ -115,6 +141,13 @@ def export_actors(model: Any, directory: str | os.PathLike[str], format: str = "
     """
     if format not in FORMATS:
         raise ValueError(f"format must be one of {sorted(FORMATS)}, got {format!r}.")
+    if format == "torchscript":  # once per export, in place of torch's three warnings per agent (see _export_torchscript)
+        warnings.warn(
+            "export_actors(format='torchscript') traces each actor with torch.jit.trace, which PyTorch deprecates: "
+            "use format='onnx' (the default; onnxruntime runs it without PyTorch).",
+            FutureWarning,
+            stacklevel=user_stacklevel(),
+        )
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     layout: AgentLayout = model.agent_layout
@@ -126,8 +159,10 @@ def export_actors(model: Any, directory: str | os.PathLike[str], format: str = "
         example = th.zeros(1, layout.obs_sizes[i])
         if format == "onnx":
             _export_onnx(actor, example, path)
+            # A weights file an earlier version wrote beside this one: the new file does not read it, and it misleads.
+            path.with_name(path.name + ".data").unlink(missing_ok=True)
         else:
-            th.jit.trace(actor, example).save(str(path))
+            _export_torchscript(actor, example, path)
         files[agent_id] = path
         action_slice, obs_slice = layout.action_slices[i], layout.obs_slices[i]
         entries.append(
@@ -153,9 +188,14 @@ def export_actors(model: Any, directory: str | os.PathLike[str], format: str = "
                 ),
             }
         )
-    manifest: dict[str, Any] = {"format": format, "sb3_maddpg_version": __version__, "agents": entries}
+    manifest: dict[str, Any] = {
+        "format": format,
+        "sb3_maddpg_version": __version__,
+        "about": ABOUT[format],
+        "agents": entries,
+    }
     if format == "onnx":
-        manifest["onnx"] = {"input": "observation", "output": "action", "opset": ONNX_OPSET}
+        manifest["onnx"] = {"input": "observation", "output": "action", "opset": ONNX_OPSET, "external_data": False}
     (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     return files
 
@@ -177,14 +217,56 @@ def _export_onnx(actor: AgentActor, example: th.Tensor, path: Path) -> None:
             "export_actors(format='onnx') needs onnx and onnxscript, which are not installed: "
             f"{extra_install_command('export')}, or use format='torchscript'."
         ) from error
-    th.onnx.export(
-        actor,
-        (example,),
-        str(path),
-        input_names=["observation"],
-        output_names=["action"],
-        dynamic_shapes={"observation": {0: th.export.Dim("batch")}},
-        opset_version=ONNX_OPSET,
-        dynamo=True,
-        verbose=False,
-    )
+    with _quiet_exporter():
+        th.onnx.export(
+            actor,
+            (example,),
+            str(path),
+            input_names=["observation"],
+            output_names=["action"],
+            dynamic_shapes={"observation": {0: th.export.Dim("batch")}},
+            opset_version=ONNX_OPSET,
+            dynamo=True,
+            # The weights inside the file: an actor is kilobytes (far from protobuf's 2 GB), and a file that needs a
+            # `.onnx.data` beside it fails in onnxruntime when copied alone to the agent's machine.
+            external_data=False,
+            verbose=False,
+        )
+
+
+def _export_torchscript(actor: AgentActor, example: th.Tensor, path: Path) -> None:
+    """Write one actor as TorchScript (its weights inside), without torch's deprecation warnings (export_actors warns once)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"`torch\.jit\.trace(_method)?` is deprecated", category=DeprecationWarning)
+        th.jit.trace(actor, example).save(str(path))
+
+
+class _SkipTorchvisionNotice(logging.Filter):
+    """Drops the exporter's "torchvision is not installed. Skipping torchvision::nms" lines (four per export)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not record.getMessage().startswith("torchvision is not installed")
+
+
+@contextmanager
+def _quiet_exporter() -> Iterator[None]:
+    """
+    Silence the two notices torch's exporter gives on every export that say nothing about the actor: no option of
+    ``torch.onnx.export`` turns them off, so each is filtered by its source and its words, and nothing else is.
+
+    - Its operator registry logs each torchvision operator it skips when torchvision is not installed (an actor uses
+      none of them).
+    - ``ExportedProgram.run_decompositions`` deep-copies its module call graph, whose pytree specs warn (a
+      ``FutureWarning``) that their own ``LeafSpec`` check is deprecated: torch's code, not ours or the user's.
+    """
+    logger = logging.getLogger(EXPORTER_LOGGER)
+    notice = _SkipTorchvisionNotice()
+    logger.addFilter(notice)
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings(
+                "ignore", message=r"`isinstance\(treespec, LeafSpec\)` is deprecated", category=FutureWarning
+            )
+            yield
+    finally:
+        logger.removeFilter(notice)

@@ -3,7 +3,10 @@ agent's own observation: homogeneous, heterogeneous, shared-parameter and mixed 
 exported actors, each on its own observation, scores in mpe2 as evaluate_team scores the model."""
 
 import json
+import logging
+import shutil
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +16,7 @@ import torch as th
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.envs import PettingZooToGym, make_mpe_env, make_simple_spread
 from sb3_maddpg.evaluation import evaluate_team
-from sb3_maddpg.export import MANIFEST, export_actors
+from sb3_maddpg.export import EXPORTER_LOGGER, MANIFEST, agent_actors, export_actors
 from sb3_maddpg.version import __version__
 from tests.mixed_team import MixedTeam
 
@@ -67,7 +70,9 @@ def test_each_exported_actor_acts_as_the_model_from_its_own_observation(team: st
 
 def test_torchscript_export_matches_too(tmp_path: Path) -> None:
     model = trained("heterogeneous")
-    files = export_actors(model, tmp_path, format="torchscript")
+    with pytest.warns(FutureWarning, match=r"torch\.jit\.trace, which PyTorch deprecates: use format='onnx'") as record:
+        files = export_actors(model, tmp_path, format="torchscript")
+    assert len(record) == 1  # once per export, not torch's three per agent
     layout = model.agent_layout
     obs = observations(model)
     joint, _ = model.predict(obs, deterministic=True)
@@ -82,7 +87,8 @@ def test_the_manifest_describes_each_agent(tmp_path: Path) -> None:
     export_actors(model, tmp_path)
     manifest = json.loads((tmp_path / MANIFEST).read_text())
     assert manifest["format"] == "onnx" and manifest["sb3_maddpg_version"] == __version__
-    assert manifest["onnx"] == {"input": "observation", "output": "action", "opset": 18}
+    assert manifest["onnx"] == {"input": "observation", "output": "action", "opset": 18, "external_data": False}
+    assert "self-contained (its weights inside, no .onnx.data file)" in manifest["about"]
     import onnx
 
     assert [entry.version for entry in onnx.load(tmp_path / "mover.onnx").opset_import if entry.domain == ""] == [18]
@@ -96,6 +102,49 @@ def test_the_manifest_describes_each_agent(tmp_path: Path) -> None:
         "action": {"type": "box", "low": [-2.0], "high": [3.0]},
     }
     assert chooser["action"] == {"type": "discrete", "n": 3} and chooser["observation_slice"] == [1, 2]
+
+
+@pytest.mark.parametrize("team", ["homogeneous", "mixed"])
+def test_one_onnx_file_copied_alone_runs_as_the_torch_actor(team: str, tmp_path: Path) -> None:
+    """Issue 34: the weights travel inside each file; a file copied alone to an empty folder gives the actor's actions."""
+    model = MADDPG("MlpPolicy", TEAMS[team](), seed=0, **FAST)  # its initial weights: what matters is that they travel
+    files = export_actors(model, tmp_path / "export")
+    assert sorted(path.name for path in (tmp_path / "export").iterdir()) == sorted(
+        [MANIFEST, *(path.name for path in files.values())]
+    )  # one file per agent and the manifest: no .onnx.data beside them
+    layout, actors = model.agent_layout, agent_actors(model)
+    obs = observations(model)
+    for i, agent_id in enumerate(layout.agent_ids):
+        alone = tmp_path / f"alone_{agent_id}"
+        alone.mkdir()
+        shutil.copy(files[agent_id], alone)  # only this file, as to an agent's own machine
+        session = onnxruntime.InferenceSession(str(alone / files[agent_id].name))
+        own = obs[:, layout.obs_slices[i]]
+        (action,) = session.run(None, {"observation": own})
+        with th.no_grad():
+            expected = actors[agent_id](th.as_tensor(own)).numpy()
+        np.testing.assert_allclose(action, expected, atol=1e-6)
+
+
+def test_the_onnx_export_is_quiet(tmp_path: Path) -> None:
+    """Issue 34: no warning, and no log line of torch's exporter (e.g. 'torchvision is not installed'), for any agent."""
+    model = MADDPG("MlpPolicy", make_simple_spread(n_agents=2), seed=0, **FAST)
+    # torch's loggers print through torch's own handler and do not propagate to the root (caplog's): listen on
+    # torch.onnx itself, where every exporter module's records pass.
+    handler = logging.Handler(logging.WARNING)
+    lines: list[str] = []
+    handler.emit = lambda record: lines.append(record.getMessage())  # type: ignore[method-assign]
+    logging.getLogger("torch.onnx").addHandler(handler)
+    try:
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always")  # every warning, each time, from any module
+            export_actors(model, tmp_path)
+            export_actors(model, tmp_path)  # a second export too (a once-per-process notice would hide in the first)
+    finally:
+        logging.getLogger("torch.onnx").removeHandler(handler)
+    assert [str(warning.message) for warning in record] == []
+    assert lines == []
+    assert logging.getLogger(EXPORTER_LOGGER).filters == []  # the filter is gone once the export is done
 
 
 def test_a_batch_of_any_size_and_the_model_stays_usable(tmp_path: Path) -> None:
@@ -153,5 +202,6 @@ def test_onnx_export_without_the_extra_names_it(tmp_path: Path, monkeypatch: pyt
     monkeypatch.setitem(sys.modules, "onnxscript", None)  # as if not installed: importing it raises
     with pytest.raises(ModuleNotFoundError, match=r"needs onnx and onnxscript, which are not installed: .*\[export\]"):
         export_actors(model, tmp_path)
-    export_actors(model, tmp_path, format="torchscript")  # the alternative the error names works without them
+    with pytest.warns(FutureWarning, match="PyTorch deprecates"):
+        export_actors(model, tmp_path, format="torchscript")  # the alternative the error names works without them
     assert (tmp_path / "agent_0.pt").exists()
