@@ -103,6 +103,21 @@ def model_state(model: MADDPG) -> dict[str, th.Tensor]:
 # ----- 1. a group of one is MADDPG.train -----
 
 
+def train_alike(
+    reference: MADDPG, group: RunGroup, model: MADDPG, steps: int, monkeypatch: pytest.MonkeyPatch
+) -> tuple[dict[str, th.Tensor], dict[str, th.Tensor]]:
+    """``steps`` updates of ``reference.train`` and of a group of one on the same batches; the group's run is written
+    back into ``model``. :return: Both states (:func:`model_state`), the reference's first."""
+    generator = th.Generator().manual_seed(1)
+    for _ in range(steps):
+        batch = random_batch(reference, 32, generator)
+        monkeypatch.setattr(reference.replay_buffer, "sample", lambda *args, _batch=batch, **kwargs: _batch)
+        reference.train(gradient_steps=1, batch_size=32)
+        group.update(one_member(batch))
+    group.write_back(0, model)
+    return model_state(reference), model_state(model)
+
+
 @pytest.mark.parametrize(
     ("scheme", "extra"),
     [
@@ -123,14 +138,7 @@ def test_one_update_of_a_group_of_one_equals_maddpg_train(
     reference, model = make_model(**settings), make_model(**settings)
     reference.set_logger(Logger(folder=None, output_formats=[]))  # train() records its losses
     group = RunGroup([model])
-    generator = th.Generator().manual_seed(1)
-    for _ in range(3):  # three steps: Adam's moments and step count matter
-        batch = random_batch(reference, 32, generator)
-        monkeypatch.setattr(reference.replay_buffer, "sample", lambda *args, _batch=batch, **kwargs: _batch)
-        reference.train(gradient_steps=1, batch_size=32)
-        group.update(one_member(batch))
-    group.write_back(0, model)
-    expected, actual = model_state(reference), model_state(model)
+    expected, actual = train_alike(reference, group, model, 3, monkeypatch)  # three: Adam's moments and step count
     assert expected.keys() == actual.keys()
     moved = model.actor.mlp.weights[0] - make_model(**settings).actor.mlp.weights[0]
     assert moved.abs().max() > 1e-3  # the updates did something
@@ -161,14 +169,7 @@ def test_updates_of_a_matd3_group_of_one_equal_matd3_train(
     group = RunGroup([model])
     monkeypatch.setattr(reference._team.modules, "normal_like", fixed_noise())
     monkeypatch.setattr(group.teams, "normal_like", fixed_noise())
-    generator = th.Generator().manual_seed(1)
-    for _ in range(4):
-        batch = random_batch(reference, 32, generator)
-        monkeypatch.setattr(reference.replay_buffer, "sample", lambda *args, _batch=batch, **kwargs: _batch)
-        reference.train(gradient_steps=1, batch_size=32)
-        group.update(one_member(batch))
-    group.write_back(0, model)
-    expected, actual = model_state(reference), model_state(model)
+    expected, actual = train_alike(reference, group, model, 4, monkeypatch)
     assert expected.keys() == actual.keys() and any("twin" in name for name in expected)
     for name, value in expected.items():
         th.testing.assert_close(actual[name], value, atol=1e-6, rtol=1e-5, msg=name)
