@@ -4,8 +4,9 @@ This module depends on numpy only, so both the environment side (which builds a 
 algorithm side (which reads it) can share it without importing each other.
 """
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -135,6 +136,55 @@ class AgentLayout:
                 actions[:, part] = -1.0
                 actions[rows, part.start + chosen] = 1.0
         return actions
+
+    def joint_observation(self, observations: Mapping[Any, Any]) -> np.ndarray:
+        """
+        One joint observation from one observation per agent, as PettingZoo's ``ParallelEnv`` gives them: each agent's
+        flattened, in layout order (the order of :class:`~sb3_maddpg.envs.PettingZooToGym`'s joint observation).
+
+        :param observations: Each agent's observation, by agent id (an id may be any object whose ``str`` is the
+            layout's id).
+        :return: The joint observation, ``[obs_dim]`` float32.
+        """
+        given = {str(agent): value for agent, value in observations.items()}
+        missing = [agent for agent in self.agent_ids if agent not in given]
+        unknown = [agent for agent in given if agent not in self.agent_ids]
+        if missing or unknown:
+            problems = [f"No observation of {missing}"] if missing else []
+            problems += [f"Observations of agents not in the team: {unknown}"] if unknown else []
+            raise ValueError(
+                f"{'; '.join(problems)} (given: {list(given)}). The team is {self.describe()}: pass one observation "
+                "per agent of it, no more (after an episode's last step PettingZoo's env.agents is empty: reset the "
+                "env; an env whose agents leave mid-episode needs supersuit.black_death_v3(env), as in training)."
+            )
+        parts = []
+        for agent, size in zip(self.agent_ids, self.obs_sizes):
+            part = np.asarray(given[agent], dtype=np.float32).reshape(-1)
+            if part.size != size:
+                raise ValueError(
+                    f"{agent}'s observation has {part.size} numbers (shape {np.shape(given[agent])}), but the team's "
+                    f"{agent} observes {size}: pass one step's observation per agent, from an env of the model's team "
+                    f"({self.describe()})."
+                )
+            parts.append(part)
+        return np.concatenate(parts)
+
+    def agent_actions(self, action: np.ndarray) -> dict[str, np.ndarray | int]:
+        """
+        Split one joint action in the env's units into the actions a PettingZoo ``ParallelEnv`` takes, as
+        :meth:`PettingZooToGym.agent_actions <sb3_maddpg.envs.PettingZooToGym.agent_actions>` does.
+
+        :param action: A joint action, ``[action_dim]``, agents in layout order.
+        :return: Each agent's action, by agent id: a continuous agent's float32 vector of ``action_sizes[i]``, a
+            discrete agent's action, the index of the largest entry of its slot (an ``int``).
+        """
+        flat = np.asarray(action).reshape(-1)
+        if flat.size != self.action_dim:
+            raise ValueError(f"Expected a joint action of {self.action_dim} numbers, got shape {np.shape(action)}.")
+        return {
+            agent: int(np.argmax(flat[part])) if self.is_discrete(i) else flat[part].astype(np.float32)
+            for i, (agent, part) in enumerate(zip(self.agent_ids, self.action_slices))
+        }
 
     def index_of(self, agent_id: str) -> int:
         """

@@ -1,9 +1,10 @@
 """The multi-agent policy: one actor and one critic per agent (and their targets), evaluated together."""
 
 import contextlib
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, ClassVar
 
+import numpy as np
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
@@ -436,12 +437,81 @@ class MADDPGPolicy(BasePolicy):
         selections = renamed_argument(selections, selection, "selection", "selections")
         return self.critic(obs, actions, selections)
 
+    def predict(
+        self,
+        observation: np.ndarray | dict[str, np.ndarray],
+        state: tuple[np.ndarray, ...] | None = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, tuple[np.ndarray, ...] | None]:
+        """
+        The team's joint action for a joint observation (SB3's ``predict``), after a check that the observation is of
+        the model's team: SB3's own error for another size names only shapes.
+
+        :param observation: The joint observation, ``[obs_dim]``, or one per env, ``[n_envs, obs_dim]``.
+        :param state: Unused (no recurrent state); SB3's argument.
+        :param episode_start: Unused; SB3's argument.
+        :param deterministic: Unused: the actors are deterministic (exploration noise is the algorithm's, in ``learn``).
+        :return: The joint action in the env's units (``[action_dim]`` or ``[n_envs, action_dim]``) and ``state``.
+        """
+        self._check_joint_observation(observation)
+        return super().predict(observation, state, episode_start, deterministic)
+
+    def predict_agents(self, observations: Mapping[Any, Any], deterministic: bool = True) -> dict[Any, np.ndarray | int]:
+        """
+        Each agent's action from each agent's observation, as PettingZoo's ``ParallelEnv`` gives and takes them:
+        ``actions = model.predict_agents(observations)``, then ``parallel_env.step(actions)``.
+
+        :param observations: One step's observation of every agent of the team, by agent id (``parallel_env.reset()``
+            and ``step()``'s first value).
+        :param deterministic: As in :meth:`predict` (the actors are deterministic either way).
+        :return: Each agent's action in the env's units, by the given agent ids: what :meth:`predict` gives for its
+            slice of the joint action (a continuous agent's float32 vector, rescaled from the policy's [-1, 1] to its
+            ``Box``), or for a discrete agent the index of its choice (an ``int``, as the env's ``Discrete`` space takes).
+        """
+        ids = {str(agent): agent for agent in observations}  # the caller's ids back, whatever their type
+        joint = self.agent_layout.joint_observation(observations)
+        action, _ = self.predict(joint, deterministic=deterministic)
+        return {ids[agent]: value for agent, value in self.agent_layout.agent_actions(action).items()}
+
+    def _check_joint_observation(self, observation: Any) -> None:
+        """
+        Refuse, naming the model's team first, an observation that is not its joint observation: of another team size,
+        or a dict of per-agent observations (which :meth:`predict_agents` takes).
+
+        :param observation: What ``predict`` was given.
+        """
+        layout = self.agent_layout
+        shape: tuple[int, ...] = () if isinstance(observation, Mapping) else np.shape(observation)
+        if len(shape) in (1, 2) and shape[-1] == layout.obs_dim:
+            return  # the joint observation (of one env or several): the common case, checked first and cheaply
+        team = f"{layout.describe()}, a joint observation of {layout.obs_dim} numbers"
+        if isinstance(observation, Mapping):
+            raise TypeError(
+                f"predict() got a dict of observations (keys {list(observation)}), but it takes the team's joint "
+                f"observation; the model's team is {team}. For PettingZoo's {{agent_id: observation}}, use "
+                "model.predict_agents(observations), which returns {agent_id: action}."
+            )
+        if len(shape) == 1:
+            given = f"an observation of {shape[0]} numbers (shape {shape})"
+        elif len(shape) == 2:
+            given = f"{shape[0]} observations of {shape[1]} numbers (shape {shape})"
+        else:
+            given = f"an observation of shape {shape}"
+        raise ValueError(
+            f"predict() got {given}, but the model's team is {team}: an env of another "
+            f"team (e.g. another number of agents)? Pass this team's joint observation, shape ({layout.obs_dim},) or "
+            f"(n_envs, {layout.obs_dim}) (each agent's observation in turn, in agent_layout.agent_ids order; "
+            "model.predict_agents takes PettingZoo's {agent_id: observation}), or train a model for the other team."
+        )
+
     def forward(self, observation: th.Tensor, deterministic: bool = False) -> th.Tensor:
         return self._predict(observation, deterministic=deterministic)
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
-        # Deterministic actors: exploration noise is added by the algorithm, not here.
-        return self.actor(observation)
+        # Deterministic actors: exploration noise is added by the algorithm, not here. Float32 as the networks (SB3's
+        # preprocess_obs, which other policies call, does this cast): a float64 array would fail in the matmul.
+        return self.actor(observation.float())  # type: ignore[union-attr]  # a flat Box: a tensor, never a dict
 
     def set_training_mode(self, mode: bool) -> None:
         """

@@ -8,7 +8,7 @@ into SB3's loop; the logs; loading saves of older versions.
 import io
 import pathlib
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, TypeVar
 
 import numpy as np
@@ -36,6 +36,7 @@ from sb3_maddpg.noise import add_noise, default_noise, fit_noise_to_envs
 from sb3_maddpg.policies import MADDPGPolicy
 from sb3_maddpg.selection import Selector, resolve_selector, warn_if_selecting_everyone
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent
+from sb3_maddpg.train_logs import record_agent_returns
 from sb3_maddpg.update_schedule import UpdateSchedule
 from sb3_maddpg.user_code import user_stacklevel
 
@@ -80,6 +81,8 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         self.noise_std = noise_std
         self._logs_dumped_at = -1
         self._warned_never_updated = False  # not saved: a loaded model may warn once more
+        # Each env's running per-agent return in the episode under way, [n_envs, n_agents] (None: none under way).
+        self._agent_episode_returns: np.ndarray | None = None
         self.agent_layout = None
         self.selector = None
         if self.env is None:
@@ -179,7 +182,10 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
     ) -> tuple[int, BaseCallback]:
         if self.env is not None:  # a noise vectorised for another number of envs: SB3 vectorises it again
             self.action_noise = fit_noise_to_envs(self.action_noise, self.env.num_envs)
+        resets_env = reset_num_timesteps or self._last_obs is None  # as SB3 decides below
         result = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
+        if resets_env:  # new episodes: no agent has earned anything in them yet
+            self._agent_episode_returns = None
         if reset_num_timesteps:  # timesteps count from 0 again, and so do the credit and the last log step
             self.update_rule.reset()
             self._logs_dumped_at = -1
@@ -209,15 +215,58 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             buffer_action = add_noise(buffer_action, action_noise, self._discrete_components)
         return self.policy.unscale_action(buffer_action), buffer_action
 
+    def predict_agents(self, observations: Mapping[Any, Any], deterministic: bool = True) -> dict[Any, np.ndarray | int]:
+        """
+        Each agent's action from each agent's observation, in PettingZoo's terms (``predict`` takes and gives the
+        joint vectors, as SB3's envs do): ``actions = model.predict_agents(observations)``, then
+        ``observations, *_ = parallel_env.step(actions)``. Agents are matched by id, in any order.
+
+        :param observations: One step's observation of every agent of the team, by agent id (a PettingZoo
+            ``ParallelEnv``'s ``reset()`` or ``step()``); an agent missing or one not in the team is refused.
+        :param deterministic: As in ``predict`` (MADDPG's actors are deterministic either way).
+        :return: Each agent's action in the env's units, by agent id: its slice of ``predict``'s joint action (a
+            continuous agent's float32 vector, rescaled from the policy's [-1, 1] to its ``Box``), or for a discrete
+            agent the index of its choice (an ``int``, which a ``Discrete`` space takes).
+        """
+        return self.policy.predict_agents(observations, deterministic)
+
+    def _update_info_buffer(self, infos: list[dict[str, Any]], dones: np.ndarray | None = None) -> None:
+        """
+        SB3's episode statistics, with each agent's return: its rewards (``info["agent_rewards"]``) summed over the
+        episode and added, as ``agent_returns`` (a list of floats, layout order), to the episode's ``info["episode"]``
+        (Monitor's or VecMonitor's), which SB3 keeps for ``rollout/ep_rew_mean``: the per-agent means then cover the
+        same episodes (the last ``stats_window_size``), are saved with them, and callbacks see them.
+
+        :param infos: Each env's info of the step.
+        :param dones: Whether each env's episode ended at the step.
+        """
+        assert self.agent_layout is not None
+        returns = self._agent_episode_returns
+        if returns is None or len(returns) != len(infos):
+            returns = self._agent_episode_returns = np.zeros((len(infos), self.agent_layout.n_agents))
+        for index, info in enumerate(infos):
+            rewards = info.get("agent_rewards")
+            if rewards is not None:  # an env without them (a custom VecEnv) has SB3's team statistics only
+                returns[index] += rewards
+            episode = info.get("episode")
+            if episode is not None and rewards is not None:
+                episode["agent_returns"] = returns[index].tolist()  # floats, as Monitor's "r": JSON-ready
+            if episode is not None or (dones is not None and dones[index]):
+                returns[index] = 0.0  # the env resets itself: its next step is a new episode's
+        super()._update_info_buffer(infos, dones)
+
     def dump_logs(self) -> None:
         """
         Write the logs at most once per env step (SB3 asks at finished episodes, which many envs end together), with
-        :meth:`_record_diagnostics`.
+        :meth:`_record_diagnostics` and each agent's mean episode return, ``rollout/<agent_id>/ep_rew_mean``, beside
+        SB3's team return ``rollout/ep_rew_mean``, over the same episodes.
         """
         if self._logs_dumped_at == self.num_timesteps:
             return
         self._logs_dumped_at = self.num_timesteps
         self._record_diagnostics()
+        assert self.agent_layout is not None and self.ep_info_buffer is not None
+        record_agent_returns(self.logger, self.agent_layout.agent_ids, self.ep_info_buffer)
         super().dump_logs()
 
     def _record_diagnostics(self) -> None:
@@ -338,4 +387,5 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         self.replay_buffer.selector = self.selector  # new rows: the model's rule, of the same size k
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_discrete_components", "_warned_never_updated"]
+        # The running returns belong to the env's episodes under way, which a loaded model's env starts again.
+        return [*super()._excluded_save_params(), "_discrete_components", "_warned_never_updated", "_agent_episode_returns"]
