@@ -1,7 +1,10 @@
-"""What a team's training writes to SB3's logger: per-agent values and the team's mean, under ``train/``."""
+"""What a team's training writes to SB3's logger: per-agent values and the team's mean, under ``train/``; each agent's
+episode return beside SB3's team return, under ``rollout/``."""
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
+import numpy as np
 import torch as th
 from stable_baselines3.common.logger import Logger
 
@@ -47,3 +50,20 @@ def record_critic_diagnostics(logger: Logger, agent_ids: Sequence[str], diagnost
     """
     names = sorted({name for summary in diagnostics for name in summary})
     record_per_agent(logger, agent_ids, {name: [summary.get(name) for summary in diagnostics] for name in names})
+
+
+def record_agent_returns(logger: Logger, agent_ids: Sequence[str], episodes: Iterable[Mapping[str, Any]]) -> None:
+    """
+    Record each agent's mean episode return as ``rollout/<agent_id>/ep_rew_mean``, over the episodes of SB3's
+    ``ep_info_buffer`` (the ones its ``rollout/ep_rew_mean`` averages) that carry ``agent_returns`` (every one the model
+    saw finish; not those a save of an earlier version holds); nothing without one.
+
+    :param logger: SB3's logger.
+    :param agent_ids: The agents, in layout order.
+    :param episodes: SB3's episode statistics (``model.ep_info_buffer``), each a Monitor's ``info["episode"]``.
+    """
+    returns = [episode["agent_returns"] for episode in episodes if "agent_returns" in episode]
+    if not returns:
+        return
+    for agent, mean in zip(agent_ids, np.mean(returns, axis=0).tolist()):
+        logger.record(f"rollout/{agent}/ep_rew_mean", mean)
