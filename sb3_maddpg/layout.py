@@ -172,7 +172,7 @@ class AgentLayout:
     def agent_actions(self, action: np.ndarray) -> dict[str, np.ndarray | int]:
         """
         Split one joint action in the env's units into the actions a PettingZoo ``ParallelEnv`` takes, as
-        :meth:`PettingZooToGym.agent_actions <sb3_maddpg.envs.PettingZooToGym.agent_actions>` does.
+        ``PettingZooToGym.agent_actions`` does (the adapter's split, for a ParallelEnv without the adapter).
 
         :param action: A joint action, ``[action_dim]``, agents in layout order.
         :return: Each agent's action, by agent id: a continuous agent's float32 vector of ``action_sizes[i]``, a
