@@ -244,15 +244,22 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         returns = self._agent_episode_returns
         if returns is None or len(returns) != len(infos):
             returns = self._agent_episode_returns = np.zeros((len(infos), self.agent_layout.n_agents))
-        for index, info in enumerate(infos):
-            rewards = info.get("agent_rewards")
-            if rewards is not None:  # an env without them (a custom VecEnv) has SB3's team statistics only
-                returns[index] += rewards
-            episode = info.get("episode")
-            if episode is not None and rewards is not None:
+        # Once per env step over up to hundreds of envs: one array operation for the rewards, a loop over ended episodes.
+        rewards = [info.get("agent_rewards") for info in infos]
+        has_rewards = [reward is not None for reward in rewards]  # a custom VecEnv's may lack them: no agent returns
+        if all(has_rewards):
+            returns += np.asarray(rewards)
+        else:
+            for index, reward in enumerate(rewards):
+                if reward is not None:
+                    returns[index] += reward
+        ended: set[int] = {index for index, info in enumerate(infos) if "episode" in info}
+        ended.update(np.flatnonzero(dones).tolist() if dones is not None else ())
+        for index in ended:
+            episode = infos[index].get("episode")
+            if episode is not None and has_rewards[index]:
                 episode["agent_returns"] = returns[index].tolist()  # floats, as Monitor's "r": JSON-ready
-            if episode is not None or (dones is not None and dones[index]):
-                returns[index] = 0.0  # the env resets itself: its next step is a new episode's
+            returns[index] = 0.0  # the env resets itself: its next step is a new episode's
         super()._update_info_buffer(infos, dones)
 
     def dump_logs(self) -> None:

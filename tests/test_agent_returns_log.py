@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import KVWriter, Logger
-from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnvWrapper, VecMonitor
+from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.envs import PettingZooToGym, SimpleSpreadVecEnv, make_simple_spread
@@ -144,3 +145,23 @@ def test_no_episode_statistics_no_agent_returns() -> None:
     model.set_logger(Logger(None, [records]))
     model.learn(30, log_interval=1)
     assert records.tables and not any(key.startswith("rollout/") for table in records.tables for key in table)
+
+
+class WithoutAgentRewards(VecEnvWrapper):
+    """A VecEnv whose infos lack ``agent_rewards`` (a custom env that forgot them)."""
+
+    def reset(self) -> VecEnvObs:
+        return self.venv.reset()
+
+    def step_wait(self) -> VecEnvStepReturn:
+        observations, rewards, dones, infos = self.venv.step_wait()
+        for info in infos:
+            info.pop("agent_rewards")
+        return observations, rewards, dones, infos
+
+
+def test_an_env_without_agent_rewards_still_gets_the_buffers_error() -> None:
+    """The returns' bookkeeping, which runs first, must not hide the replay buffer's error that says what to do."""
+    model = MADDPG("MlpPolicy", WithoutAgentRewards(SimpleSpreadVecEnv(n_envs=2, n_agents=3)), seed=0)
+    with pytest.raises(KeyError, match="The env's info has no 'agent_rewards': MADDPG trains critic i on agent i's reward"):
+        model.learn(10)
