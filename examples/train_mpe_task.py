@@ -2,8 +2,9 @@
 
 Every mpe2 task builds with ``make_mpe_env`` and is scored by its own metrics (``MPE_TASK_METRICS``): the goal
 distances of ``simple``, ``simple_push`` or ``simple_speaker_listener``, the catches of ``simple_tag``, whether Bob
-and Eve decode ``simple_crypto``'s message. In a mixed task, ``--group`` names the agents whose summed return to
-report (e.g. the predators of ``simple_tag``).
+and Eve decode ``simple_crypto``'s message. In a competitive task each side's return is reported (``MPE_TASK_SIDES``:
+the adversaries' and the good agents', never their sum), and ``--group`` names agents whose summed return to report
+(e.g. the predators of ``simple_tag``).
 
     python examples/train_mpe_task.py --task simple_speaker_listener               # 200k steps, continuous
     python examples/train_mpe_task.py --task simple_tag --discrete --group adversary_0,adversary_1,adversary_2
@@ -18,8 +19,8 @@ import os
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASKS, PettingZooToGym, make_mpe_env
-from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASK_SIDES, MPE_TASKS, PettingZooToGym, make_mpe_env
+from sb3_maddpg.evaluation import evaluate_team, side_return_key
 from sb3_maddpg.progress import ctrl_c_ends_quietly
 from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
@@ -51,12 +52,14 @@ def main() -> None:
     model = MADDPG("MlpPolicy", env, critic_sharing=args.scheme, seed=args.seed, **overrides)
     group = tuple(agent for agent in args.group.split(",") if agent)
     metrics = MPE_TASK_METRICS[args.task]
+    sides = MPE_TASK_SIDES.get(args.task, {})  # a competitive task's sides: each one's return, not their sum
+    returns = [side_return_key(side) for side in sides] or ["return_mean"]
 
     def measure() -> dict[str, float]:
         result = evaluate_team(
-            model, make_env(), n_episodes=episodes, seed=args.seed, task_metrics=metrics, score_agents=group
+            model, make_env(), n_episodes=episodes, seed=args.seed, task_metrics=metrics, score_agents=group, sides=sides
         )
-        keys = ["return_mean", *(metric.key for metric in metrics), *(["group_return"] if group else [])]
+        keys = [*returns, *(metric.key for metric in metrics), *(["group_return"] if group else [])]
         return {key: result[key] for key in dict.fromkeys(keys)}
 
     before = measure()
@@ -66,6 +69,7 @@ def main() -> None:
     print(f"{'metric':<24} {'untrained':>10} {'trained':>10}  (better)")
     directions = {metric.key: f"{metric.better}, for {metric.team}" for metric in metrics}
     directions.update(return_mean="higher, team return", group_return="higher, for " + ", ".join(group))
+    directions.update({side_return_key(side): f"higher, for the {side}, per agent" for side in sides})
     for key in before:
         print(f"{key:<24} {before[key]:>10.3f} {after[key]:>10.3f}  ({directions.get(key, '')})")
     print(f"{args.steps:,} steps; {episodes} evaluation episodes each, the same ones before and after.")

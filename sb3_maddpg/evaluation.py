@@ -4,7 +4,7 @@ import copy
 import csv
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, Protocol
 
 import gymnasium as gym
@@ -51,35 +51,118 @@ EVAL_KEYS = (
 """The scalar results of :func:`evaluate_team`, in the order they are logged and written."""
 
 
-def describe_result(result: dict[str, float]) -> str:
+SIDE_RETURN_PREFIX = "return_"
+"""Each side's return is scored under ``return_<side>``, spaces as underscores (see :func:`side_return_key`)."""
+
+
+def side_return_key(side: str) -> str:
+    """
+    :param side: A side of a competitive task, e.g. ``"good agents"`` (see ``sides`` of :func:`evaluate_team`).
+    :return: The key of its return, e.g. ``return_good_agents``.
+    """
+    return SIDE_RETURN_PREFIX + side.replace(" ", "_")
+
+
+def side_return_label(side: str) -> str:
+    """
+    :param side: A side of a competitive task.
+    :return: How its return is named in text, e.g. ``"adversaries' return"``, ``"prey's return"``.
+    """
+    return f"{side}'" + ("" if side.endswith("s") else "s") + " return"
+
+
+def side_returns(result: dict[str, Any]) -> dict[str, float]:
+    """
+    :param result: What :func:`evaluate_team` returned (or a run's score).
+    :return: Each side's return by side (``"good agents"``), in the result's order; empty when no sides were scored.
+    """
+    return {
+        key.removeprefix(SIDE_RETURN_PREFIX).replace("_", " "): float(value)
+        for key, value in result.items()
+        if key.startswith(SIDE_RETURN_PREFIX) and key not in ("return_mean", "return_std")
+    }
+
+
+def scores_simple_spread(task_metrics: Sequence["DeclaredMetric"]) -> bool:
+    """
+    :param task_metrics: The task metrics an evaluation declares.
+    :return: Whether it scores simple_spread's metrics (none declared, or simple_spread's own four among them): then
+        :data:`EVAL_KEYS` apply; else only the declared metrics, the returns and the episode length do.
+    """
+    return not task_metrics or set(TASK_METRICS) <= {metric.key for metric in task_metrics}
+
+
+def _metric_label(metric: "DeclaredMetric") -> str:
+    return metric.key.replace("_", " ") + ("/episode" if metric.per_episode == "sum" else "")
+
+
+def _direction(metric: "DeclaredMetric") -> str:
+    better, team = getattr(metric, "better", None), getattr(metric, "team", "team")
+    if better is None:
+        return ""
+    return f" ({better} is better{'' if team == 'team' else f' for the {team}'})"
+
+
+def describe_result(result: dict[str, Any], task_metrics: Sequence["DeclaredMetric"] | None = None) -> str:
     """
     :param result: What :func:`evaluate_team` returned.
-    :return: Its headline numbers on one line, each with its direction, e.g. ``"success 12.0% (higher is better),
-        coverage 55.3% (higher), collisions/episode 1.25 (lower), min-dist sum 0.38 (lower), return -30.73
-        (std 5.21, higher)"``; task metrics that do not apply (NaN) are left out.
+    :param task_metrics: The task metrics to describe, with their directions (e.g. ``MPE_TASK_METRICS["simple_tag"]``);
+        ``None``: those the evaluation declared (``result["task_metrics"]``), else simple_spread's.
+    :return: Its headline numbers on one line, each with its direction. simple_spread: ``"success 12.0% (higher is
+        better), coverage 55.3% (higher), collisions/episode 1.25 (lower), min-dist sum 0.38 (lower), return -30.73
+        (std 5.21, higher)"``. Another task: its own metrics with their directions and for whom, then each side's
+        return in a competitive task (never a sum over opponents), e.g. ``"collisions/episode 1.25 (higher is better
+        for the adversaries), adversaries' return 12.50 (per agent, higher is better for them), good agents' return
+        -20.10 (per agent, higher is better for them)"``. Metrics that do not apply (NaN) are left out.
     """
+    declared = tuple(result.get("task_metrics", ()) if task_metrics is None else task_metrics)
     parts = []
-    if not np.isnan(result.get("success_rate", np.nan)):
-        parts.append(f"success {100 * result['success_rate']:.1f}% (higher is better)")
-    if not np.isnan(result.get("coverage", np.nan)):
-        parts.append(f"coverage {100 * result['coverage']:.1f}% (higher)")
-    if not np.isnan(result.get("collisions", np.nan)):
-        parts.append(f"collisions/episode {result['collisions']:.2f} (lower)")
-    if not np.isnan(result.get("min_dist_sum", np.nan)):
-        parts.append(f"min-dist sum {result['min_dist_sum']:.2f} (lower)")
-    parts.append(f"return {result['return_mean']:.2f} (std {result['return_std']:.2f}, higher)")
+    if scores_simple_spread(declared):
+        if not np.isnan(result.get("success_rate", np.nan)):
+            parts.append(f"success {100 * result['success_rate']:.1f}% (higher is better)")
+        if not np.isnan(result.get("coverage", np.nan)):
+            parts.append(f"coverage {100 * result['coverage']:.1f}% (higher)")
+        if not np.isnan(result.get("collisions", np.nan)):
+            parts.append(f"collisions/episode {result['collisions']:.2f} (lower)")
+        if not np.isnan(result.get("min_dist_sum", np.nan)):
+            parts.append(f"min-dist sum {result['min_dist_sum']:.2f} (lower)")
+    else:
+        for metric in declared:
+            value = float(result.get(metric.key, np.nan))
+            if not np.isnan(value):
+                parts.append(f"{_metric_label(metric)} {value:.2f}{_direction(metric)}")
+    sides = side_returns(result)
+    for side, value in sides.items():
+        parts.append(f"{side_return_label(side)} {value:.2f} (per agent, higher is better for them)")
+    if not sides and "return_mean" in result:
+        team = "return" if scores_simple_spread(declared) else "team return"
+        parts.append(f"{team} {result['return_mean']:.2f} (std {result['return_std']:.2f}, higher)")
+    if "group_return" in result:
+        parts.append(f"group return {result['group_return']:.2f} (higher is better for the scored agents)")
     return ", ".join(parts)
 
 
-def eval_keys(task_metrics: Sequence["DeclaredMetric"] = (), score_agents: Sequence[str] = ()) -> tuple[str, ...]:
+def eval_keys(
+    task_metrics: Sequence["DeclaredMetric"] = (), score_agents: Sequence[str] = (), sides: Sequence[str] = ()
+) -> tuple[str, ...]:
     """
-    :param task_metrics: Task metrics scored besides simple_spread's.
+    :param task_metrics: Task metrics declared (see :func:`evaluate_team`).
     :param score_agents: Agent ids scored as a group.
-    :return: The scalar keys :func:`evaluate_team` returns with them: :data:`EVAL_KEYS`, the task metrics' keys, and
-        ``group_return`` when a group is scored.
+    :param sides: The sides scored (their names), in a competitive task.
+    :return: The scalar keys :func:`evaluate_team` returns with them: simple_spread's :data:`EVAL_KEYS` when it
+        scores simple_spread (:func:`scores_simple_spread`), else the task metrics' keys, ``return_mean``,
+        ``return_std`` and ``episode_length``; with sides, each side's return (:func:`side_return_key`) instead of
+        ``return_mean`` and ``return_std``; and ``group_return`` when a group is scored.
     """
-    extra = [metric.key for metric in task_metrics if metric.key not in EVAL_KEYS]
-    return (*EVAL_KEYS, *extra, *(("group_return",) if score_agents else ()))
+    declared = [metric.key for metric in task_metrics]
+    base = list(EVAL_KEYS) if scores_simple_spread(task_metrics) else [*declared, "return_mean", "return_std"]
+    if sides:
+        at = base.index("return_mean")
+        base[at : at + 2] = [side_return_key(side) for side in sides]
+    if "episode_length" not in base:
+        base.append("episode_length")
+    extra = [key for key in declared if key not in base]
+    return (*base, *extra, *(("group_return",) if score_agents else ()))
 
 
 class DeclaredMetric(Protocol):
@@ -115,6 +198,7 @@ def evaluate_team(
     seed: int | None = None,
     task_metrics: Sequence[DeclaredMetric] = (),
     score_agents: Sequence[str] = (),
+    sides: Mapping[str, Sequence[str]] | None = None,
 ) -> dict[str, Any]:
     """
     Run a team for ``n_episodes`` episodes and measure the task, as the paper's evaluation does.
@@ -143,6 +227,11 @@ def evaluate_team(
         last-step value or of its sum over the episode. When given, only their absence is warned about.
     :param score_agents: Agent ids (of the env's ``agent_layout``) whose summed mean return is returned as
         ``group_return``, e.g. the adversaries of ``simple_tag``.
+    :param sides: The sides of a competitive task, e.g. ``MPE_TASK_SIDES["simple_tag"]``: side -> its agents, each an
+        agent id or a name ``<name>`` for every id ``<name>_<index>`` (see :func:`resolve_sides`). Each side's return
+        (the mean over its agents of their returns, so a side whose agents share a reward scores that reward, however
+        many they are) is returned as ``return_<side>`` (:func:`side_return_key`), and the team return
+        (``return_mean``, ``return_std``), which would add opponents' returns, is left out.
     :param seed: Seed for the env's first reset, so that two evaluations with the same seed see the
         same episodes (the same initial states); ``None`` to continue the env's own random stream.
     :return: A dict with ``success_rate`` (fraction of episodes in which every landmark is covered at
@@ -150,7 +239,11 @@ def evaluate_team(
         ``collisions`` (mean per episode), ``min_dist_sum`` (mean at the last step), ``return_mean`` and
         ``return_std`` (team return, the env's scalar reward), ``episode_length`` (mean),
         ``agent_returns`` (mean return of each agent, a list), ``n_episodes``, and ``success_rate_r<radius>`` and
-        ``coverage_r<radius>`` for each radius of :data:`SUCCESS_RADII` (see :func:`radius_key`).
+        ``coverage_r<radius>`` for each radius of :data:`SUCCESS_RADII` (see :func:`radius_key`). With task metrics
+        other than simple_spread's, simple_spread's keys are left out and the dict holds each task metric under its
+        key, ``return_mean``, ``return_std`` (or each side's return), ``episode_length``, ``agent_returns``,
+        ``n_episodes``, and ``task_metrics``: the metrics declared, so that :func:`describe_result` gives their
+        directions. The scalar keys are :func:`eval_keys`'s.
     """
     if n_episodes < 1:
         raise ValueError(f"n_episodes must be at least 1, got {n_episodes}.")
@@ -231,7 +324,7 @@ def evaluate_team(
         warnings.warn(
             f"evaluate_team: the env's info has no task metrics for {missing}, so they are nan: {hint}.", stacklevel=2
         )
-    return {
+    everything = {
         "success_rate": float(np.mean(episodes["success"])),
         "coverage": float(np.mean(episodes["coverage"])),
         "collisions": float(np.mean(episodes["collisions"])),
@@ -239,11 +332,66 @@ def evaluate_team(
         "return_mean": float(returns.mean()),
         "return_std": float(returns.std()),
         "episode_length": float(np.mean(episodes["length"])),
-        "agent_returns": np.mean(per_agent, axis=0).tolist() if len(per_agent) == len(returns) else [],
-        "n_episodes": len(returns),
         **{key: float(np.mean(episodes[key])) for key in RADIUS_KEYS},
         **{key: float(np.mean(values)) for key, values in declared_values.items()},
         **({"group_return": _group_return(vec_env, per_agent, score_agents)} if score_agents else {}),
+        **_side_returns(vec_env, per_agent, len(returns), sides or {}),
+    }
+    keys = eval_keys(task_metrics, score_agents, tuple(sides or {}))
+    result: dict[str, Any] = {key: everything[key] for key in keys}
+    result["agent_returns"] = np.mean(per_agent, axis=0).tolist() if len(per_agent) == len(returns) else []
+    result["n_episodes"] = len(returns)
+    if task_metrics:
+        result["task_metrics"] = tuple(task_metrics)
+    return result
+
+
+def resolve_sides(sides: Mapping[str, Sequence[str]], agent_ids: Sequence[str]) -> dict[str, tuple[str, ...]]:
+    """
+    :param sides: Side -> its agents: each an agent id (``"adversary_0"``), or a name (``"adversary"``) for every id
+        ``<name>_<index>`` (``adversary_0``, ``adversary_1``, ...; not ``leadadversary_0``).
+    :param agent_ids: The team's agent ids.
+    :return: Side -> its agent ids, in the team's order.
+    :raise ValueError: When an agent is on no side or on two, or a side has no agent.
+    """
+
+    def member(agent: str, names: Sequence[str]) -> bool:
+        return any(agent == name or (agent.startswith(f"{name}_") and agent[len(name) + 1 :].isdigit()) for name in names)
+
+    resolved = {side: tuple(agent for agent in agent_ids if member(agent, names)) for side, names in sides.items()}
+    for side, members in resolved.items():
+        if not members:
+            raise ValueError(
+                f"sides: {side!r} ({', '.join(sides[side])}) names no agent of the team {list(agent_ids)}: name its "
+                "agents by id or by the name before their index."
+            )
+    for agent in agent_ids:
+        on = [side for side, members in resolved.items() if agent in members]
+        if len(on) != 1:
+            where = f"on {len(on)} sides ({', '.join(on)})" if on else "on no side"
+            raise ValueError(
+                f"sides: {agent} is {where}: give every agent of the team {list(agent_ids)} exactly one side (to score "
+                "some agents only, use score_agents)."
+            )
+    return resolved
+
+
+def _side_returns(
+    vec_env: VecEnv, per_agent: list[np.ndarray], n_episodes: int, sides: Mapping[str, Sequence[str]]
+) -> dict[str, float]:
+    """Each side's return: the mean over episodes of the mean over its agents of their episode returns."""
+    if not sides:
+        return {}
+    if len(per_agent) != n_episodes:
+        raise ValueError(
+            "sides: the env's info has no per-agent rewards (info['agent_rewards']), so no side's return can be "
+            "scored: use an env of sb3_maddpg.envs (PettingZooToGym), or leave sides out."
+        )
+    agent_ids = list(vec_env.get_attr("agent_layout")[0].agent_ids)
+    means = np.mean(per_agent, axis=0)
+    return {
+        side_return_key(side): float(np.mean([means[agent_ids.index(agent)] for agent in members]))
+        for side, members in resolve_sides(sides, agent_ids).items()
     }
 
 
@@ -310,6 +458,8 @@ class TeamEvalCallback(BaseCallback):
     :param verbose: 1 to print each evaluation.
     :param task_metrics: Other task metrics to score and log (see :func:`evaluate_team`).
     :param score_agents: Agent ids whose summed return to log as ``group_return`` (see :func:`evaluate_team`).
+    :param sides: The sides of a competitive task, each side's return logged as ``return_<side>`` instead of the team
+        return (see :func:`evaluate_team`).
     """
 
     def __init__(
@@ -325,6 +475,7 @@ class TeamEvalCallback(BaseCallback):
         verbose: int = 0,
         task_metrics: Sequence[DeclaredMetric] = (),
         score_agents: Sequence[str] = (),
+        sides: Mapping[str, Sequence[str]] | None = None,
     ) -> None:
         super().__init__(verbose=verbose)
         if eval_freq < 1:
@@ -339,7 +490,8 @@ class TeamEvalCallback(BaseCallback):
         self.eval_at_start = eval_at_start
         self.task_metrics = tuple(task_metrics)
         self.score_agents = tuple(score_agents)
-        self.keys = eval_keys(self.task_metrics, self.score_agents)
+        self.sides = {side: tuple(agents) for side, agents in (sides or {}).items()}
+        self.keys = eval_keys(self.task_metrics, self.score_agents, tuple(self.sides))
         self.history: list[dict[str, float]] = []
 
     def _on_training_start(self) -> None:
@@ -363,6 +515,7 @@ class TeamEvalCallback(BaseCallback):
             seed=self.seed,
             task_metrics=self.task_metrics,
             score_agents=self.score_agents,
+            sides=self.sides,
         )
         row = {"timesteps": float(self.num_timesteps), **{key: float(result[key]) for key in self.keys}}
         self.history.append(row)
@@ -371,11 +524,7 @@ class TeamEvalCallback(BaseCallback):
         self.logger.record("time/total_timesteps", self.num_timesteps, exclude="tensorboard")
         self.logger.dump(self.num_timesteps)
         if self.verbose >= 1:
-            print(
-                f"Team eval num_timesteps={self.num_timesteps}: success {100 * row['success_rate']:.1f}%, "
-                f"coverage {100 * row['coverage']:.1f}%, min-dist sum {row['min_dist_sum']:.3f}, "
-                f"collisions {row['collisions']:.2f}, return {row['return_mean']:.2f} +/- {row['return_std']:.2f}"
-            )
+            print(f"Team eval num_timesteps={self.num_timesteps}: {describe_result(result)}")
         if self.log_path is not None:
             write_rows(self.log_path, self.history)
 

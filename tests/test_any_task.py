@@ -33,21 +33,21 @@ def test_a_run_on_simple_tag_is_scored_by_catches_and_the_adversaries_return(tmp
     config = experiment.runs()[0]
     assert run_sweep([experiment], tmp_path, verbose=0).ok
     score = load_summaries(tmp_path)[0]["score"]
-    assert {"collisions", "group_return", "return_mean"} <= set(score)
-    assert np.isnan(score["success_rate"])  # simple_spread's metrics do not apply
+    assert {"collisions", "group_return", "return_adversaries", "return_good_agents"} <= set(score)
+    assert "success_rate" not in score  # simple_spread's metrics do not apply
+    assert "return_mean" not in score  # it would add the prey's return to the predators'
     directory = tmp_path / config.run_id  # type: ignore[attr-defined]
     checkpoints = read_rows(directory / "checkpoint_evals.csv")
     assert score["group_return"] == pytest.approx(np.mean([float(row["group_return"]) for row in checkpoints]))
     assert "group_return" in read_rows(directory / "learning_curve.csv")[0]
     written = make_report(tmp_path, tmp_path / "report", metrics=("group_return", "collisions"), plots=False)
     table = (tmp_path / "report" / "table_group_return.md").read_text()
-    assert "smoke (simple_tag, 30 ep.)" in table and len(written) == 8  # tables and aggregates, md and csv
-    # By default a task without simple_spread's success reports the team return.
+    assert "smoke (simple_tag, 30 ep.)" in table and len(written) == 9  # tables and aggregates, md and csv; marl-eval
+    # By default a task's main table: its own metrics, each side's return, the scored group's.
+    metrics = ("collisions", "return_adversaries", "return_good_agents", "group_return")
     assert {path.name for path in make_report(tmp_path, tmp_path / "default", plots=False)} == {
-        "table_return_mean.md",
-        "table_return_mean.csv",
-        "aggregates_return_mean.md",
-        "aggregates_return_mean.csv",
+        *(f"{kind}_{metric}.{ext}" for metric in metrics for kind in ("table", "aggregates") for ext in ("md", "csv")),
+        "marl_eval.json",
     }
 
 

@@ -1,7 +1,7 @@
 """Environments: the PettingZoo-to-Gymnasium adapter, MPE cooperative navigation and every other MPE task."""
 
 from sb3_maddpg.envs.adapter import MetricsFn, PettingZooToGym
-from sb3_maddpg.envs.mpe_tasks import MPE_TASK_METRICS, MPE_TASKS, TaskMetric, make_mpe_env
+from sb3_maddpg.envs.mpe_tasks import MPE_TASK_METRICS, MPE_TASK_SIDES, MPE_TASKS, TaskMetric, make_mpe_env
 from sb3_maddpg.envs.registration import SIMPLE_SPREAD_ID, register_envs
 from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS, SimpleSpreadMetrics, make_simple_spread
 from sb3_maddpg.envs.simple_spread_reference import RandomTeamPolicy, ScriptedSpreadPolicy
@@ -11,6 +11,7 @@ __all__ = [
     "CAPTURE_RADIUS",
     "MPE_TASKS",
     "MPE_TASK_METRICS",
+    "MPE_TASK_SIDES",
     "SIMPLE_SPREAD_ID",
     "MetricsFn",
     "PettingZooToGym",

@@ -187,6 +187,22 @@ MPE_TASK_METRICS: dict[str, tuple[TaskMetric, ...]] = {
 """The scalar metrics each task's env adds to ``info``: key, how an episode is scored, and which way is better for
 whom. ``simple_spread`` also adds ``landmark_distances`` (a list; see :class:`~sb3_maddpg.envs.SimpleSpreadMetrics`)."""
 
+_ADVERSARIES_AND_AGENTS: dict[str, tuple[str, ...]] = {"adversaries": ("adversary",), "good agents": ("agent",)}
+
+MPE_TASK_SIDES: dict[str, dict[str, tuple[str, ...]]] = {
+    "simple_adversary": _ADVERSARIES_AND_AGENTS,
+    "simple_crypto": {"adversaries": ("eve",), "good agents": ("alice", "bob")},
+    "simple_push": _ADVERSARIES_AND_AGENTS,
+    "simple_tag": _ADVERSARIES_AND_AGENTS,
+    "simple_world_comm": {"adversaries": ("leadadversary", "adversary"), "good agents": ("agent",)},
+}
+"""The sides of each competitive MPE task: side -> the names of its agents (an agent id ``<name>_<index>``, e.g.
+``adversary_0``, belongs to the side that lists ``<name>``). The sides match :class:`TaskMetric`'s ``team`` and mpe2's
+``adversary`` flag; the cooperative tasks (``simple``, ``simple_reference``, ``simple_speaker_listener``,
+``simple_spread``) have one team and no entry. Pass them to :func:`~sb3_maddpg.evaluation.evaluate_team` as ``sides``
+to score each side's return rather than a sum over opponents."""
+
+
 _METRICS_FNS: dict[str, MetricsFn] = {
     "simple": simple_metrics,
     "simple_adversary": goal_race_metrics,

@@ -3,25 +3,56 @@
 import csv
 import math
 import os
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from sb3_maddpg.evaluation import side_return_key, side_returns
 from sb3_maddpg.experiments.aggregates import improvement_interval, iqm_interval
-from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, ordered_schemes, setting_label
+from sb3_maddpg.experiments.config import BASELINE_SCHEME, DEFAULT_ENV, PAPER_NAMES, ordered_schemes, setting_label
+from sb3_maddpg.experiments.marl_eval import MARL_EVAL_FILE, write_marl_eval
 from sb3_maddpg.experiments.normalised_table import format_normalised_markdown
-from sb3_maddpg.experiments.results import load_experiments, load_summaries
+from sb3_maddpg.experiments.results import load_experiments, load_summaries, never_updated_warning, run_updates
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, aggregate
+from sb3_maddpg.experiments.tasks import metric_info
 
 
 def _number(value: float, digits: int = 2) -> str:
     return "nan" if math.isnan(value) else f"{value:.{digits}f}"
 
 
+def _setting_infos(settings: Iterable[str], metric: str, infos: Mapping[str, Metric] | None) -> dict[str, Metric]:
+    """Each setting's view of ``metric`` (label, scale, direction): ``infos``'s, else :data:`METRICS`'s."""
+    default = METRICS.get(metric, Metric(metric, metric))
+    return {setting: (infos or {}).get(setting, default) for setting in dict.fromkeys(settings)}
+
+
+def _label(metric: str, infos: Mapping[str, Metric]) -> str:
+    """The metric's label, or its key when the settings' tasks label it differently."""
+    labels = {info.label for info in infos.values()}
+    return labels.pop() if len(labels) == 1 else metric
+
+
+def _better(infos: Mapping[str, Metric]) -> str:
+    """``"higher is better"``, or per setting when the settings' tasks differ (``"higher is better in tag, lower in ..."``)."""
+    directions = {setting: "higher" if info.higher_is_better else "lower" for setting, info in infos.items()}
+    if len(set(directions.values())) <= 1:
+        return f"{next(iter(directions.values()), 'higher')} is better"
+    by_direction: dict[str, list[str]] = {}
+    for setting, direction in directions.items():
+        by_direction.setdefault(direction, []).append(setting)
+    return ", ".join(f"{direction} is better in {', '.join(settings)}" for direction, settings in by_direction.items())
+
+
 def format_markdown(
-    cells: Sequence[Cell], metric: str, experiments: dict[str, dict[str, Any]] | None = None, baseline: str = BASELINE_SCHEME
+    cells: Sequence[Cell],
+    metric: str,
+    experiments: dict[str, dict[str, Any]] | None = None,
+    baseline: str = BASELINE_SCHEME,
+    infos: Mapping[str, Metric] | None = None,
 ) -> str:
     """
     Table 2's layout: a row per setting, a column per method, ``mean (std)`` of the per-run scores with
@@ -31,16 +62,19 @@ def format_markdown(
     :param metric: The score's key.
     :param experiments: The stored experiment configs (for row labels).
     :param baseline: The scheme tested against.
+    :param infos: The metric as each setting's task shows it, by setting (label and direction, see
+        :func:`~sb3_maddpg.experiments.tasks.metric_info`); ``None``: :data:`~sb3_maddpg.experiments.stats.METRICS`'s.
     :return: Markdown text.
     """
-    info = METRICS.get(metric, Metric(metric, metric))
+    by_setting = _setting_infos((cell.setting for cell in cells), metric, infos)
+    metric_label = _label(metric, by_setting)
     experiments = experiments or {}
     settings = list(dict.fromkeys(cell.setting for cell in cells))
     schemes = ordered_schemes(cell.scheme for cell in cells)
     by_key = {(cell.setting, cell.scheme): cell for cell in cells}
     header = ["setting", *(PAPER_NAMES.get(scheme, scheme) for scheme in schemes)]
     lines = [
-        f"### Score: {info.label}, mean (std) over runs",
+        f"### Score: {metric_label}, mean (std) over runs",
         "",
         "| " + " | ".join(header) + " |",
         "|" + "|".join("---" for _ in header) + "|",
@@ -62,12 +96,11 @@ def format_markdown(
             )
         lines.append("| " + " | ".join(row) + " |")
         p_lines.append("| " + " | ".join(p_row) + " |")
-    direction = "higher" if info.higher_is_better else "lower"
     counts = ", ".join(str(n) for n in sorted(run_counts))
     lines += [
         "",
-        f"Each run's score is the mean {info.label} of the models saved over the last part of training "
-        f"({direction} is better); runs per cell: {counts}. `*` p < .05, `**` p < .01: two-sided Mann-Whitney U "
+        f"Each run's score is the mean {metric_label} of the models saved over the last part of training "
+        f"({_better(by_setting)}); runs per cell: {counts}. `*` p < .05, `**` p < .01: two-sided Mann-Whitney U "
         f"test of the method's per-run scores against {PAPER_NAMES.get(baseline, baseline)}'s (`scipy.stats.mannwhitneyu`).",
         "",
         f"p-values (U statistic) against {PAPER_NAMES.get(baseline, baseline)}:",
@@ -109,21 +142,27 @@ def write_csv(cells: Sequence[Cell], metric: str, path: str | os.PathLike[str]) 
             )
 
 
-def aggregate_estimates(cells: Sequence[Cell], metric: str, baseline: str = BASELINE_SCHEME) -> list[dict[str, Any]]:
+def aggregate_estimates(
+    cells: Sequence[Cell], metric: str, baseline: str = BASELINE_SCHEME, infos: Mapping[str, Metric] | None = None
+) -> list[dict[str, Any]]:
     """
     Per setting and method, and over all settings together (stratified by setting) when there are several: the IQM
     of the per-run scores and the probability that a run of the method beats a run of the baseline, each with a 95%
     stratified bootstrap interval (see :mod:`~sb3_maddpg.experiments.aggregates`). "Beats" follows the metric's
-    direction (a lower ``min_dist_sum`` is better).
+    direction in each setting's task (a lower ``min_dist_sum`` is better; more catches, ``collisions`` of ``simple_tag``).
 
     :param cells: From :func:`~sb3_maddpg.experiments.stats.aggregate`.
     :param metric: The score's key (for its direction).
     :param baseline: The scheme compared against.
+    :param infos: The metric as each setting's task shows it, by setting (see :func:`format_markdown`).
     :return: Rows with ``setting`` (``"all"`` for the stratified aggregate), ``scheme``, ``method``, ``n``, ``mean``,
         ``iqm`` and ``improvement`` (:class:`~sb3_maddpg.experiments.aggregates.IntervalEstimate`; ``None`` for the
         baseline).
     """
-    sign = 1.0 if METRICS.get(metric, Metric(metric, metric)).higher_is_better else -1.0
+    sign = {
+        setting: 1.0 if info.higher_is_better else -1.0
+        for setting, info in _setting_infos((cell.setting for cell in cells), metric, infos).items()
+    }
     by_key = {(cell.setting, cell.scheme): cell for cell in cells}
     settings = list(dict.fromkeys(cell.setting for cell in cells))
     groups = [[setting] for setting in settings] + ([settings] if len(settings) > 1 else [])
@@ -137,7 +176,8 @@ def aggregate_estimates(cells: Sequence[Cell], metric: str, baseline: str = BASE
             improvement = None
             if scheme != baseline and len(reference) == len(group):
                 improvement = improvement_interval(
-                    [np.multiply(sign, stratum) for stratum in strata], [np.multiply(sign, ref) for ref in reference]
+                    [np.multiply(sign[setting], stratum) for setting, stratum in zip(group, strata)],
+                    [np.multiply(sign[setting], ref) for setting, ref in zip(group, reference)],
                 )
             rows.append(
                 {
@@ -158,18 +198,21 @@ def format_aggregates_markdown(
     metric: str,
     experiments: dict[str, dict[str, Any]] | None = None,
     baseline: str = BASELINE_SCHEME,
+    infos: Mapping[str, Metric] | None = None,
 ) -> str:
     """
     :param rows: From :func:`aggregate_estimates`.
     :param metric: The score's key.
     :param experiments: The stored experiment configs (for setting labels).
     :param baseline: The scheme compared against.
+    :param infos: The metric as each setting's task shows it, by setting (see :func:`format_markdown`).
     :return: Markdown: a row per setting and method, IQM [95% CI], mean, and P(better than the baseline) [95% CI].
     """
-    info = METRICS.get(metric, Metric(metric, metric))
+    by_setting = _setting_infos((row["setting"] for row in rows if row["setting"] != "all"), metric, infos)
+    metric_label = _label(metric, by_setting)
     baseline_name = PAPER_NAMES.get(baseline, baseline)
     lines = [
-        f"### Aggregates: {info.label}, interquartile mean and probability of improvement over {baseline_name}",
+        f"### Aggregates: {metric_label}, interquartile mean and probability of improvement over {baseline_name}",
         "",
         f"| setting | method | runs | IQM [95% CI] | mean | P(better than {baseline_name}) [95% CI] |",
         "|---|---|---|---|---|---|",
@@ -187,11 +230,10 @@ def format_aggregates_markdown(
         lines.append(
             f"| {label} | {row['method']} | {row['n']} | {row['iqm'].format(2)} | {_number(row['mean'])} | {improvement} |"
         )
-    direction = "higher" if info.higher_is_better else "lower"
     lines += [
         "",
-        f"Each run's score is its mean {info.label} over the checkpoints of the last part of training ({direction} is "
-        "better). IQM: mean of the middle 50% of the runs' scores. P(better): the chance that a random run of the "
+        f"Each run's score is its mean {metric_label} over the checkpoints of the last part of training ({_better(by_setting)}"
+        "). IQM: mean of the middle 50% of the runs' scores. P(better): the chance that a random run of the "
         f"method scores better than a random run of {baseline_name} (ties count half; 0.5: no difference), averaged "
         "over settings. Intervals: 95% stratified bootstrap (percentile, runs resampled within each setting and "
         "method; `scipy.stats.bootstrap`), as in Agarwal et al. (2021). An interval of P(better) that excludes 0.5 "
@@ -226,17 +268,84 @@ def write_aggregates_csv(rows: Sequence[dict[str, Any]], metric: str, path: str 
 
 
 DEFAULT_REPORT_METRICS = ("success_rate", "min_dist_sum")
-"""What a report shows unless told: simple_spread's success (higher is better; near 0 early in training) and its
-min-dist sum (lower is better; informative at every scale). Other tasks: the team return."""
+"""What a simple_spread report shows unless told: success (higher is better; near 0 early in training) and the
+min-dist sum (lower is better; informative at every scale). Other tasks: see :func:`default_metrics`."""
 
 
-def default_metrics(score: dict[str, float]) -> list[str]:
+def default_metrics(score: dict[str, float], env: str = DEFAULT_ENV) -> list[str]:
     """
+    The metrics of a task's main table.
+
     :param score: One run's score.
-    :return: The metrics of :data:`DEFAULT_REPORT_METRICS` the run has (not NaN), or ``["return_mean"]``.
+    :param env: Its task (an experiment's ``env``).
+    :return: simple_spread: the metrics of :data:`DEFAULT_REPORT_METRICS` the run has (not NaN). Another MPE task: its
+        own metrics (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`), then each side's return in a competitive task
+        (the team return in a cooperative one; never a sum over opponents), then ``group_return`` when the runs score
+        one, those the run has. Else, or when the run has none of them: ``["return_mean"]``.
     """
-    present = [metric for metric in DEFAULT_REPORT_METRICS if not math.isnan(score.get(metric, math.nan))]
+    from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASK_SIDES
+
+    if env == DEFAULT_ENV:
+        candidates: list[str] = list(DEFAULT_REPORT_METRICS)
+    else:
+        declared = [metric.key for metric in MPE_TASK_METRICS.get(env, ())]
+        sides = [side_return_key(side) for side in side_returns(score)]
+        returns = sides or ([] if env in MPE_TASK_SIDES else ["return_mean"])
+        candidates = [*declared, *returns, "group_return"]
+    present = [metric for metric in candidates if not math.isnan(score.get(metric, math.nan))]
     return present or ["return_mean"]
+
+
+def format_terminal_table(
+    tables: Mapping[str, Sequence[Cell]],
+    infos: Mapping[str, Mapping[str, Metric]],
+    experiments: dict[str, dict[str, Any]] | None = None,
+    baseline: str = BASELINE_SCHEME,
+) -> str:
+    """
+    The report's main table for a terminal: Table 2 for simple_spread, a task's own metrics for another. Per setting, a
+    row per method and a column per metric, each ``mean (std)`` over runs with the significance marks of the
+    Mann-Whitney U test against the baseline, and each column's direction in the setting's task.
+
+    :param tables: Each metric's cells (:func:`~sb3_maddpg.experiments.stats.aggregate`), by metric.
+    :param infos: Each metric as each setting's task shows it: metric -> setting -> :class:`Metric`.
+    :param experiments: The stored experiment configs (for setting labels).
+    :param baseline: The scheme tested against.
+    :return: Plain text, columns aligned.
+    """
+    baseline_name = PAPER_NAMES.get(baseline, baseline)
+    settings = list(dict.fromkeys(cell.setting for cells in tables.values() for cell in cells))
+    lines = []
+    for setting in settings:
+        cells = {metric: {cell.scheme: cell for cell in table if cell.setting == setting} for metric, table in tables.items()}
+        metrics = [metric for metric, by_scheme in cells.items() if by_scheme]
+        header = ["method", "runs"]
+        for metric in metrics:
+            info = infos[metric][setting]
+            header.append(f"{info.label}, {'higher' if info.higher_is_better else 'lower'} is better")
+        rows = [header]
+        for scheme in ordered_schemes(scheme for metric in metrics for scheme in cells[metric]):
+            present = [cells[metric][scheme] for metric in metrics if scheme in cells[metric]]
+            row = [PAPER_NAMES.get(scheme, scheme), str(max(cell.n for cell in present))]
+            for metric in metrics:
+                cell = cells[metric].get(scheme)
+                mark = f" {cell.stars}" if cell is not None and cell.stars else ""
+                row.append("" if cell is None else f"{_number(cell.mean)} ({_number(cell.std)}){mark}")
+            rows.append(row)
+        widths = [max(len(row[column]) for row in rows) for column in range(len(header))]
+        lines += [
+            f"{setting_label(setting, (experiments or {}).get(setting))}: mean (std) over runs; * p < .05, ** p < .01: "
+            f"Mann-Whitney U against {baseline_name}",
+            *("  ".join(text.ljust(width) for text, width in zip(row, widths)).rstrip() for row in rows),
+            "",
+        ]
+    return "\n".join(lines)
+
+
+def _scored(summary: dict[str, Any], metric: str) -> bool:
+    """Whether a run scores ``metric`` (has it, not NaN: a metric that does not apply to its task is NaN or absent)."""
+    value = summary["score"].get(metric)
+    return value is not None and not math.isnan(float(value))
 
 
 def make_report(
@@ -245,57 +354,86 @@ def make_report(
     metrics: Sequence[str] | None = None,
     plots: bool = True,
     baseline: str = BASELINE_SCHEME,
+    verbose: int = 1,
 ) -> list[Path]:
     """
     Write, for each metric, ``table_<metric>.md`` and ``table_<metric>.csv`` (Table 2: mean (std), Mann-Whitney U),
     ``aggregates_<metric>.md`` and ``aggregates_<metric>.csv`` (IQM and probability of improvement with 95%
     bootstrap intervals), ``normalised.md`` for simple_spread settings (min-dist sum and team return between the
-    random team, 0, and the scripted controller, 1) and, with ``plots``, ``learning_curves_<metric>.png`` (IQM over
+    random team, 0, and the scripted controller, 1), ``marl_eval.json`` (every run in marl-eval's JSON, see
+    :mod:`~sb3_maddpg.experiments.marl_eval`) and, with ``plots``, ``learning_curves_<metric>.png`` (IQM over
     runs with a 95% bootstrap band, vs env steps) and ``boxplot_<metric>.png`` (per-run scores, like the paper's
     Figures 7 and 8).
 
+    Each metric takes its label and direction from each setting's task
+    (:func:`~sb3_maddpg.experiments.tasks.metric_info`), and a table holds the runs that score it (a setting whose task
+    does not have the metric is left out of its table). Runs that never took a gradient update (their summary's
+    ``n_updates``, or their ``progress.csv``'s ``train/n_updates``, is 0) are warned about (a ``UserWarning``), and
+    the warning heads every table.
+
     :param results_dir: The results directory of a sweep.
     :param out_dir: Where to write the report.
-    :param metrics: The scores to report (see :data:`~sb3_maddpg.experiments.stats.METRICS`); ``None``: those of
-        :func:`default_metrics`.
+    :param metrics: The scores to report (see :data:`~sb3_maddpg.experiments.stats.METRICS`); ``None``: each task's
+        main ones (:func:`default_metrics`).
     :param plots: Also draw the figures (needs matplotlib).
     :param baseline: The scheme the others are tested against.
+    :param verbose: 1: print the main table (:func:`format_terminal_table`) to stdout; 0: nothing.
     :return: The files written.
     """
     summaries = load_summaries(results_dir)
     if not summaries:
         raise FileNotFoundError(f"No finished runs under {results_dir} (expected <experiment>/<scheme>/seed_*/summary.json).")
-    if metrics is None:
-        metrics = default_metrics(summaries[0]["score"])
-    unknown = [metric for metric in metrics if metric not in summaries[0]["score"]]
-    if unknown:
-        raise ValueError(
-            f"Unknown metric(s) {unknown}: the runs in {results_dir} score {sorted(summaries[0]['score'])} (runs written "
-            "before 0.2 have no success or coverage at other radii); pick --metric among those."
-        )
     experiments = load_experiments(results_dir)
+    envs = {
+        summary["experiment"]: (experiments.get(summary["experiment"]) or {}).get("env", DEFAULT_ENV) for summary in summaries
+    }
+    if metrics is None:
+        firsts = {summary["experiment"]: summary for summary in reversed(summaries)}
+        metrics = list(
+            dict.fromkeys(metric for setting in envs for metric in default_metrics(firsts[setting]["score"], envs[setting]))
+        )
+    scored = {metric: [summary for summary in summaries if _scored(summary, metric)] for metric in metrics}
+    unknown = [metric for metric, runs in scored.items() if not runs]
+    if unknown:
+        known = sorted({metric for summary in summaries for metric in summary["score"] if _scored(summary, metric)})
+        raise ValueError(
+            f"Unknown metric(s) {unknown}: the runs in {results_dir} score {known} (runs written before 0.2 have no "
+            "success or coverage at other radii); pick --metric among those."
+        )
+    warning = never_updated_warning([summary["run_id"] for summary in summaries if run_updates(summary) == 0])
+    if warning is not None:
+        warnings.warn(warning, UserWarning, stacklevel=2)
+    heading = "" if warning is None else f"> **Warning**: {warning}\n\n"
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
+    tables, infos = {}, {}
     for metric in metrics:
-        cells = aggregate(summaries, metric, baseline=baseline)
+        cells = aggregate(scored[metric], metric, baseline=baseline)
+        by_setting = {setting: metric_info(metric, envs[setting]) for setting in dict.fromkeys(cell.setting for cell in cells)}
+        tables[metric], infos[metric] = cells, by_setting
         markdown_path, csv_path = out / f"table_{metric}.md", out / f"table_{metric}.csv"
-        markdown_path.write_text(format_markdown(cells, metric, experiments, baseline=baseline))
+        markdown_path.write_text(heading + format_markdown(cells, metric, experiments, baseline=baseline, infos=by_setting))
         write_csv(cells, metric, csv_path)
-        estimates = aggregate_estimates(cells, metric, baseline=baseline)
+        estimates = aggregate_estimates(cells, metric, baseline=baseline, infos=by_setting)
         aggregates_md, aggregates_csv = out / f"aggregates_{metric}.md", out / f"aggregates_{metric}.csv"
-        aggregates_md.write_text(format_aggregates_markdown(estimates, metric, experiments, baseline=baseline))
+        aggregates_md.write_text(
+            heading + format_aggregates_markdown(estimates, metric, experiments, baseline=baseline, infos=by_setting)
+        )
         write_aggregates_csv(estimates, metric, aggregates_csv)
         written += [markdown_path, csv_path, aggregates_md, aggregates_csv]
         if plots:
             from sb3_maddpg.experiments.plots import plot_boxplots, plot_learning_curves
 
             curve_path, box_path = out / f"learning_curves_{metric}.png", out / f"boxplot_{metric}.png"
-            plot_learning_curves(summaries, metric, curve_path, experiments)
+            plot_learning_curves(scored[metric], metric, curve_path, experiments)
             plot_boxplots(cells, metric, box_path, experiments)
             written += [curve_path, box_path]
     normalised = format_normalised_markdown(summaries, experiments)
     if normalised is not None:
         (out / "normalised.md").write_text(normalised)
         written.append(out / "normalised.md")
+    written.append(write_marl_eval(results_dir, out / MARL_EVAL_FILE))
+    if verbose >= 1:
+        print(format_terminal_table(tables, infos, experiments, baseline=baseline))
     return written

@@ -12,6 +12,7 @@ and its summary are all there and readable; anything less is run again from scra
 import contextlib
 import csv
 import json
+import math
 import os
 import sys
 import time
@@ -66,12 +67,45 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
         raise
 
 
+def strict_json(value: Any) -> Any:
+    """
+    :param value: JSON-compatible values (dicts, lists, tuples, numbers, strings, ``None``).
+    :return: The same with every float that strict JSON cannot hold (NaN, infinities) as ``None``: a metric that does
+        not apply is ``null`` in the files, which every JSON parser reads (Python's ``NaN`` is not JSON).
+    """
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {key: strict_json(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [strict_json(item) for item in value]
+    return value
+
+
 def write_json_atomic(path: str | os.PathLike[str], value: Any) -> None:
     """
-    :param path: A JSON file, written with :func:`write_text_atomic`.
+    :param path: A JSON file, written with :func:`write_text_atomic` as strict JSON (:func:`strict_json`: NaN as
+        ``null``).
     :param value: Its content.
     """
-    write_text_atomic(path, json.dumps(value, indent=2))
+    write_text_atomic(path, json.dumps(strict_json(value), indent=2, allow_nan=False))
+
+
+NUMERIC_SUMMARY_FIELDS = ("score", "behaviour")
+"""The fields of ``summary.json`` that hold numbers only: their ``null`` values are read as NaN."""
+
+
+def summary_from_json(summary: dict[str, Any]) -> dict[str, Any]:
+    """
+    :param summary: A run's ``summary.json`` as parsed: strict JSON (``null`` for a metric that does not apply) or,
+        from summaries written before 0.3, with ``NaN`` (which Python's parser reads).
+    :return: The summary with every ``null`` of :data:`NUMERIC_SUMMARY_FIELDS` as NaN, as it was computed.
+    """
+    for field in NUMERIC_SUMMARY_FIELDS:
+        values = summary.get(field)
+        if isinstance(values, dict):
+            summary[field] = {key: math.nan if value is None else value for key, value in values.items()}
+    return summary
 
 
 def read_json(path: str | os.PathLike[str]) -> Any | None:
@@ -104,7 +138,7 @@ def read_summary(directory: str | os.PathLike[str]) -> dict[str, Any] | None:
     if not (directory / DONE_FILE).exists():
         return None
     summary = read_json(directory / SUMMARY_FILE)
-    return summary if isinstance(summary, dict) else None
+    return summary_from_json(summary) if isinstance(summary, dict) else None
 
 
 def is_finished(results_dir: str | os.PathLike[str], config: RunConfig) -> bool:
@@ -145,7 +179,7 @@ def collect_result(directory: str | os.PathLike[str]) -> dict[str, Any]:
     """
     directory = Path(directory)
     with open(directory / SUMMARY_FILE) as file:
-        result = json.load(file)
+        result = summary_from_json(json.load(file))
     result["files"] = {name: (directory / name).read_text() for name in RESULT_FILES if (directory / name).exists()}
     return result
 
@@ -215,6 +249,41 @@ def load_summaries(results_dir: str | os.PathLike[str]) -> list[dict[str, Any]]:
         summary["directory"] = str(path.parent)
         summaries.append(summary)
     return summaries
+
+
+def run_updates(summary: dict[str, Any]) -> int | None:
+    """
+    :param summary: A finished run's summary, with ``"directory"`` (:func:`load_summaries`).
+    :return: The gradient updates its training took: the summary's ``n_updates``, or for summaries written before 0.3,
+        the last ``train/n_updates`` of its ``progress.csv`` (0 when the log has rows but never that value: ``train()``
+        never ran); ``None`` when neither says.
+    """
+    if summary.get("n_updates") is not None:
+        return int(summary["n_updates"])
+    path = Path(summary.get("directory", "")) / PROGRESS_FILE
+    if "directory" not in summary or not path.exists():
+        return None
+    with open(path, newline="") as file:
+        rows = list(csv.DictReader(file))
+    if not rows:
+        return None
+    counts = [row["train/n_updates"] for row in rows if row.get("train/n_updates")]
+    return int(float(counts[-1])) if counts else 0
+
+
+def never_updated_warning(run_ids: list[str]) -> str | None:
+    """
+    :param run_ids: The runs that took no gradient update.
+    :return: What to say about them (the cause first, then what to do), or ``None`` when there are none.
+    """
+    if not run_ids:
+        return None
+    listed = ", ".join(run_ids[:5]) + (f" and {len(run_ids) - 5} more" if len(run_ids) > 5 else "")
+    return (
+        f"{len(run_ids)} run(s) never updated (0 gradient steps: the training budget ended before learning_starts): "
+        f"{listed}. Their scores are untrained teams', so methods that differ only in training look alike; train for "
+        "longer or lower learning_starts (e.g. --model-kwargs '{\"learning_starts\": 1000}')."
+    )
 
 
 def write_experiment(results_dir: str | os.PathLike[str], name: str, experiment: dict[str, Any]) -> None:

@@ -15,7 +15,7 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
 
 from sb3_maddpg.behaviour import team_behaviour
-from sb3_maddpg.evaluation import TeamEvalCallback, eval_keys, evaluate_team, write_rows
+from sb3_maddpg.evaluation import TeamEvalCallback, eval_keys, evaluate_team, side_return_label, side_returns, write_rows
 from sb3_maddpg.experiments.config import DEFAULT_ENV, PAPER_NAMES, RunConfig, load_algorithm
 from sb3_maddpg.experiments.results import (
     CHECKPOINT_DIR,
@@ -30,7 +30,7 @@ from sb3_maddpg.experiments.results import (
     run_directory,
     write_json_atomic,
 )
-from sb3_maddpg.experiments.tasks import describe, make_task_vec_env, task_metrics
+from sb3_maddpg.experiments.tasks import describe, make_task_vec_env, task_metrics, task_sides
 from sb3_maddpg.progress import ProgressLogCallback, format_seconds
 
 
@@ -264,6 +264,7 @@ def curve_callback(config: RunConfig, curve_env: VecEnv, n_envs: int, directory:
         eval_at_start=True,
         task_metrics=task_metrics(config),
         score_agents=config.score_agents,
+        sides=task_sides(config),
     )
 
 
@@ -302,7 +303,8 @@ def finish_run(
     eval_env = make_eval_env(config, config.eval_episodes)
     rows = []
     metrics = task_metrics(config)  # the task's metrics, once for every checkpoint
-    keys = eval_keys(metrics, config.score_agents)
+    sides = task_sides(config)
+    keys = eval_keys(metrics, config.score_agents, tuple(sides))
     for steps, path in saved:
         checkpoint = algorithm.load(path, device="cpu")
         if config.normalize_observations:
@@ -314,10 +316,14 @@ def finish_run(
             seed=config.eval_seed,
             task_metrics=metrics,
             score_agents=config.score_agents,
+            sides=sides,
         )
         rows.append({"timesteps": steps, "episodes": steps // config.episode_length, **{k: result[k] for k in keys}})
     write_rows(str(directory / CHECKPOINT_EVALS_FILE), rows)
     behaviour = final_behaviour(config, checkpoint, eval_env) if saved else None
+    # The last checkpoint's gradient updates (a run group writes its count back into each model it saves).
+    n_updates = int(checkpoint._n_updates) if saved else None
+    learning_starts = int(getattr(checkpoint, "learning_starts", 0)) if saved else 0
     eval_time = time.perf_counter() - eval_started
     eval_env.close()
     if not config.keep_checkpoints:
@@ -338,12 +344,15 @@ def finish_run(
         "wall_time_s": round(time.perf_counter() - started, 2),
         "train_steps_per_s": round(config.total_timesteps / train_time, 1),
     }
+    if n_updates is not None:
+        summary["n_updates"] = n_updates
     if behaviour is not None:
         summary["behaviour"] = behaviour
     write_json_atomic(directory / SUMMARY_FILE, summary)
     log(
         f"{config.run_id}: done in {format_seconds(summary['wall_time_s'])} "
         f"({summary['train_steps_per_s']:,.0f} steps/s), score: {score_line(score)}"
+        + (f"; {never_updated_line(learning_starts)}" if n_updates == 0 else "")
     )
     mark_done(directory)
     return collect_result(directory)
@@ -352,8 +361,24 @@ def finish_run(
 def score_line(score: dict[str, float]) -> str:
     """
     :param score: A run's score.
-    :return: Its headline in a few words: simple_spread's success and coverage, or else the team return.
+    :return: Its headline in a few words: simple_spread's success and coverage, or else each side's return in a
+        competitive task, or else the team return.
     """
     if not math.isnan(score.get("success_rate", math.nan)):  # a simple_spread run
         return f"success {100 * score['success_rate']:.1f}%, coverage {100 * score['coverage']:.1f}%"
+    sides = side_returns(score)
+    if sides:
+        return ", ".join(f"{side_return_label(side)} {value:.1f}" for side, value in sides.items())
     return f"team return {score['return_mean']:.1f}"
+
+
+def never_updated_line(learning_starts: int | None = None) -> str:
+    """
+    :param learning_starts: The run's ``learning_starts``, if known.
+    :return: The warning for a run that took no gradient update, for its progress line and the sweep log.
+    """
+    starts = f"learning_starts={learning_starts:,}" if learning_starts else "learning_starts"
+    return (
+        f"WARNING: never updated (0 gradient steps: the budget ended before {starts}), so its score is an untrained "
+        "team's; train for longer or lower learning_starts"
+    )

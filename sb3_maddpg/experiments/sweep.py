@@ -10,7 +10,7 @@ from typing import Any
 from sb3_maddpg.experiments.backends import BACKENDS, LOST_RUN, run_local, run_ray
 from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
 from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, lock_results, write_experiment
-from sb3_maddpg.experiments.runner import score_line
+from sb3_maddpg.experiments.runner import never_updated_line, score_line
 from sb3_maddpg.progress import format_seconds, log_line
 
 
@@ -245,7 +245,12 @@ def _run_locked_sweep(
             progress.update(
                 config.run_id,
                 f"done in {format_seconds(summary['wall_time_s'])} ({summary['train_steps_per_s']:,.0f} steps/s, "
-                f"{score_line(score)})",
+                f"{score_line(score)})"
+                + (
+                    f"; {never_updated_line(config.model_kwargs.get('learning_starts'))}"
+                    if summary.get("n_updates") == 0
+                    else ""
+                ),
                 duration=summary["wall_time_s"],
             )
         else:

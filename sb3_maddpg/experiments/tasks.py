@@ -7,8 +7,9 @@ from collections.abc import Callable
 import gymnasium as gym
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
-from sb3_maddpg.evaluation import DeclaredMetric
+from sb3_maddpg.evaluation import SIDE_RETURN_PREFIX, DeclaredMetric, side_return_label
 from sb3_maddpg.experiments.config import DEFAULT_ENV, RunConfig
+from sb3_maddpg.experiments.stats import METRICS, Metric
 
 
 def env_factory(config: RunConfig) -> Callable[[], gym.Env]:
@@ -67,6 +68,45 @@ def task_metrics(config: RunConfig) -> tuple[DeclaredMetric, ...]:
     from sb3_maddpg.envs import MPE_TASK_METRICS
 
     return () if config.env == DEFAULT_ENV else tuple(MPE_TASK_METRICS.get(config.env, ()))
+
+
+def task_sides(config: RunConfig) -> dict[str, tuple[str, ...]]:
+    """
+    :param config: The run.
+    :return: The sides its evaluations score each return of (:data:`~sb3_maddpg.envs.MPE_TASK_SIDES`, for a
+        competitive MPE task), so that no return adds opponents' rewards; empty for a cooperative task or any other.
+    """
+    from sb3_maddpg.envs import MPE_TASK_SIDES
+
+    return dict(MPE_TASK_SIDES.get(config.env, {}))
+
+
+def metric_info(metric: str, env: str = DEFAULT_ENV) -> Metric:
+    """
+    How a report shows a score of a task: its label, scale and direction in that task.
+
+    An MPE task's own metric takes the direction and the side that :data:`~sb3_maddpg.envs.MPE_TASK_METRICS` give it
+    (``collisions`` of ``simple_tag`` counts catches: higher is better, for the adversaries; in simple_spread fewer
+    collisions are better); a side's return (``return_adversaries``) is higher-is-better for that side; any other
+    metric is :data:`~sb3_maddpg.experiments.stats.METRICS`'s.
+
+    :param metric: The score's key.
+    :param env: The task (an experiment's ``env``).
+    :return: The metric as the report shows it.
+    """
+    from sb3_maddpg.envs import MPE_TASK_METRICS
+
+    if env != DEFAULT_ENV:
+        for declared in MPE_TASK_METRICS.get(env, ()):
+            if declared.key == metric:
+                per_episode = " per episode" if declared.per_episode == "sum" else ""
+                whose = "" if declared.team == "team" else f" ({declared.team})"
+                label = f"{metric.replace('_', ' ')}{per_episode}{whose}"
+                return Metric(metric, label, 1.0, declared.better == "higher")
+    if metric.startswith(SIDE_RETURN_PREFIX) and metric not in METRICS and metric != "return_std":
+        side = metric.removeprefix(SIDE_RETURN_PREFIX).replace("_", " ")
+        return Metric(metric, f"{side_return_label(side)} per agent", 1.0, True)
+    return METRICS.get(metric, Metric(metric, metric))
 
 
 def describe(config: RunConfig) -> str:
