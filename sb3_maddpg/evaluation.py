@@ -16,6 +16,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, unwrap_vec_nor
 
 from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.noise import add_noise, noise_copy_for_envs
+from sb3_maddpg.torch_threads import in_package_threads
 
 TASK_METRICS = ("success", "coverage", "collisions", "min_dist_sum")
 """The task metrics read from ``info`` (see :class:`~sb3_maddpg.envs.SimpleSpreadMetrics`)."""
@@ -190,6 +191,7 @@ class PredictsActions(Protocol):
     ) -> tuple[np.ndarray, Any]: ...
 
 
+@in_package_threads  # one torch thread unless the user chose one (sb3_maddpg.torch_threads)
 def evaluate_team(
     model: PredictsActions,
     env: gym.Env | VecEnv,

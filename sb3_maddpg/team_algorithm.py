@@ -36,6 +36,7 @@ from sb3_maddpg.noise import add_noise, default_noise, fit_noise_to_envs
 from sb3_maddpg.policies import MADDPGPolicy
 from sb3_maddpg.selection import Selector, resolve_selector, warn_if_selecting_everyone
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent
+from sb3_maddpg.torch_threads import package_threads
 from sb3_maddpg.train_logs import record_agent_returns
 from sb3_maddpg.update_schedule import UpdateSchedule
 from sb3_maddpg.user_code import user_stacklevel
@@ -303,14 +304,15 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param progress_bar: Display a progress bar (needs tqdm and rich).
         :return: The trained model.
         """
-        result = super().learn(
-            total_timesteps=total_timesteps,
-            callback=callback,
-            log_interval=log_interval,
-            tb_log_name=type(self).__name__ if tb_log_name is None else tb_log_name,
-            reset_num_timesteps=reset_num_timesteps,
-            progress_bar=progress_bar,
-        )
+        with package_threads():  # one torch thread unless the user chose one (sb3_maddpg.torch_threads)
+            result = super().learn(
+                total_timesteps=total_timesteps,
+                callback=callback,
+                log_interval=log_interval,
+                tb_log_name=type(self).__name__ if tb_log_name is None else tb_log_name,
+                reset_num_timesteps=reset_num_timesteps,
+                progress_bar=progress_bar,
+            )
         self._warn_if_never_updated()
         return result
 

@@ -2,15 +2,25 @@
 
 The package's networks are small (64 units, batch 1024): one update spreads poorly over threads, and on a CPU shared
 with any other busy process several torch threads wait on each other. Measured on a 2-core machine with one other
-busy process: 2 threads trained at ~110-300 env steps/s, 1 thread at ~3,200-4,500. So the package's entry points (the
-examples, the main job, ``sb3-maddpg run``/``tune``) use one thread unless told otherwise; ``MADDPG`` itself never
-changes torch's global setting.
+busy process: 2 threads trained at ~110-300 env steps/s, 1 thread at ~3,200-4,500. So the package's own work runs on
+one thread unless the user chose a count: ``learn()`` and ``evaluate_team`` run inside :func:`package_threads`, which
+sets one for their duration and gives the caller's count back after; the entry points (the examples, the main job,
+``sb3-maddpg run``/``tune``) set it for the whole process (:func:`use_torch_threads`, ``--threads N``). A choice of the
+user's (``OMP_NUM_THREADS``, ``MKL_NUM_THREADS``, or ``torch.set_num_threads`` after importing ``sb3_maddpg``) is
+always kept.
 """
 
 import argparse
+import contextlib
+import functools
 import os
+from collections.abc import Callable, Iterator
+from typing import ParamSpec, TypeVar
 
 import torch as th
+
+P = ParamSpec("P")
+R = TypeVar("R")
 
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS")
 """Environment variables that set torch's thread count when the process starts (torch reads them itself)."""
@@ -53,6 +63,40 @@ def use_torch_threads(threads: int | None = None) -> int:
         th.set_num_threads(1)
     _expected_threads[0] = th.get_num_threads()
     return _expected_threads[0]
+
+
+@contextlib.contextmanager
+def package_threads() -> Iterator[int]:
+    """
+    One torch thread inside (the fastest for these small networks on a shared CPU), unless the user chose a count
+    (:func:`threads_set_by_user`), which is kept; the count before is restored on the way out, so that the caller's
+    own torch work is untouched.
+
+    :return: The number of threads in force inside.
+    """
+    if threads_set_by_user() is not None:
+        yield th.get_num_threads()
+        return
+    before = th.get_num_threads()
+    th.set_num_threads(1)
+    try:
+        yield 1
+    finally:
+        th.set_num_threads(before)
+
+
+def in_package_threads(function: Callable[P, R]) -> Callable[P, R]:
+    """
+    :param function: A function of the package's own work (e.g. an evaluation).
+    :return: The function, run inside :func:`package_threads`.
+    """
+
+    @functools.wraps(function)
+    def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        with package_threads():
+            return function(*args, **kwargs)
+
+    return wrapper
 
 
 def add_threads_argument(parser: argparse.ArgumentParser) -> None:

@@ -10,9 +10,11 @@ from pathlib import Path
 
 import pytest
 import torch as th
+from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.evaluation import evaluate_team
 from sb3_maddpg.progress import INTERRUPTED_EXIT_CODE, ProgressLogCallback, ctrl_c_ends_quietly, interrupted_line
 from sb3_maddpg.torch_threads import THREAD_VARIABLES, threads_set_by_user, use_torch_threads
 
@@ -56,6 +58,52 @@ def test_a_users_set_num_threads_is_honoured(restore_threads) -> None:
     th.set_num_threads(2)  # the user's call, after the package's
     assert threads_set_by_user() == "torch.set_num_threads(2)"
     assert use_torch_threads() == 2
+
+
+class ThreadsSeen(BaseCallback):
+    """Records torch's thread count at every step of learn()."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen: set[int] = set()
+
+    def _on_step(self) -> bool:
+        self.seen.add(th.get_num_threads())
+        return True
+
+
+def tiny_model() -> MADDPG:
+    return MADDPG(
+        "MlpPolicy", make_simple_spread(n_agents=2), learning_starts=20, batch_size=8, policy_kwargs={"net_arch": [8]}
+    )
+
+
+def test_learn_and_evaluate_run_on_one_thread_and_give_the_callers_back(restore_threads) -> None:
+    """What makes every snippet fast without a line of its own: learn() and evaluate_team set one thread for their
+    work and restore the count torch had (here 2, as if torch had started with it)."""
+    th.set_num_threads(2)
+    use_torch_threads(2)
+    model, seen = tiny_model(), ThreadsSeen()
+    model.learn(50, callback=seen)
+    assert seen.seen == {1} and th.get_num_threads() == 2
+    counts: list[int] = []
+    predict = model.predict
+    model.predict = lambda *args, **kwargs: (counts.append(th.get_num_threads()), predict(*args, **kwargs))[1]  # type: ignore[method-assign]
+    evaluate_team(model, make_simple_spread(n_agents=2), n_episodes=1)
+    assert set(counts) == {1} and th.get_num_threads() == 2
+
+
+def test_learn_keeps_the_users_thread_count(restore_threads, monkeypatch: pytest.MonkeyPatch) -> None:
+    use_torch_threads(1)
+    th.set_num_threads(2)  # the user's call, after importing sb3_maddpg
+    seen = ThreadsSeen()
+    tiny_model().learn(50, callback=seen)
+    assert seen.seen == {2}
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    use_torch_threads(2)
+    seen = ThreadsSeen()
+    tiny_model().learn(50, callback=seen)
+    assert seen.seen == {2}
 
 
 @pytest.mark.parametrize("threads", [0, -1, 1.5, True])
