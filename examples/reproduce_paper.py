@@ -34,7 +34,7 @@ SCALES: dict[str, str] = {
     # with 3 agents, 6,000 episodes (150k steps), 8 seeds, 50 evaluation episodes. That run was measured on mpe2
     # with one env (add --vec-env mpe2 --n-envs 1 for its env path) and before the actor regulariser existed.
     "small": (
-        "--config exp1 --name n3_full --n-agents 3 --episodes 6000 --seeds 8 --eval-episodes 50 "
+        "--config exp1 --name n3_full --n-agents 3 --episodes 6000 --seeds 8 --n-checkpoints 20 --eval-episodes 50 "
         "--curve-points 15 --curve-eval-episodes 20 --no-keep-checkpoints"
     ),
     # Experiment 2's setting (5 agents, each observing its 2 nearest) at a tenth of its budget, 5 seeds.

@@ -233,11 +233,14 @@ def test_a_bad_thread_count_with_workers_is_refused_clearly(tmp_path: Path, caps
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        ({"objective": "speed"}, r"objective must be one of"),
-        ({"last_evaluations": 3}, r"last_evaluations \(3\) cannot exceed n_evaluations \(2\)"),
-        ({"budget": 0}, r"budget must be at least 1"),
-        ({"warmup_evaluations": -1}, r"warmup_evaluations must be at least 0, got -1: 0 lets the pruner stop"),
-        ({"experiment": TINY.replace(env="simple_tag")}, r"tune on a simple_spread setting"),
+        ({"objective": "speed"}, r"--objective 'speed' is not one of simple_spread's objectives: give one of min_dist_sum"),
+        ({"last_evaluations": 3}, r"--last-evaluations \(3\) cannot exceed --evaluations \(2\): .* raise --evaluations"),
+        ({"budget": 0}, r"--steps must be at least 1, got 0 \(TuneSettings.budget\)"),
+        ({"warmup_evaluations": -1}, r"--warmup-evaluations must be at least 0, got -1 .*: 0 lets the pruner stop"),
+        (
+            {"experiment": TINY.replace(env="simple_tag"), "objective": "min_dist_sum"},
+            r"'min_dist_sum' is not one of simple_tag's objectives: give one of collisions \(maximize\) \(group_return",
+        ),
     ],
 )
 def test_bad_settings_say_what_to_do(tmp_path: Path, changes: dict, message: str) -> None:
@@ -339,3 +342,65 @@ def test_opening_a_storage_retries_only_the_race_of_creating_its_tables() -> Non
 
     with pytest.raises(OperationalError, match="database is locked"):
         open_storage(locked, wait_seconds=0)
+
+
+def test_the_objectives_are_the_tasks_metrics_in_their_directions() -> None:
+    from sb3_maddpg.experiments.config import TUNE_OBJECTIVES
+    from sb3_maddpg.experiments.tune import task_objectives
+
+    assert task_objectives(TINY) == TUNE_OBJECTIVES and next(iter(TUNE_OBJECTIVES)) == "min_dist_sum"
+    # simple_tag's catches, for the predators; no team return, which would add the prey's to the predators'.
+    assert task_objectives(TINY.replace(env="simple_tag")) == {"collisions": "maximize"}
+    tag_group = TINY.replace(env="simple_tag", score_agents=("adversary_0", "adversary_1", "adversary_2"))
+    assert task_objectives(tag_group) == {"collisions": "maximize", "group_return": "maximize"}
+    assert task_objectives(TINY.replace(env="simple")) == {"goal_distance": "minimize", "return_mean": "maximize"}
+    assert task_objectives(TINY.replace(env="sb3_maddpg/SimpleSpread-v3")) == {"return_mean": "maximize"}
+
+
+def test_tune_on_another_task_optimises_that_tasks_metric(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    storage, preset = f"sqlite:///{tmp_path / 'tune.db'}", tmp_path / "best.json"
+    argv = ["tune", "--config", "smoke", "--env", "simple_tag", "--scheme", "full", "--trials", "2", "--steps", "800"]
+    argv += ["--evaluations", "2", "--eval-episodes", "2", "--last-evaluations", "1", "--storage", storage]
+    assert main([*argv, "--preset-out", str(preset)]) == 0
+    out = capsys.readouterr().out
+    assert "on smoke (simple_tag, N=4, scheme full), objective collisions (maximize)" in out
+    assert re.search(r"trial 1: 400/800 steps, collisions \d+\.\d{4}", out) and "(higher is better)" in out
+    study = optuna.load_study(study_name="smoke_simple_tag_collisions", storage=storage)
+    assert study.direction == optuna.study.StudyDirection.MAXIMIZE
+    for trial in study.trials:  # each trial scores its last evaluation's catches per episode (2 episodes)
+        assert trial.value == trial.intermediate_values[max(trial.intermediate_values)]
+        assert trial.value >= 0 and (2 * trial.value).is_integer()
+    config = ExperimentConfig.from_dict(json.loads(preset.read_text()))
+    assert (config.env, config.n_agents) == ("simple_tag", 4) and "simple_tag, 4 agents" in config.description
+
+
+def test_tunes_help_names_every_option_with_its_default(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["tune", "--help"]) == 0
+    help_text = " ".join(capsys.readouterr().out.split())
+    for option, default in (
+        ("--trials", "50"),
+        ("--steps", "1000000"),
+        ("--evaluations", "10"),
+        ("--eval-episodes", "100"),
+        ("--last-evaluations", "3"),
+        ("--warmup-evaluations", "1"),
+        ("--heartbeat", "60"),
+        ("--config", "exp1"),
+    ):
+        # The option's own help (up to the next "(default:"), not the usage line's "[--trials TRIALS]".
+        assert re.search(rf"{option} [A-Z_]+ (?:(?!\(default:).)*\(default: {default}\)", help_text), option
+    assert "at most --evaluations" in help_text and "--env" in help_text and "collisions" in help_text
+
+
+@pytest.mark.filterwarnings("ignore:evaluate_team")  # simple_tag gives no min-dist sum: said once per evaluation
+def test_an_objective_the_evaluations_do_not_score_stops_the_study_clearly() -> None:
+    # Optuna fails a trial whose value is NaN and starts another, which fares no better: the study would never end.
+    from sb3_maddpg.envs import make_mpe_env
+
+    study = optuna.create_study()
+    env = make_mpe_env("simple_tag")
+    callback = TrialEvalCallback(study.ask(), "min_dist_sum", None, eval_env=make_mpe_env("simple_tag"), eval_freq=50)
+    callback.n_eval_episodes = 1
+    model = MADDPG("MlpPolicy", env, learning_starts=50, batch_size=16, policy_kwargs={"net_arch": [8]})
+    with pytest.raises(ValueError, match=r"trial 0's min_dist_sum is nan at step 50: the"):
+        model.learn(1_000, callback=callback)

@@ -1,20 +1,27 @@
-"""Command line: ``sb3-maddpg run ...`` (or ``python -m sb3_maddpg.experiments run ...``) and ``... report ...``."""
+"""Command line: ``sb3-maddpg run ...`` (or ``python -m sb3_maddpg.experiments run ...``), ``... tune ...`` and
+``... report ...``. A user's error (a bad name, JSON or number, a missing file) ends the command with one line on
+stderr, its cause then what to do, and exit status 2."""
 
 import argparse
+import dataclasses
 import importlib.util
 import json
+import re
 import sys
 from collections.abc import Sequence
-from typing import Any
+from pathlib import Path
+from typing import Any, NoReturn
 
 from sb3_maddpg.experiments.config import (
+    DEFAULT_ENV,
     DEFAULT_N_ENVS,
     EXPERIMENTS,
-    TUNE_OBJECTIVES,
     VEC_ENVS,
     ExperimentConfig,
+    algorithm_argument,
     load_experiment,
     merge_model_kwargs,
+    scaled_schedule,
 )
 from sb3_maddpg.experiments.stats import METRICS
 from sb3_maddpg.install_hint import extra_install_command
@@ -24,23 +31,108 @@ DEFAULT_RESULTS = "runs/experiments"
 ALGORITHMS = {"maddpg": "sb3_maddpg:MADDPG", "matd3": "sb3_maddpg:MATD3"}
 """``run --algo``'s names and the experiments' ``algorithm`` each sets."""
 
+SETTING_FLAGS = {
+    "env": "--env",
+    "env_kwargs": "--env-kwargs",
+    "n_agents": "--n-agents",
+    "neighbors": "--neighbors",
+    "episodes": "--episodes",
+    "n_checkpoints": "--n-checkpoints",
+    "eval_episodes": "--eval-episodes",
+    "curve_points": "--curve-points",
+    "curve_eval_episodes": "--curve-eval-episodes",
+    "algo": "--algo",
+    "model_kwargs": "--model-kwargs",
+    "scheme_model_kwargs": "--scheme-model-kwargs",
+    "score_agents": "--score-agents",
+    "normalize_observations": "--normalize-observations",
+}
+"""``run``'s options that change a setting (not only which of its runs, or where): given any, the experiment's
+description says its new values after ``"<config> with <options>"``."""
+
+SCHEDULE_FLAGS = {
+    "n_checkpoints": "--n-checkpoints",
+    "eval_episodes": "--eval-episodes",
+    "curve_points": "--curve-points",
+    "curve_eval_episodes": "--curve-eval-episodes",
+}
+"""The evaluation schedule's options: those not given follow ``--episodes`` (:func:`~.config.scaled_schedule`)."""
+
+
+class _OneLineErrors(argparse.ArgumentParser):
+    """argparse's parser, whose errors are one line: the cause, then where the options are listed."""
+
+    def error(self, message: str) -> NoReturn:
+        """:param message: argparse's message; printed as ``<prog>: <message> (see <prog> --help)``, exit status 2."""
+        self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
+
 
 def _int_list(text: str) -> tuple[int, ...]:
-    return tuple(int(item) for item in text.split(",") if item.strip())
+    try:
+        return tuple(int(item) for item in text.split(",") if item.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of integers, e.g. 0,5,7") from None
 
 
 def _str_list(text: str) -> tuple[str, ...]:
     return tuple(item.strip() for item in text.split(",") if item.strip())
 
 
+def _json_object(example: str) -> Any:
+    def parse(text: str) -> dict[str, Any]:
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError as error:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} is not JSON ({error}): give an object, e.g. '{example}' (names and strings in double quotes)"
+            ) from None
+        if not isinstance(value, dict):
+            raise argparse.ArgumentTypeError(f"{text!r} is not a JSON object: give one, e.g. '{example}'")
+        return value
+
+    return parse
+
+
+def _count(least: int) -> Any:
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = least - 1
+        if value < least:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer of at least {least}")
+        return value
+
+    return parse
+
+
+def _neighbors(text: str) -> int | str:
+    if text == "all":
+        return text
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r} is neither a number of agents (0 or more) nor 'all'")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     """:return: The argument parser of the ``sb3-maddpg`` command."""
-    parser = argparse.ArgumentParser(
+    parser = _OneLineErrors(
         prog="sb3-maddpg",
         description="Reproduce the paper's experiments: train every scheme and seed, evaluate checkpoints, report Table 2.",
     )
     commands = parser.add_subparsers(dest="command", required=True)
+    _add_run_parser(commands)
+    _add_tune_parser(commands)
+    _add_report_parser(commands)
+    return parser
 
+
+def _add_run_parser(commands: Any) -> None:
+    """:param commands: The ``sb3-maddpg`` subparsers, given ``run``."""
     run = commands.add_parser(
         "run",
         help="run a sweep (finished runs are skipped, so the same command resumes an interrupted sweep)",
@@ -55,18 +147,28 @@ def build_parser() -> argparse.ArgumentParser:
         "(required: the paper's sweep is --config exp1 --config exp2, 310 runs)",
     )
     run.add_argument("--results", default=DEFAULT_RESULTS, help=f"results directory (default: {DEFAULT_RESULTS})")
-    group = run.add_argument_group("overrides (applied to every --config)")
+    _add_run_overrides(run.add_argument_group("overrides (applied to every --config)"))
+    _add_run_execution(run.add_argument_group("execution"))
+
+
+def _add_run_overrides(group: Any) -> None:
+    """:param group: ``run``'s argument group of the overrides."""
     group.add_argument("--name", help="store the experiment under this name (one --config only)")
     group.add_argument("--schemes", type=_str_list, help="comma-separated schemes, e.g. full,selected")
-    group.add_argument("--seeds", type=int, help="number of seeds (0..N-1)")
+    group.add_argument("--seeds", type=_count(1), help="number of seeds (0..N-1)")
     group.add_argument("--seed-list", type=_int_list, help="comma-separated seeds (instead of --seeds)")
-    group.add_argument("--n-agents", type=int, help="agents (and landmarks)")
-    group.add_argument("--neighbors", help="nearest other agents observed: an integer, or 'all'")
-    group.add_argument("--episodes", type=int, help="training budget in episodes")
-    group.add_argument("--n-checkpoints", type=int, help="checkpoints over the last 20%% of training")
-    group.add_argument("--eval-episodes", type=int, help="episodes per checkpoint evaluation")
-    group.add_argument("--curve-points", type=int, help="learning-curve evaluations per run")
-    group.add_argument("--curve-eval-episodes", type=int, help="episodes per learning-curve evaluation")
+    group.add_argument("--n-agents", type=_count(1), help="simple_spread's agents (and landmarks)")
+    group.add_argument("--neighbors", type=_neighbors, help="nearest other agents observed: an integer, or 'all'")
+    group.add_argument(
+        "--episodes",
+        type=_count(1),
+        help="training budget in episodes; a smaller budget than the config's shrinks the evaluation options below "
+        "that are not given (each by the square root of the budgets' ratio; see the reproduce guide)",
+    )
+    group.add_argument("--n-checkpoints", type=_count(1), help="checkpoints over the last 20%% of training")
+    group.add_argument("--eval-episodes", type=_count(1), help="episodes per checkpoint evaluation")
+    group.add_argument("--curve-points", type=_count(0), help="learning-curve evaluations per run")
+    group.add_argument("--curve-eval-episodes", type=_count(1), help="episodes per learning-curve evaluation")
     group.add_argument(
         "--algo",
         choices=sorted(ALGORITHMS),
@@ -74,19 +176,23 @@ def build_parser() -> argparse.ArgumentParser:
         "its own --name or --results, so that report tells it apart",
     )
     group.add_argument(
-        "--model-kwargs", type=json.loads, help="JSON merged into the MADDPG kwargs, e.g. '{\"batch_size\": 256}'"
+        "--model-kwargs",
+        type=_json_object('{"batch_size": 256}'),
+        help="JSON merged into the MADDPG kwargs, e.g. '{\"batch_size\": 256}'",
     )
     group.add_argument(
         "--scheme-model-kwargs",
-        type=json.loads,
+        type=_json_object('{"selected": {"selector": 1}}'),
         help='JSON of MADDPG kwargs for one scheme only, merged per scheme, e.g. \'{"selected": {"selector": 1}}\'',
     )
     group.add_argument(
         "--env",
-        help="the task: simple_spread (default), another MPE task (e.g. simple_tag), a PettingZoo factory "
-        "'module:function', or a gymnasium id",
+        help="the task: simple_spread (default), another MPE task (e.g. simple_tag; its own team size), a PettingZoo "
+        "factory 'module:function', or a gymnasium id",
     )
-    group.add_argument("--env-kwargs", type=json.loads, help="JSON of the task constructor's keyword arguments")
+    group.add_argument(
+        "--env-kwargs", type=_json_object('{"num_adversaries": 4}'), help="JSON of the task constructor's keyword arguments"
+    )
     group.add_argument(
         "--score-agents", type=_str_list, help="comma-separated agent ids whose summed return is scored (group_return)"
     )
@@ -95,7 +201,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=VEC_ENVS,
         help="batched: SimpleSpreadVecEnv (the same MDP as mpe2, arrays; default); mpe2: DummyVecEnv over mpe2 itself",
     )
-    group.add_argument("--n-envs", type=int, help=f"worlds stepped together in training (default {DEFAULT_N_ENVS})")
+    group.add_argument("--n-envs", type=_count(1), help=f"worlds stepped together in training (default {DEFAULT_N_ENVS})")
     group.add_argument("--keep-checkpoints", action=argparse.BooleanOptionalAction, default=None, help="keep model files")
     group.add_argument(
         "--normalize-observations",
@@ -103,7 +209,10 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="normalise the observations by their running mean and variance (SB3's VecNormalize; rewards raw)",
     )
-    execution = run.add_argument_group("execution")
+
+
+def _add_run_execution(execution: Any) -> None:
+    """:param execution: ``run``'s argument group of where and how the runs execute."""
     execution.add_argument(
         "--backend",
         choices=("local", "ray", "batched"),
@@ -142,36 +251,86 @@ def build_parser() -> argparse.ArgumentParser:
     execution.add_argument("--dry-run", action="store_true", help="list the runs and exit")
     execution.add_argument("--quiet", action="store_true", help="print only the sweep's progress, not each run's")
 
+
+def _add_tune_parser(commands: Any) -> None:
+    """:param commands: The ``sb3-maddpg`` subparsers, given ``tune``."""
     tune = commands.add_parser(
         "tune",
         help="search MADDPG's hyperparameters on Optuna (a study in SQLite: the same command resumes it)",
         description="Train trials of one setting with sampled hyperparameters, prune the poor ones, print the best as a "
         "preset. Several processes (--workers, or the same command in another shell) share the study.",
     )
-    tune.add_argument("--config", default="exp1", help="the setting: a preset or an experiment JSON file (default: exp1)")
-    tune.add_argument("--n-agents", type=int, help="agents (and landmarks)")
-    tune.add_argument("--neighbors", help="nearest other agents observed: an integer, or 'all'")
-    tune.add_argument("--scheme", help="the critic_sharing scheme (default: the setting's first)")
-    tune.add_argument("--env-kwargs", type=json.loads, help="JSON of the task constructor's keyword arguments")
-    tune.add_argument("--study-name", help="the study's name (default: <setting>_<objective>, then each --fix)")
-    tune.add_argument("--storage", default="sqlite:///tune.db", help="Optuna storage URL (default: sqlite:///tune.db)")
-    tune.add_argument("--trials", type=int, default=50, help="finished trials at which the study stops (default 50)")
-    tune.add_argument("--steps", type=int, default=1_000_000, help="env steps per trial (default 1,000,000)")
-    tune.add_argument("--evaluations", type=int, default=10, help="evaluations per trial, reported to the pruner")
-    tune.add_argument("--eval-episodes", type=int, default=100, help="episodes per evaluation (default 100)")
-    tune.add_argument("--last-evaluations", type=int, default=3, help="a trial scores its mean over these last ones")
-    tune.add_argument(
-        "--warmup-evaluations", type=int, default=1, help="first evaluations at which no trial is pruned (default 1)"
+    setting = tune.add_argument_group("the setting")
+    setting.add_argument(
+        "--config", default="exp1", help="the setting: a preset or an experiment JSON file (default: %(default)s)"
     )
-    tune.add_argument("--objective", choices=sorted(TUNE_OBJECTIVES), default="min_dist_sum", help="what to optimise")
-    tune.add_argument("--seed", type=int, default=0, help="seed of the sampler and of every trial's run")
-    tune.add_argument("--workers", type=int, default=1, help="parallel worker processes sharing the study")
-    tune.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes or Ray tasks")
-    tune.add_argument("--address", default=None, help="Ray cluster address (with --backend ray)")
-    tune.add_argument("--threads", type=int, default=1, help="torch threads per worker (default: 1)")
-    tune.add_argument("--heartbeat", type=int, default=60, help="seconds between a trial's heartbeats (default 60)")
-    tune.add_argument("--preset-out", help="also write the best trial's preset (experiment JSON) to this file")
-    tune.add_argument(
+    setting.add_argument(
+        "--env",
+        help="the task, as run --env: simple_spread, another MPE task (e.g. simple_tag), a PettingZoo factory "
+        "'module:function', or a gymnasium id (default: the setting's)",
+    )
+    setting.add_argument(
+        "--env-kwargs", type=_json_object('{"num_adversaries": 4}'), help="JSON of the task constructor's keyword arguments"
+    )
+    setting.add_argument(
+        "--score-agents", type=_str_list, help="comma-separated agent ids whose summed return is group_return"
+    )
+    setting.add_argument("--n-agents", type=_count(1), help="simple_spread's agents (and landmarks)")
+    setting.add_argument("--neighbors", type=_neighbors, help="nearest other agents observed: an integer, or 'all'")
+    setting.add_argument("--scheme", help="the critic_sharing scheme (default: the setting's first)")
+    _add_tune_study(tune.add_argument_group("the study"))
+
+
+def _add_tune_study(study: Any) -> None:
+    """:param study: ``tune``'s argument group of the study, its trials and its workers."""
+    study.add_argument("--study-name", help="the study's name (default: <setting>[_<task>]_<objective>, then each --fix)")
+    study.add_argument("--storage", default="sqlite:///tune.db", help="Optuna storage URL (default: %(default)s)")
+    study.add_argument(
+        "--trials", type=_count(1), default=50, help="finished trials at which the study stops (default: %(default)s)"
+    )
+    study.add_argument("--steps", type=_count(1), default=1_000_000, help="env steps per trial (default: %(default)s)")
+    study.add_argument(
+        "--evaluations",
+        type=_count(1),
+        default=10,
+        help="evaluations per trial, each reported to the pruner (default: %(default)s)",
+    )
+    study.add_argument("--eval-episodes", type=_count(1), default=100, help="episodes per evaluation (default: %(default)s)")
+    study.add_argument(
+        "--last-evaluations",
+        type=_count(1),
+        default=3,
+        help="a trial scores its mean over its last this many evaluations, at most --evaluations (default: %(default)s)",
+    )
+    study.add_argument(
+        "--warmup-evaluations",
+        type=_count(0),
+        default=1,
+        help="first evaluations at which no trial is pruned (default: %(default)s)",
+    )
+    study.add_argument(
+        "--objective",
+        help="what a trial optimises (default: the task's first): on simple_spread min_dist_sum (lower is better), "
+        "normalised or return_mean; on another MPE task one of its metrics (sb3_maddpg.envs.MPE_TASK_METRICS, e.g. "
+        "simple_tag's collisions, the catches, higher) or return_mean; on any other task return_mean; group_return "
+        "with --score-agents",
+    )
+    study.add_argument(
+        "--seed", type=int, default=0, help="seed of the sampler and of every trial's run (default: %(default)s)"
+    )
+    study.add_argument(
+        "--workers", type=_count(1), default=1, help="parallel worker processes sharing the study (default: %(default)s)"
+    )
+    study.add_argument(
+        "--backend", choices=("local", "ray"), default="local", help="local processes or Ray tasks (default: %(default)s)"
+    )
+    study.add_argument("--address", default=None, help="Ray cluster address (with --backend ray; default: a local Ray)")
+    study.add_argument("--threads", type=int, default=1, help="torch threads per worker (default: %(default)s)")
+    study.add_argument(
+        "--heartbeat", type=_count(1), default=60, help="seconds between a trial's heartbeats (default: %(default)s)"
+    )
+    study.add_argument("--preset-out", help="also write the best trial's preset (experiment JSON) to this file")
+    study.add_argument(
         "--fix",
         action="append",
         default=[],
@@ -180,6 +339,9 @@ def build_parser() -> argparse.ArgumentParser:
         "transitions_per_update=25 --fix width=64; the study's default name then says so",
     )
 
+
+def _add_report_parser(commands: Any) -> None:
+    """:param commands: The ``sb3-maddpg`` subparsers, given ``report``."""
     report = commands.add_parser(
         "report", help="Table 2 (Markdown, CSV), learning curves and boxplots from a results directory"
     )
@@ -192,54 +354,125 @@ def build_parser() -> argparse.ArgumentParser:
         help="score(s) to tabulate and plot, repeat for several (default: success_rate and min_dist_sum; other tasks: return)",
     )
     report.add_argument("--no-plots", action="store_true", help="tables only")
-    return parser
 
 
 def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
     """
     :param args: Parsed ``run`` arguments.
-    :return: The experiments with the overrides applied.
+    :return: The experiments with the overrides applied; a ``ValueError`` that names the option for a user's error.
+        With ``--episodes``, each evaluation count not given follows the budget
+        (:func:`~sb3_maddpg.experiments.config.scaled_schedule`); an experiment that options of ``SETTING_FLAGS``
+        changed is described by its new values, after ``"<config> with <options>"``.
     """
-    names = args.config
-    if args.name and len(names) != 1:
-        raise SystemExit("--name renames one experiment: give a single --config.")
-    experiments = []
-    for name in names:
-        experiment = load_experiment(name)
-        seeds = args.seed_list or (tuple(range(args.seeds)) if args.seeds is not None else None)
-        model_kwargs = merge_model_kwargs(experiment.model_kwargs, args.model_kwargs) if args.model_kwargs else None
-        scheme_model_kwargs = None
-        if args.scheme_model_kwargs:
-            scheme_model_kwargs = {
-                scheme: merge_model_kwargs(experiment.scheme_model_kwargs.get(scheme, {}), kwargs)
-                for scheme, kwargs in {**experiment.scheme_model_kwargs, **args.scheme_model_kwargs}.items()
-            }
-        experiment = experiment.replace(
-            name=args.name,
-            schemes=args.schemes,
-            seeds=seeds,
-            n_agents=args.n_agents,
-            episodes=args.episodes,
-            n_checkpoints=args.n_checkpoints,
-            eval_episodes=args.eval_episodes,
-            curve_points=args.curve_points,
-            curve_eval_episodes=args.curve_eval_episodes,
-            model_kwargs=model_kwargs,
-            scheme_model_kwargs=scheme_model_kwargs,
-            env=args.env,
-            env_kwargs=args.env_kwargs,
-            score_agents=args.score_agents,
-            keep_checkpoints=args.keep_checkpoints,
-            normalize_observations=args.normalize_observations,
-            vec_env=args.vec_env,
-            n_envs=args.n_envs,
-            algorithm=ALGORITHMS[args.algo] if args.algo else None,
+    if args.name and len(args.config) != 1:
+        raise ValueError(f"--name renames one experiment, but {len(args.config)} --config are given: give one --config.")
+    return [_override_experiment(load_experiment(name), name, args) for name in args.config]
+
+
+def _override_experiment(experiment: ExperimentConfig, config: str, args: argparse.Namespace) -> ExperimentConfig:
+    """
+    :param experiment: A loaded ``--config``.
+    :param config: What ``--config`` said (a preset's name or a file), for the description.
+    :param args: Parsed ``run`` arguments.
+    :return: The experiment with ``args``' overrides (see :func:`experiments_from_args`).
+    """
+    changes = _run_overrides(experiment, args)
+    task = args.env or experiment.env
+    given = [SETTING_FLAGS[dest] for dest in ("n_agents", "neighbors") if getattr(args, dest) is not None]
+    if task != DEFAULT_ENV and given:
+        raise ValueError(
+            f"{given[0]} sets simple_spread's team, but the task is {task}, whose team is its own: change it through "
+            "--env-kwargs (e.g. simple_tag's '{\"num_adversaries\": 4}'), or leave out " + " and ".join(given) + "."
         )
-        if args.neighbors is not None:
-            neighbors = None if args.neighbors == "all" else int(args.neighbors)
-            experiment = ExperimentConfig.from_dict({**experiment.to_dict(), "num_agent_neighbors": neighbors})
-        experiments.append(experiment)
-    return experiments
+    changed = experiment.replace(**changes)
+    if args.neighbors is not None:
+        changed = dataclasses.replace(changed, num_agent_neighbors=None if args.neighbors == "all" else args.neighbors)
+    flags = [flag for dest, flag in SETTING_FLAGS.items() if getattr(args, dest) is not None]
+    if not flags:
+        return changed
+    scaled = any(getattr(changed, dest) != getattr(experiment, dest) for dest in SCHEDULE_FLAGS if getattr(args, dest) is None)
+    return changed.described(f"{config} with {' '.join(flags)}" + (" (evaluation scaled to the budget)" if scaled else ""))
+
+
+def _run_overrides(experiment: ExperimentConfig, args: argparse.Namespace) -> dict[str, Any]:
+    """
+    :param experiment: A loaded ``--config``.
+    :param args: Parsed ``run`` arguments.
+    :return: :meth:`ExperimentConfig.replace`'s changes (``None``: not given), the evaluation schedule scaled to
+        ``--episodes`` where it is not given.
+    """
+    seeds = args.seed_list or (tuple(range(args.seeds)) if args.seeds is not None else None)
+    model_kwargs = merge_model_kwargs(experiment.model_kwargs, args.model_kwargs) if args.model_kwargs else None
+    scheme_model_kwargs = None
+    if args.scheme_model_kwargs:
+        scheme_model_kwargs = {
+            scheme: merge_model_kwargs(experiment.scheme_model_kwargs.get(scheme, {}), kwargs)
+            for scheme, kwargs in {**experiment.scheme_model_kwargs, **args.scheme_model_kwargs}.items()
+        }
+    schedule = {dest: getattr(args, dest) for dest in SCHEDULE_FLAGS}
+    if args.episodes is not None:
+        scaled = scaled_schedule(experiment, args.episodes)
+        schedule = {dest: scaled[dest] if value is None else value for dest, value in schedule.items()}
+    return dict(
+        name=args.name,
+        schemes=args.schemes,
+        seeds=seeds,
+        n_agents=args.n_agents,
+        episodes=args.episodes,
+        **schedule,
+        model_kwargs=model_kwargs,
+        scheme_model_kwargs=scheme_model_kwargs,
+        env=args.env,
+        env_kwargs=args.env_kwargs,
+        score_agents=args.score_agents,
+        keep_checkpoints=args.keep_checkpoints,
+        normalize_observations=args.normalize_observations,
+        vec_env=args.vec_env,
+        n_envs=args.n_envs,
+        algorithm=ALGORITHMS[args.algo] if args.algo else None,
+    )
+
+
+def _check_experiments(experiments: Sequence[ExperimentConfig]) -> None:
+    """
+    Refuse, before anything runs, what would fail in every run: checkpoints that do not fit the budget, and schemes
+    that the package's algorithms do not know.
+
+    :param experiments: The sweep's experiments.
+    """
+    from sb3_maddpg.sharing.registry import resolve_scheme
+
+    for experiment in experiments:
+        experiment.runs()  # RunConfig checks each run's budget and schedule
+        if experiment.algorithm in ALGORITHMS.values():
+            for scheme in experiment.schemes:
+                try:
+                    resolve_scheme(scheme)
+                except ValueError as error:
+                    raise ValueError(f"{experiment.name}: --schemes {scheme!r}: {error}") from None
+
+
+def _untrained_warning(experiment: ExperimentConfig, steps: int, option: str, unit: int = 1) -> str | None:
+    """
+    :param experiment: An experiment.
+    :param steps: The env steps each of its runs (or trials) trains.
+    :param option: The option that sets ``steps``, for the advice (e.g. ``"--episodes"``).
+    :param unit: The env steps in one unit of ``option`` (e.g. the episode length).
+    :return: A warning if a scheme's runs would not pass ``learning_starts`` (random actions, no update), else ``None``.
+    """
+    for scheme in experiment.schemes:
+        try:
+            starts = int(algorithm_argument(experiment.to_dict(), "learning_starts", scheme))
+        except (ImportError, AttributeError, ValueError, TypeError):  # an algorithm without learning_starts
+            return None
+        if steps <= starts:
+            return (
+                f"{experiment.name}: {steps:,} env steps per run are not above learning_starts ({starts:,}), so the "
+                f"runs act at random throughout and train nothing: raise {option} above {starts // unit:,}, or lower "
+                "learning_starts, e.g. "
+                f"--model-kwargs '{{\"learning_starts\": {max(1, steps // 4)}}}'."
+            )
+    return None
 
 
 def no_config_message() -> str:
@@ -259,9 +492,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     :param argv: The arguments (default: ``sys.argv[1:]``).
     :return: The exit status: 0 when every run finished (or the report was written), 1 otherwise, 2 for a usage
-        error, 130 after Ctrl-C (the sweep resumes with the same command).
+        error (said in one line on stderr), 130 after Ctrl-C (the sweep resumes with the same command).
     """
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exit:  # argparse: --help (0), or a usage error said in one line (2)
+        return exit.code if isinstance(exit.code, int) else 2
     if args.command == "run":
         if not args.config:
             print(no_config_message(), file=sys.stderr)
@@ -297,50 +533,92 @@ def parse_fixed_params(items: list[str]) -> dict[str, Any]:
     return fixed
 
 
+def _tune_experiment(args: argparse.Namespace) -> ExperimentConfig:
+    """
+    :param args: Parsed ``tune`` arguments.
+    :return: The setting the trials train in: ``--config`` with the task, team and scheme options over it.
+    """
+    experiment = load_experiment(args.config)
+    task = args.env or experiment.env
+    given = [
+        flag for dest, flag in (("n_agents", "--n-agents"), ("neighbors", "--neighbors")) if getattr(args, dest) is not None
+    ]
+    if task != DEFAULT_ENV and given:
+        raise ValueError(
+            f"{given[0]} sets simple_spread's team, but the task is {task}, whose team is its own: change it through "
+            "--env-kwargs, or leave out " + " and ".join(given) + "."
+        )
+    experiment = experiment.replace(
+        env=args.env,
+        env_kwargs=args.env_kwargs,
+        score_agents=args.score_agents,
+        n_agents=args.n_agents,
+        schemes=(args.scheme,) if args.scheme else None,
+    )
+    if args.neighbors is not None:
+        experiment = dataclasses.replace(experiment, num_agent_neighbors=None if args.neighbors == "all" else args.neighbors)
+    _check_experiments([experiment])
+    return experiment
+
+
+def _tune_settings(args: argparse.Namespace) -> Any:
+    """
+    :param args: Parsed ``tune`` arguments.
+    :return: The study's :class:`~sb3_maddpg.experiments.tune.TuneSettings`; a ``ValueError`` for a user's error.
+    """
+    from sb3_maddpg.experiments.tune import TuneSettings, default_study_name, task_objectives
+
+    experiment = _tune_experiment(args)
+    fixed = parse_fixed_params(args.fix)
+    setting = experiment.name
+    if args.env and args.env != load_experiment(args.config).env:  # another task than the config's: say it
+        setting += "_" + re.sub(r"[^A-Za-z0-9_.-]+", "_", args.env)
+    objective = args.objective or next(iter(task_objectives(experiment)))
+    return TuneSettings(
+        experiment=experiment,
+        study_name=args.study_name or default_study_name(setting, objective, fixed),
+        storage=args.storage,
+        n_trials=args.trials,
+        budget=args.steps,
+        n_evaluations=args.evaluations,
+        eval_episodes=args.eval_episodes,
+        last_evaluations=args.last_evaluations,
+        warmup_evaluations=args.warmup_evaluations,
+        objective=objective,
+        seed=args.seed,
+        heartbeat_seconds=args.heartbeat,
+        fixed_params=fixed,
+    )
+
+
 def tune_command(args: argparse.Namespace) -> int:
     """
     :param args: Parsed ``tune`` arguments.
     :return: The exit status.
     """
-    from sb3_maddpg.experiments.tune import (
-        TuneSettings,
-        best_preset,
-        default_study_name,
-        describe_best,
-        finished_trials,
-        run_study,
-    )
+    from sb3_maddpg.experiments.tune import best_preset, describe_best, finished_trials, run_study
 
-    experiment = load_experiment(args.config).replace(
-        n_agents=args.n_agents, schemes=(args.scheme,) if args.scheme else None, env_kwargs=args.env_kwargs
-    )
-    if args.neighbors is not None:
-        neighbors = None if args.neighbors == "all" else int(args.neighbors)
-        experiment = ExperimentConfig.from_dict({**experiment.to_dict(), "num_agent_neighbors": neighbors})
     try:
-        fixed = parse_fixed_params(args.fix)
-        settings = TuneSettings(
-            experiment=experiment,
-            study_name=args.study_name or default_study_name(experiment.name, args.objective, fixed),
-            storage=args.storage,
-            n_trials=args.trials,
-            budget=args.steps,
-            n_evaluations=args.evaluations,
-            eval_episodes=args.eval_episodes,
-            last_evaluations=args.last_evaluations,
-            warmup_evaluations=args.warmup_evaluations,
-            objective=args.objective,
-            seed=args.seed,
-            heartbeat_seconds=args.heartbeat,
-            fixed_params=fixed,
-        )
-        if fixed:
-            print("fixed in every trial: " + ", ".join(f"{name}={value}" for name, value in fixed.items()), flush=True)
+        settings = _tune_settings(args)
+    except ValueError as error:
+        print(f"sb3-maddpg tune: {error}", file=sys.stderr)
+        return 2
+    experiment = settings.experiment
+    warning = _untrained_warning(experiment, settings.budget, "--steps")
+    if warning:
+        print(f"sb3-maddpg tune: warning: {warning}", file=sys.stderr)
+    if settings.fixed_params:
         print(
-            f"study {settings.study_name!r} in {settings.storage}: {settings.n_trials} trials of {settings.budget:,} steps "
-            f"on {experiment.name} (N={experiment.n_agents}, scheme {experiment.schemes[0]}), {args.workers} worker(s)",
+            "fixed in every trial: " + ", ".join(f"{name}={value}" for name, value in settings.fixed_params.items()),
             flush=True,
         )
+    print(
+        f"study {settings.study_name!r} in {settings.storage}: {settings.n_trials} trials of {settings.budget:,} steps "
+        f"on {experiment.name} ({experiment.env}, N={experiment.n_agents}, scheme {experiment.schemes[0]}), objective "
+        f"{settings.objective} ({settings.direction}), {args.workers} worker(s)",
+        flush=True,
+    )
+    try:
         study = run_study(settings, workers=args.workers, backend=args.backend, threads=args.threads, address=args.address)
     except (ModuleNotFoundError, ValueError) as error:
         print(f"sb3-maddpg tune: {error}", file=sys.stderr)
@@ -358,6 +636,22 @@ def tune_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_execution(args: argparse.Namespace) -> None:
+    """:param args: Parsed ``run`` arguments, whose execution options are refused (a ``ValueError``) if they clash."""
+    if args.ray and args.backend != "batched":
+        raise ValueError(
+            f"--ray runs the batched backend's run groups as Ray tasks, but the backend is {args.backend}: use --backend "
+            "batched --ray, or --backend ray for one Ray task per run."
+        )
+    if args.ray_address and args.backend == "batched" and not args.ray:
+        raise ValueError(
+            "--ray-address is Ray's, but --backend batched without --ray trains in this process: add --ray to run the "
+            "groups as Ray tasks there."
+        )
+    if Path(args.results).exists() and not Path(args.results).is_dir():
+        raise ValueError(f"--results {args.results} is a file, not a directory: give a directory (new or a sweep's).")
+
+
 def run_command(args: argparse.Namespace) -> int:
     """
     :param args: Parsed ``run`` arguments.
@@ -367,29 +661,30 @@ def run_command(args: argparse.Namespace) -> int:
     from sb3_maddpg.experiments.results import ResultsDirectoryLocked
     from sb3_maddpg.experiments.sweep import SweepInterrupted, plan_sweep, run_sweep  # torch: imported for runs only
 
-    if args.ray and args.backend != "batched":
-        print(
-            f"sb3-maddpg run: --ray runs the batched backend's run groups as Ray tasks, but the backend is {args.backend}: "
-            "use --backend batched --ray, or --backend ray for one Ray task per run.",
-            file=sys.stderr,
-        )
+    try:
+        _check_execution(args)
+        experiments = experiments_from_args(args)
+        _check_experiments(experiments)
+        todo, finished = plan_sweep(experiments, args.results)  # a finished run of another config is refused here
+    except ValueError as error:
+        print(f"sb3-maddpg run: {error}", file=sys.stderr)
         return 2
-    if args.ray_address and args.backend == "batched" and not args.ray:
-        print(
-            "sb3-maddpg run: --ray-address is Ray's, but --backend batched without --ray trains in this process: add "
-            "--ray to run the groups as Ray tasks there.",
-            file=sys.stderr,
+    for experiment in experiments:
+        warning = _untrained_warning(
+            experiment, experiment.episodes * experiment.episode_length, "--episodes", experiment.episode_length
         )
-        return 2
-    experiments = experiments_from_args(args)
+        if warning:
+            print(f"sb3-maddpg run: warning: {warning}", file=sys.stderr)
     if args.dry_run:
-        todo, finished = plan_sweep(experiments, args.results)
         for experiment in experiments:
             print(f"{experiment.name}: {json.dumps(experiment.to_dict())}")
         for config in todo:
             print(f"  {config.run_id}: {config.total_timesteps:,} steps, checkpoints at {config.checkpoint_steps()}")
         print(f"{len(todo)} run(s) to do, {finished} finished")
         return 0
+    if not args.quiet:
+        for experiment in experiments:
+            print(f"{experiment.name}: {experiment.description}")
     try:
         result = run_sweep(
             experiments,
@@ -431,6 +726,13 @@ def report_command(args: argparse.Namespace) -> int:
     """
     from sb3_maddpg.experiments.report import make_report
 
+    if not Path(args.results).is_dir():
+        print(
+            f"sb3-maddpg report: no results directory {args.results}: give the directory a sweep wrote (sb3-maddpg run "
+            f"--results DIR; default {DEFAULT_RESULTS}).",
+            file=sys.stderr,
+        )
+        return 2
     plots = not args.no_plots
     if plots and importlib.util.find_spec("matplotlib") is None:  # said before any table is written
         print(no_matplotlib_message(), file=sys.stderr)

@@ -5,6 +5,7 @@ import dataclasses
 import importlib
 import inspect
 import json
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -121,10 +122,111 @@ def setting_label(name: str, experiment: dict[str, Any] | None) -> str:
     return f"{name} ({prefix}N={experiment['n_agents']}, {observability}, {experiment['episodes']:,} ep.)"
 
 
-TUNE_OBJECTIVES = {"min_dist_sum": "minimize", "normalised": "maximize"}
-"""What ``sb3-maddpg tune`` optimises, and in which direction: simple_spread's min-dist sum at the last step (lower is
-better), or the normalised score (the mean of the min-dist sum's and the team return's, 0 = random, 1 = the scripted
-controller; higher is better)."""
+def _plural(count: int, noun: str) -> str:
+    return f"{count:,} {noun}" + ("" if count == 1 else "s")
+
+
+def describe_setting(experiment: "ExperimentConfig") -> str:
+    """
+    The setting's values in words, derived from its fields, so that a changed field changes them.
+
+    :param experiment: An experiment.
+    :return: Its task (and the task's keyword arguments), its algorithm when not MADDPG, its team size, for
+        simple_spread its observability, its budget and its evaluation schedule, e.g. ``"simple_spread, N=5, full
+        observability, 100,000 episodes (2,500,000 steps), 20 checkpoints x 100 episodes over the last 20%, 50 curve
+        points x 20 episodes"``.
+    """
+    task = experiment.env
+    if experiment.env_kwargs:
+        task += " (" + ", ".join(f"{key}={value}" for key, value in experiment.env_kwargs.items()) + ")"
+    parts = [task]
+    if experiment.algorithm != DEFAULT_ALGORITHM:
+        parts.append(experiment.algorithm.rpartition(":")[2])
+    if experiment.env == DEFAULT_ENV:
+        neighbors = experiment.num_agent_neighbors
+        parts.append(f"N={experiment.n_agents}")
+        if neighbors is None:
+            parts.append("full observability")
+        elif neighbors >= experiment.n_agents - 1:
+            parts.append("full observability nearest first")
+        else:
+            parts.append(f"{_plural(neighbors, 'nearest agent')} observed")
+    else:
+        parts.append(_plural(experiment.n_agents, "agent"))
+    steps = experiment.episodes * experiment.episode_length
+    parts.append(f"{_plural(experiment.episodes, 'episode')} ({steps:,} steps)")
+    parts.append(
+        f"{_plural(experiment.n_checkpoints, 'checkpoint')} x {_plural(experiment.eval_episodes, 'episode')} over the "
+        f"last {experiment.checkpoint_fraction:.0%}"
+    )
+    if experiment.curve_points:
+        parts.append(
+            f"{_plural(experiment.curve_points, 'curve point')} x {_plural(experiment.curve_eval_episodes, 'episode')}"
+        )
+    else:
+        parts.append("no learning curve")
+    return ", ".join(parts)
+
+
+SCHEDULE_FLOORS = {"n_checkpoints": 1, "eval_episodes": 10, "curve_points": 2, "curve_eval_episodes": 5}
+"""The least of each evaluation count that :func:`scaled_schedule` shrinks to (or the experiment's own, if smaller)."""
+
+
+def scaled_schedule(experiment: "ExperimentConfig", episodes: int) -> dict[str, int]:
+    """
+    The evaluation schedule of ``experiment`` for another budget: what ``sb3-maddpg run --episodes`` uses for each
+    count that it is not given.
+
+    A smaller budget shrinks each of the four counts by the square root of the budgets' ratio (rounded up, at least
+    :data:`SCHEDULE_FLOORS` or the experiment's own count if that is smaller, and no more checkpoints than episodes in
+    the last ``checkpoint_fraction``): evaluation keeps its share of a run (3% of exp1's episodes), and the number of
+    evaluations and their size shrink alike. A budget as large or larger keeps the experiment's schedule.
+
+    :param experiment: An experiment.
+    :param episodes: The new budget in episodes.
+    :return: ``n_checkpoints``, ``eval_episodes``, ``curve_points`` and ``curve_eval_episodes`` for that budget.
+    """
+    schedule = {name: int(getattr(experiment, name)) for name in SCHEDULE_FLOORS}
+    if episodes >= experiment.episodes:
+        return schedule
+    factor = math.sqrt(episodes / experiment.episodes)
+    for name, floor in SCHEDULE_FLOORS.items():
+        # The 1e-9 keeps a product that is whole in exact arithmetic from rounding up past it.
+        schedule[name] = max(min(floor, schedule[name]), math.ceil(schedule[name] * factor - 1e-9))
+    schedule["n_checkpoints"] = min(schedule["n_checkpoints"], max(1, math.floor(episodes * experiment.checkpoint_fraction)))
+    return schedule
+
+
+def task_team_size(env: str, env_kwargs: dict[str, Any] | None = None) -> int:
+    """
+    :param env: A task other than simple_spread (see :class:`RunConfig`'s ``env``).
+    :param env_kwargs: Its constructor's keyword arguments.
+    :return: Its team size, read from one env of the task (its ``agent_layout``).
+    """
+    from sb3_maddpg.experiments.tasks import env_factory  # tasks imports this module: imported when used
+
+    probe = RunConfig(experiment="team", scheme="full", seed=0, env=env, env_kwargs=dict(env_kwargs or {}))
+    try:
+        task = env_factory(probe)()
+    except TypeError as error:  # an argument the task does not take (make_mpe_env names it and the task's own)
+        raise ValueError(f"env_kwargs {env_kwargs} do not fit {env!r}: {error}") from None
+    try:
+        layout = getattr(task.unwrapped, "agent_layout", None)
+    finally:
+        task.close()
+    if layout is None:
+        raise ValueError(
+            f"env={env!r} has no agent_layout, so MADDPG cannot tell its agents apart: give an MPE task, a PettingZoo "
+            "parallel env factory as 'module:function', or a gymnasium id whose env has an agent_layout."
+        )
+    return int(layout.n_agents)
+
+
+TUNE_OBJECTIVES = {"min_dist_sum": "minimize", "normalised": "maximize", "return_mean": "maximize"}
+"""What ``sb3-maddpg tune`` optimises on simple_spread, and in which direction: the min-dist sum at the last step
+(lower is better; the default), the normalised score (the mean of the min-dist sum's and the team return's, 0 = random,
+1 = the scripted controller; higher is better) or the team return (higher is better). Other tasks':
+:func:`~sb3_maddpg.experiments.tune.task_objectives`."""
 
 BASELINE_SCHEME = "full"
 """The scheme every other one is tested against (MADDPG)."""
@@ -162,7 +264,8 @@ class RunConfig:
     :param experiment: The experiment (setting) name, e.g. ``"exp1"``.
     :param scheme: The critic information-sharing scheme (``MADDPG(critic_sharing=...)``).
     :param seed: The run's seed: the model's seed; the evaluation env is seeded from it too.
-    :param n_agents: Number of agents and landmarks.
+    :param n_agents: Number of agents and landmarks of simple_spread; another task's team size (its own: see
+        :meth:`ExperimentConfig.replace`).
     :param num_agent_neighbors: Nearest other agents each agent observes, ``None`` for all.
     :param episodes: Training budget in episodes.
     :param episode_length: Steps per episode.
@@ -228,7 +331,7 @@ class RunConfig:
         if self.n_checkpoints > self.episodes * self.checkpoint_fraction:
             raise ValueError(
                 f"{self.n_checkpoints} checkpoints do not fit in the last {self.checkpoint_fraction:.0%} of "
-                f"{self.episodes} episodes: lower n_checkpoints or raise the budget."
+                f"{self.episodes} episodes: lower n_checkpoints (--n-checkpoints) or raise the budget (--episodes)."
             )
         if self.eval_episodes < 1 or self.curve_eval_episodes < 1 or self.curve_points < 0:
             raise ValueError("eval_episodes and curve_eval_episodes must be positive and curve_points non-negative.")
@@ -295,6 +398,11 @@ class RunConfig:
         return json.dumps(self.to_dict(), sort_keys=True) == json.dumps(other.to_dict(), sort_keys=True)
 
 
+NOTE_KEEPING_FIELDS = frozenset(("name", "schemes", "seeds", "keep_checkpoints", "vec_env", "n_envs", "description"))
+"""The fields whose change leaves a setting's note (:meth:`ExperimentConfig.described`) true: which runs, where, and
+what is kept."""
+
+
 @dataclass(frozen=True)
 class ExperimentConfig:
     """
@@ -316,7 +424,8 @@ class ExperimentConfig:
     :param keep_checkpoints: Keep the checkpoint model files after evaluation.
     :param model_kwargs: Keyword arguments for ``MADDPG`` (the paper's hyperparameters are its defaults).
     :param algorithm: The algorithm class as ``"module:Class"``.
-    :param description: One line for reports.
+    :param description: One line for reports. Empty: the setting's values (:func:`describe_setting`); the presets'
+        are a few words then those values (:meth:`described`), so that a changed value changes them.
     :param vec_env: ``"batched"`` or ``"mpe2"`` (see :class:`RunConfig`).
     :param n_envs: Worlds (envs) stepped together during training.
     :param scheme_model_kwargs: Keyword arguments for ``MADDPG`` of one scheme only, over ``model_kwargs``, e.g.
@@ -361,6 +470,27 @@ class ExperimentConfig:
                 f"scheme_model_kwargs names unknown scheme(s) {unknown}: its keys must be schemes, e.g. "
                 f"{{'selected': {{'selector': 1}}}} (schemes: {', '.join(SCHEMES)})."
             )
+        if not self.description:
+            object.__setattr__(self, "description", describe_setting(self))
+
+    def described(self, note: str = "") -> "ExperimentConfig":
+        """
+        :param note: A few words on what the setting is (e.g. ``"Experiment 1"``), or none.
+        :return: A copy described by its values (:func:`describe_setting`), after ``note`` and ``": "`` if given.
+        """
+        values = describe_setting(self)
+        return dataclasses.replace(self, description=f"{note}: {values}" if note else values)
+
+    @property
+    def note(self) -> str | None:
+        """The words before the values in a description that :meth:`described` wrote (``""`` for none), or ``None``
+        for a description written by hand (one that does not end with the setting's values)."""
+        values = describe_setting(self)
+        if self.description == values:
+            return ""
+        if self.description.endswith(f": {values}"):
+            return self.description[: -len(values) - 2]
+        return None
 
     def runs(self) -> list[RunConfig]:
         """:return: One run config per (scheme, seed), seeds outermost so partial sweeps stay balanced."""
@@ -383,9 +513,20 @@ class ExperimentConfig:
         """
         :param changes: Fields to change (``None`` values are ignored, so CLI options can be passed as they are;
             use :func:`dataclasses.replace` to set ``num_agent_neighbors=None``).
-        :return: A copy with the changes.
+        :return: A copy with the changes. A task other than simple_spread sets ``n_agents`` to its own team size (read
+            from one env) when the task, its ``env_kwargs`` or ``n_agents`` change. A description :meth:`described`
+            wrote says the new values, and keeps its note only if the changes leave the setting as it was
+            (:data:`NOTE_KEEPING_FIELDS`); a description written by hand is kept unless ``changes`` give another.
         """
-        return dataclasses.replace(self, **{key: value for key, value in changes.items() if value is not None})
+        changes = {key: value for key, value in changes.items() if value is not None}
+        note = self.note
+        changed = dataclasses.replace(self, **changes)
+        if changed.env != DEFAULT_ENV and changes.keys() & {"env", "env_kwargs", "n_agents"}:
+            changed = dataclasses.replace(changed, n_agents=task_team_size(changed.env, changed.env_kwargs))
+        if "description" in changes or note is None:
+            return changed
+        same_setting = all(key in NOTE_KEEPING_FIELDS or value == getattr(self, key) for key, value in changes.items())
+        return changed.described(note if same_setting else "")
 
     def to_dict(self) -> dict[str, Any]:
         """:return: The config as JSON-compatible values."""
@@ -414,23 +555,13 @@ class ExperimentConfig:
         return cls(**data)
 
 
-EXP1 = ExperimentConfig(
-    name="exp1",
-    n_agents=5,
-    num_agent_neighbors=None,
-    episodes=100_000,
-    n_checkpoints=20,
-    description="Experiment 1: N=5, full observability, 100,000 episodes, 20 checkpoints over the last 20%",
+EXP1 = ExperimentConfig(name="exp1", n_agents=5, num_agent_neighbors=None, episodes=100_000, n_checkpoints=20).described(
+    "Experiment 1"
 )
 """The paper's experiment 1 (fully observable cooperative navigation)."""
 
-EXP2 = ExperimentConfig(
-    name="exp2",
-    n_agents=5,
-    num_agent_neighbors=2,
-    episodes=150_000,
-    n_checkpoints=30,
-    description="Experiment 2: N=5, two nearest agents observed, 150,000 episodes, 30 checkpoints over the last 20%",
+EXP2 = ExperimentConfig(name="exp2", n_agents=5, num_agent_neighbors=2, episodes=150_000, n_checkpoints=30).described(
+    "Experiment 2"
 )
 """The paper's experiment 2 (each agent observes its two nearest other agents)."""
 
@@ -455,8 +586,7 @@ def tuned_experiment(paper: ExperimentConfig) -> ExperimentConfig:
         num_agent_neighbors=num_agent_neighbors,
         env_kwargs={**paper.env_kwargs, **env_kwargs},
         model_kwargs=merge_model_kwargs(paper.model_kwargs, tuned.model_kwargs),
-        description=tuned.description,
-    )
+    ).described(tuned.description)
 
 
 EXP1_TUNED = tuned_experiment(EXP1)
@@ -478,15 +608,11 @@ N3_FULL = ExperimentConfig(
     n_checkpoints=20,
     keep_checkpoints=False,
     scheme_model_kwargs=SELECT_NEAREST_AT_N3,
-    description="N=3, full observability, 20,000 episodes (500k steps), 10 seeds, selected with k=1",
-)
+).described("Experiment 1's setting with 3 agents, 10 seeds, selected with k=1")
 """Experiment 1's setting with 3 agents, at a budget where the package learns on a small machine."""
 
-N3_PARTIAL = dataclasses.replace(
-    N3_FULL,
-    name="n3_partial",
-    num_agent_neighbors=1,
-    description="N=3, the nearest other agent observed, 20,000 episodes (500k steps), 10 seeds, selected with k=1",
+N3_PARTIAL = dataclasses.replace(N3_FULL, name="n3_partial", num_agent_neighbors=1).described(
+    "Experiment 2's setting with 3 agents, 10 seeds, selected with k=1"
 )
 """Experiment 2's setting with 3 agents: each agent observes its nearest other agent (of two)."""
 
@@ -513,8 +639,7 @@ SMOKE = ExperimentConfig(
     keep_checkpoints=False,
     model_kwargs=TINY_MODEL_KWARGS,
     scheme_model_kwargs=SELECT_NEAREST_AT_N3,  # k=2 of 3 would select everyone, as "full" does
-    description="Smoke test: N=3, 2 seeds, 40 episodes, tiny networks (tests the pipeline, not the methods)",
-)
+).described("Smoke test, 2 seeds, tiny networks (tests the pipeline, not the methods)")
 """A pipeline check that runs every scheme in seconds (for CI)."""
 
 EXPERIMENTS: dict[str, ExperimentConfig] = {
@@ -527,11 +652,41 @@ def load_experiment(name_or_path: str) -> ExperimentConfig:
     """
     :param name_or_path: A preset name (``exp1``, ``exp2``, ``exp1_tuned``, ``exp2_tuned``, ``n3_full``, ``n3_partial``,
         ``smoke``) or the path of a JSON file written from :meth:`ExperimentConfig.to_dict`.
-    :return: The experiment config.
+    :return: The experiment config; a ``ValueError`` that names the cause and what to give instead if there is none.
     """
     if name_or_path in EXPERIMENTS:
         return EXPERIMENTS[name_or_path]
-    if name_or_path.endswith(".json"):
+    if not name_or_path.endswith(".json"):
+        raise ValueError(f"Unknown experiment {name_or_path!r}: use one of {sorted(EXPERIMENTS)} or a .json config file.")
+    try:
         with open(name_or_path) as file:
-            return ExperimentConfig.from_dict(json.load(file))
-    raise ValueError(f"Unknown experiment {name_or_path!r}: use one of {sorted(EXPERIMENTS)} or a .json config file.")
+            data = json.load(file)
+    except FileNotFoundError:
+        raise ValueError(
+            f"No experiment file {name_or_path!r}: give the path of an existing .json config file, or a preset "
+            f"({', '.join(EXPERIMENTS)})."
+        ) from None
+    except OSError as error:
+        raise ValueError(
+            f"Cannot read experiment file {name_or_path!r} ({error.strerror}): give a readable .json file."
+        ) from None
+    except json.JSONDecodeError as error:
+        raise ValueError(
+            f"Experiment file {name_or_path!r} is not JSON ({error}): write it as ExperimentConfig.to_dict() gives it "
+            "(e.g. sb3-maddpg tune --preset-out writes one)."
+        ) from None
+    return _experiment_from_file(name_or_path, data)
+
+
+def _experiment_from_file(path: str, data: Any) -> ExperimentConfig:
+    """:func:`load_experiment`'s config from a file's JSON, with the file named in any error."""
+    fields = [field.name for field in dataclasses.fields(ExperimentConfig)]
+    if not isinstance(data, dict) or "name" not in data:
+        raise ValueError(f'Experiment file {path!r} holds no experiment: give a JSON object with a "name" and {fields[1:]}.')
+    unknown = sorted(set(data) - set(fields))
+    if unknown:
+        raise ValueError(f"Experiment file {path!r} has unknown key(s) {unknown}: an experiment's keys are {fields}.")
+    try:
+        return ExperimentConfig.from_dict(data)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"Experiment file {path!r}: {error}") from None

@@ -3,8 +3,9 @@ training reported to a pruner, and a study in SQLite that resumes and that sever
 
 Each trial trains one run of an experiment's setting (its task, N, observability; the first scheme) for
 ``budget`` env steps with sampled ``model_kwargs`` over the experiment's own, evaluates the team
-``n_evaluations`` times on the same seeded episodes, reports each evaluation's objective to the pruner, and
-scores the mean objective over the last ``last_evaluations`` evaluations. Stale trials of a killed worker are
+``n_evaluations`` times on the same seeded episodes, reports each evaluation's objective (one of the task's
+metrics, :func:`task_objectives`) to the pruner, and scores the mean objective over the last ``last_evaluations``
+evaluations. Stale trials of a killed worker are
 retried (Optuna's heartbeat), and the study stops at ``n_trials`` finished trials, however many workers share it.
 """
 
@@ -22,9 +23,10 @@ import numpy as np
 
 from sb3_maddpg.evaluation import TeamEvalCallback
 from sb3_maddpg.experiments.backends import worker_pool
+from sb3_maddpg.experiments.config import DEFAULT_ENV, ExperimentConfig, RunConfig, load_algorithm, merge_model_kwargs
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
-from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig, load_algorithm, merge_model_kwargs
 from sb3_maddpg.experiments.runner import make_eval_env, make_train_env
+from sb3_maddpg.experiments.tasks import task_metrics
 from sb3_maddpg.install_hint import extra_install_command
 from sb3_maddpg.torch_threads import use_torch_threads
 
@@ -73,10 +75,50 @@ def sample_maddpg_params(trial: Any) -> dict[str, Any]:
     return {**values, "policy_kwargs": {"net_arch": {"pi": [width, width], "qf": [width, width, width]}}}
 
 
+def task_objectives(experiment: ExperimentConfig) -> dict[str, str]:
+    """
+    What a study can optimise on the experiment's task, and in which direction.
+
+    :param experiment: The setting.
+    :return: ``"minimize"`` or ``"maximize"`` by objective, the default first: on simple_spread :data:`OBJECTIVES`
+        (the min-dist sum first); on another MPE task its metrics (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`) in their
+        direction, e.g. ``goal_distance`` (minimised) or ``simple_tag``'s ``collisions`` (the catches, maximised),
+        then, for a cooperative task (every metric the whole team's), ``return_mean``; on any other task
+        ``return_mean``. A competitive task's team return would add opponents' rewards: it is not offered.
+        ``group_return`` (maximised) follows when the experiment scores a group (``score_agents``), e.g. the
+        adversaries of ``simple_tag``.
+    """
+    if experiment.env == DEFAULT_ENV:
+        objectives = dict(OBJECTIVES)
+    else:
+        from sb3_maddpg.envs import MPE_TASK_METRICS
+
+        metrics = MPE_TASK_METRICS.get(experiment.env, ())
+        objectives = {metric.key: "minimize" if metric.better == "lower" else "maximize" for metric in metrics}
+        if all(metric.team == "team" for metric in metrics):
+            objectives["return_mean"] = "maximize"
+    if experiment.score_agents:
+        objectives["group_return"] = "maximize"
+    return objectives
+
+
+TUNE_FLAGS = {
+    "n_trials": "--trials",
+    "budget": "--steps",
+    "n_evaluations": "--evaluations",
+    "eval_episodes": "--eval-episodes",
+    "last_evaluations": "--last-evaluations",
+    "warmup_evaluations": "--warmup-evaluations",
+    "heartbeat_seconds": "--heartbeat",
+    "objective": "--objective",
+}
+"""``sb3-maddpg tune``'s option for each field of :class:`TuneSettings` it sets, for the errors to name."""
+
+
 def default_study_name(setting: str, objective: str, fixed: dict[str, Any]) -> str:
     """
     :param setting: The setting's name.
-    :param objective: A key of :data:`OBJECTIVES`.
+    :param objective: A key of :func:`task_objectives`.
     :param fixed: The study's fixed parameters (``--fix``).
     :return: ``<setting>_<objective>``, then each fixed parameter as ``_<name>=<value>`` in the order of their names
         (so that the same fixes in another order resume the same study).
@@ -118,7 +160,8 @@ class TuneSettings:
     :param n_evaluations: Evaluations per trial (evenly spaced; each reported to the pruner).
     :param eval_episodes: Episodes per evaluation.
     :param last_evaluations: The trial's value is its objective's mean over this many last evaluations.
-    :param objective: A key of :data:`OBJECTIVES`.
+    :param objective: A key of :func:`task_objectives` for the experiment; ``None``: its first (the min-dist sum on
+        simple_spread).
     :param seed: Seed of the sampler and of every trial's run.
     :param heartbeat_seconds: See :data:`HEARTBEAT_SECONDS`.
     :param warmup_evaluations: The default pruner never stops a trial at its first ``warmup_evaluations`` evaluations
@@ -139,7 +182,7 @@ class TuneSettings:
     eval_episodes: int = 100
     last_evaluations: int = 3
     warmup_evaluations: int = 1
-    objective: str = "min_dist_sum"
+    objective: str | None = None
     seed: int = 0
     heartbeat_seconds: int = HEARTBEAT_SECONDS
     pruner: Any = None
@@ -147,23 +190,36 @@ class TuneSettings:
 
     def __post_init__(self) -> None:
         check_fixed_params(self.fixed_params)
-        if self.objective not in OBJECTIVES:
-            raise ValueError(f"objective must be one of {sorted(OBJECTIVES)}, got {self.objective!r}.")
-        if self.experiment.env != "simple_spread":
+        objectives = task_objectives(self.experiment)
+        if self.objective is None:
+            object.__setattr__(self, "objective", next(iter(objectives)))
+        elif self.objective not in objectives:
+            choices = ", ".join(f"{name} ({direction})" for name, direction in objectives.items())
+            group = "" if self.experiment.score_agents else " (group_return needs --score-agents)"
             raise ValueError(
-                f"sb3-maddpg tune scores simple_spread's min-dist sum, but the experiment's task is "
-                f"{self.experiment.env!r}: tune on a simple_spread setting (e.g. --config exp1)."
+                f"--objective {self.objective!r} is not one of {self.experiment.env}'s objectives: give one of "
+                f"{choices}{group}."
             )
         for name in ("n_trials", "budget", "n_evaluations", "eval_episodes", "last_evaluations", "heartbeat_seconds"):
             if getattr(self, name) < 1:
-                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}.")
+                raise ValueError(f"{TUNE_FLAGS[name]} must be at least 1, got {getattr(self, name)} (TuneSettings.{name}).")
         if self.warmup_evaluations < 0:
             raise ValueError(
-                f"warmup_evaluations must be at least 0, got {self.warmup_evaluations}: 0 lets the pruner stop a trial at "
-                "any evaluation, 1 (the default) spares its first."
+                f"--warmup-evaluations must be at least 0, got {self.warmup_evaluations} (TuneSettings.warmup_evaluations):"
+                " 0 lets the pruner stop a trial at any evaluation, 1 (the default) spares its first."
             )
         if self.last_evaluations > self.n_evaluations:
-            raise ValueError(f"last_evaluations ({self.last_evaluations}) cannot exceed n_evaluations ({self.n_evaluations}).")
+            raise ValueError(
+                f"--last-evaluations ({self.last_evaluations}) cannot exceed --evaluations ({self.n_evaluations}): a trial "
+                "scores its mean over its last evaluations, so lower --last-evaluations or raise --evaluations "
+                "(TuneSettings.last_evaluations and n_evaluations)."
+            )
+
+    @property
+    def direction(self) -> str:
+        """``"minimize"`` or ``"maximize"``: the objective's direction on the experiment's task."""
+        assert self.objective is not None  # set in __post_init__
+        return task_objectives(self.experiment)[self.objective]
 
     @property
     def evaluation_step(self) -> int:
@@ -201,12 +257,13 @@ class TuneSettings:
 def objective_value(row: dict[str, float], objective: str, references: dict[str, dict[str, float]] | None) -> float:
     """
     :param row: One evaluation (:class:`~sb3_maddpg.evaluation.TeamEvalCallback`'s history row).
-    :param objective: A key of :data:`OBJECTIVES`.
+    :param objective: A key of :func:`task_objectives`.
     :param references: The task's references, for ``"normalised"``.
-    :return: The evaluation's objective.
+    :return: The evaluation's objective: its value in the row, or for ``"normalised"`` the mean of the min-dist sum's
+        and the team return's normalised scores.
     """
-    if objective == "min_dist_sum":
-        return float(row["min_dist_sum"])
+    if objective != "normalised":
+        return float(row[objective])
     from sb3_maddpg.normalised_score import normalised_scores
 
     assert references is not None
@@ -220,7 +277,7 @@ class TrialEvalCallback(TeamEvalCallback):
     stops training when the pruner says so.
 
     :param trial: The trial.
-    :param objective: A key of :data:`OBJECTIVES`.
+    :param objective: A key of :func:`task_objectives`.
     :param references: The task's references, for ``"normalised"``.
     :param log: Called with a line after each evaluation (the trial's progress), or ``None``.
     :param budget: The trial's env steps, for those lines.
@@ -252,6 +309,12 @@ class TrialEvalCallback(TeamEvalCallback):
         if len(self.history) == evaluated:
             return True
         value = objective_value(self.history[-1], self.objective, self.references)
+        if not math.isfinite(value):  # Optuna fails such a trial and starts another, which would fare no better
+            raise ValueError(
+                f"trial {self.trial.number}'s {self.objective} is {value} at step {self.num_timesteps}: the task's "
+                "evaluations do not score it; choose another --objective of the task "
+                "(sb3_maddpg.experiments.tune.task_objectives)."
+            )
         self.values.append(value)
         self.trial.report(value, step=self.num_timesteps)
         self.pruned = self.trial.should_prune()
@@ -274,6 +337,7 @@ def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | N
     :return: The objective's mean over the last evaluations; ``optuna.TrialPruned`` is raised when pruned.
     """
     optuna = import_optuna()
+    assert settings.objective is not None  # set by TuneSettings
     model_kwargs = sample_maddpg_params(trial)
     config = settings.run_config(model_kwargs)
     trial.set_user_attr("model_kwargs", json.loads(json.dumps(model_kwargs)))
@@ -295,6 +359,8 @@ def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | N
         eval_freq=settings.evaluation_step // env.num_envs,
         n_eval_episodes=settings.eval_episodes,
         seed=config.eval_seed,
+        task_metrics=task_metrics(config),
+        score_agents=config.score_agents,
     )
     model.learn(settings.budget, callback=callback)
     env.close()
@@ -393,7 +459,7 @@ def load_study(settings: TuneSettings, worker: int = 0) -> Any:
     study = optuna.create_study(
         study_name=settings.study_name,
         storage=storage,
-        direction=OBJECTIVES[settings.objective],
+        direction=settings.direction,
         sampler=make_sampler(settings.seed),
         pruner=settings.pruner or settings.default_pruner(),
         load_if_exists=True,
@@ -499,19 +565,19 @@ def best_preset(study: Any, settings: TuneSettings) -> dict[str, Any]:
     """
     best = study.best_trial
     model_kwargs = merge_model_kwargs(settings.experiment.model_kwargs, best.user_attrs["model_kwargs"])
-    description = (
+    note = (
         f"{settings.experiment.name} with the best of {finished_trials(study)} trials of study "
         f"{settings.study_name!r} ({settings.objective} {best.value:.4f} over the last {settings.last_evaluations} of "
         f"{settings.n_evaluations} evaluations, {settings.budget:,} steps)"
     )
-    tuned = settings.experiment.replace(name=f"{settings.study_name}_best", model_kwargs=model_kwargs)
-    return {**tuned.to_dict(), "description": description}
+    tuned = dataclasses.replace(settings.experiment, name=f"{settings.study_name}_best", model_kwargs=model_kwargs)
+    return tuned.described(note).to_dict()
 
 
 def describe_best(study: Any, settings: TuneSettings) -> Sequence[str]:
     """:return: Lines saying the best trial's value, its parameters, and the preset."""
     best = study.best_trial
-    direction = "lower" if OBJECTIVES[settings.objective] == "minimize" else "higher"
+    direction = "lower" if settings.direction == "minimize" else "higher"
     return [
         f"best trial {best.number}: {settings.objective} {best.value:.4f} ({direction} is better) of "
         f"{finished_trials(study)} finished trials",
