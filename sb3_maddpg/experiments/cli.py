@@ -12,6 +12,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
+from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
+from sb3_maddpg.evaluation import side_return_key
 from sb3_maddpg.experiments.config import (
     DEFAULT_ENV,
     DEFAULT_N_ENVS,
@@ -116,6 +118,12 @@ def _neighbors(text: str) -> int | str:
     if value < 0:
         raise argparse.ArgumentTypeError(f"{text!r} is neither a number of agents (0 or more) nor 'all'")
     return value
+
+
+def report_metric_choices() -> list[str]:
+    """:return: What ``report --metric`` takes: every score's key, and each competitive MPE task's sides' returns."""
+    sides = {side_return_key(side) for task_sides in MPE_TASK_SIDES.values() for side in task_sides}
+    return sorted({*METRICS, *sides})
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -350,8 +358,9 @@ def _add_report_parser(commands: Any) -> None:
     report.add_argument(
         "--metric",
         action="append",
-        choices=sorted(METRICS),
-        help="score(s) to tabulate and plot, repeat for several (default: success_rate and min_dist_sum; other tasks: return)",
+        choices=report_metric_choices(),
+        help="score(s) to tabulate and plot, repeat for several, e.g. min_dist_sum or a competitive task's "
+        "return_adversaries (default: the task's main metrics: simple_spread's success_rate and min_dist_sum)",
     )
     report.add_argument("--no-plots", action="store_true", help="tables only")
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from sb3_maddpg.compat import renamed_in_0_3
+from sb3_maddpg.experiments.task_envs import task_env_factory
 from sb3_maddpg.hyperparams import load_hyperparams
 
 if TYPE_CHECKING:
@@ -203,11 +204,9 @@ def task_team_size(env: str, env_kwargs: dict[str, Any] | None = None) -> int:
     :param env_kwargs: Its constructor's keyword arguments.
     :return: Its team size, read from one env of the task (its ``agent_layout``).
     """
-    from sb3_maddpg.experiments.tasks import env_factory  # tasks imports this module: imported when used
-
     probe = RunConfig(experiment="team", scheme="full", seed=0, env=env, env_kwargs=dict(env_kwargs or {}))
     try:
-        task = env_factory(probe)()
+        task = task_env_factory(probe.env, probe.env_kwargs, probe.episode_length)()
     except TypeError as error:  # an argument the task does not take (make_mpe_env names it and the task's own)
         raise ValueError(f"env_kwargs {env_kwargs} do not fit {env!r}: {error}") from None
     try:

@@ -1,7 +1,6 @@
 """The task a run trains on: simple_spread (batched or on mpe2), another MPE task, a PettingZoo factory or a gymnasium
 id, as a VecEnv, with the task metrics it is scored by."""
 
-import importlib
 from collections.abc import Callable
 
 import gymnasium as gym
@@ -10,34 +9,15 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 from sb3_maddpg.evaluation import SIDE_RETURN_PREFIX, DeclaredMetric, side_return_label
 from sb3_maddpg.experiments.config import DEFAULT_ENV, RunConfig
 from sb3_maddpg.experiments.stats import METRICS, Metric
+from sb3_maddpg.experiments.task_envs import task_env_factory
 
 
 def env_factory(config: RunConfig) -> Callable[[], gym.Env]:
     """
     :param config: A run on a task other than simple_spread.
-    :return: A function that builds one env of the task.
+    :return: A function that builds one env of the task (:func:`~sb3_maddpg.experiments.task_envs.task_env_factory`).
     """
-    from sb3_maddpg.envs import MPE_TASKS, PettingZooToGym, make_mpe_env
-
-    name, kwargs = config.env, dict(config.env_kwargs)
-    if name in MPE_TASKS:
-        return lambda: make_mpe_env(name, max_cycles=config.episode_length, **kwargs)
-    if ":" in name:
-        module_name, _, function_name = name.partition(":")
-        try:
-            factory = getattr(importlib.import_module(module_name), function_name)
-        except (ImportError, AttributeError) as error:
-            raise ValueError(
-                f"env={name!r} names no importable function ({error}): give 'module:function' of a PettingZoo parallel "
-                "env factory, e.g. 'mpe2.simple_push_v3:parallel_env'."
-            ) from None
-        return lambda: PettingZooToGym(factory(**kwargs))
-    if name in gym.registry:
-        return lambda: gym.make(name, **kwargs)
-    raise ValueError(
-        f"Unknown env {name!r}: use 'simple_spread', an MPE task ({', '.join(MPE_TASKS)}), a PettingZoo factory as "
-        "'module:function', or a registered gymnasium id (import the package that registers it)."
-    )
+    return task_env_factory(config.env, config.env_kwargs, config.episode_length)
 
 
 def make_task_vec_env(config: RunConfig, n_envs: int) -> VecEnv:

@@ -1,0 +1,39 @@
+"""One env of any task the experiments run, by name: an MPE task, a PettingZoo factory or a gymnasium id (no config
+needed, so that the config module can read a task's team without importing the modules that import it)."""
+
+import importlib
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import gymnasium as gym
+
+
+def task_env_factory(name: str, env_kwargs: Mapping[str, Any], episode_length: int) -> Callable[[], gym.Env]:
+    """
+    :param name: A task other than simple_spread: an MPE task's name, ``'module:function'`` of a PettingZoo parallel env
+        factory, or a registered gymnasium id.
+    :param env_kwargs: The task constructor's keyword arguments.
+    :param episode_length: Steps per episode (an MPE task's ``max_cycles``).
+    :return: A function that builds one env of the task.
+    """
+    from sb3_maddpg.envs import MPE_TASKS, PettingZooToGym, make_mpe_env
+
+    kwargs = dict(env_kwargs)
+    if name in MPE_TASKS:
+        return lambda: make_mpe_env(name, max_cycles=episode_length, **kwargs)
+    if ":" in name:
+        module_name, _, function_name = name.partition(":")
+        try:
+            factory = getattr(importlib.import_module(module_name), function_name)
+        except (ImportError, AttributeError) as error:
+            raise ValueError(
+                f"env={name!r} names no importable function ({error}): give 'module:function' of a PettingZoo parallel "
+                "env factory, e.g. 'mpe2.simple_push_v3:parallel_env'."
+            ) from None
+        return lambda: PettingZooToGym(factory(**kwargs))
+    if name in gym.registry:
+        return lambda: gym.make(name, **kwargs)
+    raise ValueError(
+        f"Unknown env {name!r}: use 'simple_spread', an MPE task ({', '.join(MPE_TASKS)}), a PettingZoo factory as "
+        "'module:function', or a registered gymnasium id (import the package that registers it)."
+    )
