@@ -545,3 +545,14 @@ def test_a_group_on_cuda_updates_as_on_the_cpu_and_learns() -> None:
     assert on_cuda.n_updates == 3 and on_cuda.buffers.observations.is_cuda
     model = on_cuda.write_back(0, copy.deepcopy(models[0]))
     assert model.num_timesteps == 300
+
+
+def test_each_agents_episode_returns_add_up_to_the_teams() -> None:
+    """The group's per-agent returns (``rollout/<agent_id>/ep_rew_mean`` in its runs' logs): per round and run, the
+    agents' mean returns add up to the team's, and a saved state holds them."""
+    group = RunGroup(three_runs(learning_starts=10_000)).learn(300)
+    agents, team = th.stack(group.worlds.agent_episodes), th.stack(group.worlds.episodes)[:, 0]  # type: ignore[union-attr]
+    assert agents.shape == (len(team), 3, N_AGENTS)
+    th.testing.assert_close(agents.sum(dim=-1), team, rtol=1e-5, atol=1e-4)
+    state = group.state_dict()["worlds"]
+    assert th.equal(state["agent_episodes"], agents)

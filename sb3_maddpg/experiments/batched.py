@@ -552,6 +552,7 @@ class GroupRecorder:
         """One ``progress.csv`` row per run, as SB3's ``_dump_logs`` writes them."""
         last = max(1, -(-100 // self.worlds))  # SB3's ep_info_buffer: the last 100 episodes
         rewards = th.stack(group.worlds.episodes[-last:])[:, 0].mean(0).tolist()
+        agent_returns = th.stack(group.worlds.agent_episodes[-last:]).mean(0).tolist()  # [R][N]
         self.progress.team_return = sum(rewards) / len(rewards)
         elapsed = max(self.train_time, 1e-9)
         lr = group.actor_optimizer.param_groups[0]["lr"]
@@ -563,6 +564,8 @@ class GroupRecorder:
             logger.record("time/total_timesteps", group.num_timesteps, exclude="tensorboard")
             logger.record("rollout/ep_rew_mean", rewards[run])
             logger.record("rollout/ep_len_mean", float(self.configs[run].episode_length))
+            for agent, mean in zip(model.agent_layout.agent_ids, agent_returns[run]):
+                logger.record(f"rollout/{agent}/ep_rew_mean", mean)  # as a run alone logs them (train_logs)
             if group.losses:
                 record_losses(
                     logger, model.agent_layout.agent_ids, group.n_updates, {k: v[run] for k, v in group.losses.items()}

@@ -299,7 +299,9 @@ class RunGroup:
                 "steps": worlds.steps,
                 "observations": worlds.observations,
                 "returns": worlds._returns,
+                "agent_returns": worlds._agent_returns,
                 "episodes": th.stack(worlds.episodes) if worlds.episodes else None,
+                "agent_episodes": th.stack(worlds.agent_episodes) if worlds.agent_episodes else None,
             },
             "losses": dict(self.losses),
         }
@@ -341,8 +343,10 @@ class RunGroup:
             worlds.steps = int(saved_worlds["steps"])
             worlds.observations = saved_worlds["observations"].to(device)
             worlds._returns = saved_worlds["returns"].to(device)
-            episodes = saved_worlds["episodes"]
-            worlds.episodes = [] if episodes is None else list(episodes.to(device).unbind(0))
+            worlds._agent_returns = saved_worlds["agent_returns"].to(device)
+            for name in ("episodes", "agent_episodes"):
+                rounds = saved_worlds[name]
+                setattr(worlds, name, [] if rounds is None else list(rounds.to(device).unbind(0)))
         self.losses = {name: value.to(device) for name, value in state["losses"].items()}
 
     # ----- back to the models -----

@@ -108,6 +108,10 @@ class SpreadRuns:
         """Per finished round of episodes, each run's mean over its worlds of the episode's team reward (the sum over
         agents, as SB3's ``ep_rew_mean`` of the numpy env) and of each metric of :data:`METRICS` at the last step,
         ``[1 + len(METRICS), R]``; kept on the device until read."""
+        self._agent_returns = th.zeros(self.n_runs, worlds_per_run, task.n_agents, device=device)
+        self.agent_episodes: list[th.Tensor] = []
+        """Per finished round of episodes, each run's mean over its worlds of each agent's episode return, ``[R, N]``
+        (as the per-agent ``rollout/<agent_id>/ep_rew_mean`` of a run alone)."""
 
     @property
     def obs_size(self) -> int:
@@ -138,13 +142,16 @@ class SpreadRuns:
         rewards = self.worlds.rewards(distances).to(th.float32).reshape(self.n_runs, self.worlds_per_run, n_agents)
         next_observations = self._joint(self.worlds.observations(distances))
         self._returns += rewards.sum(dim=-1)
+        self._agent_returns += rewards
         self.steps += 1
         truncated = self.steps >= self.task.max_cycles
         if truncated:
             metrics = self.worlds.metrics(distances, self.task.capture_radius)
             per_run = [metrics[name].reshape(self.n_runs, self.worlds_per_run).to(th.float32) for name in METRICS]
             self.episodes.append(th.stack([self._returns, *per_run]).mean(dim=-1))
+            self.agent_episodes.append(self._agent_returns.mean(dim=1))
             self._returns.zero_()
+            self._agent_returns.zero_()
             self.observations = self.reset()
         else:
             self.observations = next_observations
