@@ -474,12 +474,12 @@ def test_multi_discrete_actions_are_refused() -> None:
     assert "'a0'" in str(error.value) and "Discrete or continuous actions" in str(error.value)
 
 
-def test_dict_observations_are_refused() -> None:
-    obs_space = spaces.Dict({"position": spaces.Box(-1, 1, (2,), np.float32)})
-    with pytest.raises(TypeError, match=r"Dict observation space") as error:
-        PettingZooToGym(FakeParallelEnv(obs_space=obs_space))
-    assert "'a0'" in str(error.value)
-    assert "flatten" in str(error.value)
+def test_dict_observations_are_flattened() -> None:
+    """A Dict observation space is taken (flattened as gymnasium flattens it; tests/test_structured_observations.py
+    checks the values on mpe2), not refused."""
+    obs_space = spaces.Dict({"position": spaces.Box(-1, 1, (2,), np.float32), "id": spaces.Discrete(3)})
+    env = PettingZooToGym(FakeParallelEnv(obs_space=obs_space))
+    assert env.agent_layout.obs_sizes == (5, 5, 5)
 
 
 def test_fake_env_works_when_well_behaved() -> None:

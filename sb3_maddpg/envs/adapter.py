@@ -35,9 +35,12 @@ class PettingZooToGym(gym.Env):
     - Metrics: an optional ``metrics_fn(parallel_env) -> dict`` adds task metrics to ``info``
       after every reset and step (see :class:`~sb3_maddpg.envs.SimpleSpreadMetrics`).
 
-    Agents may differ in observation and action sizes (heterogeneous teams). Observation spaces must be ``Box``
-    spaces, action spaces ``Box`` or ``Discrete``; agents must not leave mid-episode (wrap such an env with
-    ``supersuit.black_death_v3``).
+    Agents may differ in observation and action sizes (heterogeneous teams). Observation spaces are ``Box`` spaces, or
+    ``Dict`` / ``Tuple`` ones, which are flattened as ``gymnasium.spaces.flatten`` flattens them (a ``Dict``'s parts in
+    its keys' order, which gymnasium sorts unless the space was built from an ``OrderedDict``; a ``Tuple``'s in order;
+    a ``Discrete`` part one-hot), so that an agent's slice of the joint observation is ``flatten(space, obs)`` and
+    nothing needs unflattening; action spaces are ``Box`` or ``Discrete``; agents must not leave mid-episode (wrap such
+    an env with ``supersuit.black_death_v3``).
 
     :param parallel_env: The PettingZoo ``ParallelEnv`` to wrap (an AEC env is refused: use the task's
         ``parallel_env(...)`` or ``pettingzoo.utils.conversions.aec_to_parallel``).
@@ -59,7 +62,17 @@ class PettingZooToGym(gym.Env):
         self.metrics_fn = metrics_fn
         self.team_reward = team_reward
         agent_ids = tuple(parallel_env.possible_agents)
-        obs_spaces = [_check_box(parallel_env.observation_space(agent), agent, "observation") for agent in agent_ids]
+        self._structured_obs = {  # Dict / Tuple observation spaces, flattened as gymnasium flattens them
+            agent: space
+            for agent in agent_ids
+            if isinstance(space := parallel_env.observation_space(agent), spaces.Dict | spaces.Tuple)
+        }
+        obs_spaces = [
+            _flattened_box(self._structured_obs[agent], agent)
+            if agent in self._structured_obs
+            else _check_box(parallel_env.observation_space(agent), agent, "observation")
+            for agent in agent_ids
+        ]
         action_spaces = [_action_slot(parallel_env.action_space(agent), agent) for agent in agent_ids]
         self._discrete = tuple(isinstance(parallel_env.action_space(agent), spaces.Discrete) for agent in agent_ids)
         self.agent_layout = AgentLayout(
@@ -73,7 +86,9 @@ class PettingZooToGym(gym.Env):
         self._agent_action_dtypes = tuple(space.dtype for space in action_spaces)
         self._agent_action_shapes = tuple(space.shape for space in action_spaces)
         # Fast path for the common case: flat float32 agent spaces need no cast or reshape.
-        self._flat_float32_obs = all(space.dtype == np.float32 and len(space.shape) == 1 for space in obs_spaces)
+        self._flat_float32_obs = not self._structured_obs and all(
+            space.dtype == np.float32 and len(space.shape) == 1 for space in obs_spaces
+        )
         self._flat_float32_actions = not any(self._discrete) and all(
             space.dtype == np.float32 and len(space.shape) == 1 for space in action_spaces
         )
@@ -184,7 +199,13 @@ class PettingZooToGym(gym.Env):
         agent_ids = self.agent_layout.agent_ids
         if self._flat_float32_obs:
             return np.concatenate([observations[agent] for agent in agent_ids], dtype=np.float32)
-        return np.concatenate([np.asarray(observations[agent], dtype=np.float32).reshape(-1) for agent in agent_ids])
+        parts = [
+            spaces.flatten(self._structured_obs[agent], observations[agent])
+            if agent in self._structured_obs
+            else observations[agent]
+            for agent in agent_ids
+        ]
+        return np.concatenate([np.asarray(part, dtype=np.float32).reshape(-1) for part in parts])
 
 
 def _refuse_aec_env(env: Any) -> None:
@@ -210,14 +231,26 @@ def _check_box(space: spaces.Space, agent: str, kind: str) -> spaces.Box:
         return space
     if kind == "action" and isinstance(space, spaces.MultiDiscrete):
         fix = "use the env's Discrete or continuous actions (mpe2: continuous_actions=True)"
-    elif isinstance(space, spaces.Dict | spaces.Tuple):
-        fix = "flatten the observations first (e.g. supersuit.flatten_v0 or a custom wrapper)"
     else:
         fix = "convert the space to a Box with a PettingZoo or supersuit wrapper"
     raise TypeError(
         f"Agent {agent!r} has a {type(space).__name__} {kind} space; PettingZooToGym supports Box spaces (and Discrete "
         f"actions) only: {fix}."
     )
+
+
+def _flattened_box(space: spaces.Dict | spaces.Tuple, agent: str) -> spaces.Box:
+    """A Dict or Tuple observation space as the Box ``gymnasium.spaces.flatten_space`` makes of it."""
+    try:
+        box = spaces.flatten_space(space)
+    except NotImplementedError:
+        box = None
+    if not isinstance(box, spaces.Box):  # a part of variable size (Sequence, Graph) flattens to no Box
+        raise TypeError(
+            f"Agent {agent!r} has a {type(space).__name__} observation space with a part gymnasium cannot flatten to a "
+            f"fixed-size Box ({space}): give every agent parts of fixed size (Box, Discrete, MultiDiscrete, MultiBinary)."
+        )
+    return box
 
 
 def _concatenate_boxes(boxes: list[spaces.Box], dtype: type[np.floating]) -> spaces.Box:
