@@ -159,6 +159,11 @@ class AgentLayout:
             )
         parts = []
         for agent, size in zip(self.agent_ids, self.obs_sizes):
+            if isinstance(given[agent], Mapping | tuple):
+                raise ValueError(
+                    f"{agent}'s observation is a {type(given[agent]).__name__}: pass it flattened as the adapter flattens "
+                    "it for training, gymnasium.spaces.flatten(parallel_env.observation_space(agent), observation)."
+                )
             part = np.asarray(given[agent], dtype=np.float32).reshape(-1)
             if part.size != size:
                 raise ValueError(

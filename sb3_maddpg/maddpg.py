@@ -207,6 +207,8 @@ class MADDPG(TeamOffPolicyAlgorithm):
         # Update learning rate according to lr schedule
         self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
         settings, optimizers = self._step_settings(), (self.actor.optimizer, self.critic.optimizer)
+        # The networks read the settings as they are now too (e.g. MATD3's target_policy_noise set after building).
+        self._team = self._update_networks(self._team.modules, self._action_parts)
         steps = []
         for _ in range(gradient_steps):
             self._n_updates += 1

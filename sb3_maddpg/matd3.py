@@ -76,7 +76,8 @@ class MATD3(MADDPG):
     https://arxiv.org/abs/1910.01465. Each agent i has two critics, each with its own instance of agent i's sharing
     scheme's extractor; critic i's target is ``r_i + gamma * (1 - done_i) * min(Q_i1', Q_i2')`` at the target actors'
     actions plus clipped smoothing noise; the actors ascend their first critic, and the actors and every target network
-    move once every ``policy_delay`` critic updates. The update math is :mod:`sb3_maddpg.losses`', as MADDPG's.
+    move once every ``policy_delay`` critic updates. The update is MADDPG's step
+    (:func:`~sb3_maddpg.update_step.update_step`) with MATD3's networks (:class:`TwinUpdateNetworks`).
     TD3's parameters have SB3's names and defaults; every other parameter is :class:`~sb3_maddpg.MADDPG`'s, with the
     paper's defaults (Lowe et al.).
 

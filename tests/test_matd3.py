@@ -378,3 +378,13 @@ def test_the_experiments_runner_trains_matd3_with_algo(tmp_path: Path, capsys: p
     assert (run / "summary.json").exists()  # trained, checkpoints loaded by MATD3.load and evaluated
     assert main(["report", str(tmp_path), "--no-plots"]) == 0
     assert "| smoke_matd3 (MATD3, N=3" in (tmp_path / "report" / "table_min_dist_sum.md").read_text()
+
+
+def test_target_noise_set_after_building_is_used_by_train() -> None:
+    """MATD3's train() reads target_policy_noise as it is at the call, as every other setting (the networks are
+    rebuilt from the model's attributes per call)."""
+    model = MATD3("MlpPolicy", make_simple_spread(n_agents=2), learning_starts=10, batch_size=8, seed=0)
+    model.learn(20)
+    model.target_policy_noise = 0.7
+    model.train(gradient_steps=1, batch_size=8)
+    assert model._team.noise_std == 0.7  # type: ignore[attr-defined]

@@ -10,6 +10,7 @@ from mpe2 import simple_spread_v3
 
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
+from sb3_maddpg.layout import AgentLayout
 from tests.mixed_team import MixedTeam
 
 SMALL = {"learning_starts": 50, "policy_kwargs": {"net_arch": [16, 16]}}
@@ -121,3 +122,9 @@ def test_predict_takes_the_teams_joint_observations_in_any_float_dtype() -> None
     np.testing.assert_array_equal(model.predict(observations)[0], batch)
     single, _ = model.predict(observations[0].astype(np.float32))
     np.testing.assert_array_equal(model.predict(observations[0])[0], single)
+
+
+def test_structured_observations_are_refused_with_the_flattening_to_do() -> None:
+    layout = AgentLayout(("a", "b"), (3, 3), (2, 2))
+    with pytest.raises(ValueError, match=r"a's observation is a dict: pass it flattened .*gymnasium.spaces.flatten"):
+        layout.joint_observation({"a": {"x": np.zeros(3)}, "b": np.zeros(3)})

@@ -125,11 +125,7 @@ def settings(model: MADDPG) -> dict[str, Any]:
         "n_envs": model.n_envs,
         "algorithm": type(model).__name__,
         # MATD3's own (none for MADDPG)
-        **{
-            name: getattr(model, name)
-            for name in ("policy_delay", "target_policy_noise", "target_noise_clip")
-            if hasattr(model, name)
-        },
+        **{name: getattr(model, name) for name in MATD3_SETTINGS if hasattr(model, name)},
         "policy_class": type(policy).__name__,
         # The policy's whole configuration (net_arch, activation_fn, share_parameters, layer_norm, ...) but what is
         # compared above, the schedule (a function object; learning_rate is compared) and the spaces (the layout).

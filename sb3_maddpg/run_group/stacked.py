@@ -157,8 +157,9 @@ def clip_grad_norm_per_run_and_agent(params: Sequence[th.Tensor], max_norm: floa
     """
     Clip each run's and agent's gradient norm separately, as ``clip_grad_norm_per_agent`` does within one run: the
     gradients of an :class:`~sb3_maddpg.networks.AgentEnsembleMLP`, stacked, are ``[R, n_members, ...]``, and slice
-    ``[r, i]`` is agent i's network in run r (one slice for all agents with shared parameters). A fixed number of
-    operations whatever ``R`` and the number of parameters: one concatenation for the norms, one multi-tensor scale.
+    ``[r, i]`` is agent i's network in run r (one slice for all agents with shared parameters). The launches do not
+    grow with ``R``: one concatenation for the norms, then one scale per parameter (a multi-tensor call, which on
+    CUDA takes its per-tensor path: the factors broadcast over each gradient).
 
     :param params: Stacked ensemble parameters with their ``.grad`` set, ``[R, n_members, ...]`` each.
     :param max_norm: The largest norm of each slice.
