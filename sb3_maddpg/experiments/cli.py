@@ -126,6 +126,26 @@ def report_metric_choices() -> list[str]:
     return sorted({*METRICS, *sides})
 
 
+def _add_task_arguments(group: Any, default: str) -> None:
+    """
+    ``--env``, ``--env-kwargs`` and ``--score-agents``, as ``run`` and ``tune`` take them.
+
+    :param group: The parser or argument group to add them to.
+    :param default: What ``--env`` defaults to, for its help.
+    """
+    group.add_argument(
+        "--env",
+        help="the task: simple_spread, another MPE task (e.g. simple_tag; its own team size), a PettingZoo factory "
+        f"'module:function', or a gymnasium id ({default})",
+    )
+    group.add_argument(
+        "--env-kwargs", type=_json_object('{"num_adversaries": 4}'), help="JSON of the task constructor's keyword arguments"
+    )
+    group.add_argument(
+        "--score-agents", type=_str_list, help="comma-separated agent ids whose summed return is scored (group_return)"
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """:return: The argument parser of the ``sb3-maddpg`` command."""
     parser = _OneLineErrors(
@@ -193,17 +213,7 @@ def _add_run_overrides(group: Any) -> None:
         type=_json_object('{"selected": {"selector": 1}}'),
         help='JSON of MADDPG kwargs for one scheme only, merged per scheme, e.g. \'{"selected": {"selector": 1}}\'',
     )
-    group.add_argument(
-        "--env",
-        help="the task: simple_spread (default), another MPE task (e.g. simple_tag; its own team size), a PettingZoo "
-        "factory 'module:function', or a gymnasium id",
-    )
-    group.add_argument(
-        "--env-kwargs", type=_json_object('{"num_adversaries": 4}'), help="JSON of the task constructor's keyword arguments"
-    )
-    group.add_argument(
-        "--score-agents", type=_str_list, help="comma-separated agent ids whose summed return is scored (group_return)"
-    )
+    _add_task_arguments(group, "simple_spread by default")
     group.add_argument(
         "--vec-env",
         choices=VEC_ENVS,
@@ -272,17 +282,7 @@ def _add_tune_parser(commands: Any) -> None:
     setting.add_argument(
         "--config", default="exp1", help="the setting: a preset or an experiment JSON file (default: %(default)s)"
     )
-    setting.add_argument(
-        "--env",
-        help="the task, as run --env: simple_spread, another MPE task (e.g. simple_tag), a PettingZoo factory "
-        "'module:function', or a gymnasium id (default: the setting's)",
-    )
-    setting.add_argument(
-        "--env-kwargs", type=_json_object('{"num_adversaries": 4}'), help="JSON of the task constructor's keyword arguments"
-    )
-    setting.add_argument(
-        "--score-agents", type=_str_list, help="comma-separated agent ids whose summed return is group_return"
-    )
+    _add_task_arguments(setting, "default: the setting's")
     setting.add_argument("--n-agents", type=_count(1), help="simple_spread's agents (and landmarks)")
     setting.add_argument("--neighbors", type=_neighbors, help="nearest other agents observed: an integer, or 'all'")
     setting.add_argument("--scheme", help="the critic_sharing scheme (default: the setting's first)")
