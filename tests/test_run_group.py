@@ -547,12 +547,15 @@ def test_a_group_on_cuda_updates_as_on_the_cpu_and_learns() -> None:
     assert model.num_timesteps == 300
 
 
-def test_each_agents_episode_returns_add_up_to_the_teams() -> None:
-    """The group's per-agent returns (``rollout/<agent_id>/ep_rew_mean`` in its runs' logs): per round and run, the
-    agents' mean returns add up to the team's, and a saved state holds them."""
-    group = RunGroup(three_runs(learning_starts=10_000)).learn(300)
+def test_each_agents_episode_returns_are_its_stored_rewards_summed() -> None:
+    """The group's per-agent returns (``rollout/<agent_id>/ep_rew_mean`` in its runs' logs), by hand from the rewards
+    the buffers stored: per round and run, each agent's rewards summed over the episode's 25 steps, averaged over the
+    worlds; the team return is their sum; a saved state holds them."""
+    group = RunGroup(three_runs(learning_starts=10_000)).learn(300)  # 150 steps of 2 worlds: 6 rounds, all stored
     agents, team = th.stack(group.worlds.agent_episodes), th.stack(group.worlds.episodes)[:, 0]  # type: ignore[union-attr]
-    assert agents.shape == (len(team), 3, N_AGENTS)
+    stored = group.buffers.rewards[:, : group.buffers.size].reshape(3, -1, 25, 2, N_AGENTS)  # [R, rounds, step, E, N]
+    expected = stored.sum(dim=2).mean(dim=2).transpose(0, 1)  # [rounds, R, N]
+    assert agents.shape == expected.shape == (6, 3, N_AGENTS)
+    th.testing.assert_close(agents, expected, rtol=1e-5, atol=1e-4)
     th.testing.assert_close(agents.sum(dim=-1), team, rtol=1e-5, atol=1e-4)
-    state = group.state_dict()["worlds"]
-    assert th.equal(state["agent_episodes"], agents)
+    assert th.equal(group.state_dict()["worlds"]["agent_episodes"], agents)

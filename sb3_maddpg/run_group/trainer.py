@@ -298,7 +298,6 @@ class RunGroup:
                 "state": [worlds.worlds.agent_pos, worlds.worlds.agent_vel, worlds.worlds.landmark_pos],
                 "steps": worlds.steps,
                 "observations": worlds.observations,
-                "returns": worlds._returns,
                 "agent_returns": worlds._agent_returns,
                 "episodes": th.stack(worlds.episodes) if worlds.episodes else None,
                 "agent_episodes": th.stack(worlds.agent_episodes) if worlds.agent_episodes else None,
@@ -342,7 +341,6 @@ class RunGroup:
             worlds.worlds.set_state(*saved_worlds["state"])
             worlds.steps = int(saved_worlds["steps"])
             worlds.observations = saved_worlds["observations"].to(device)
-            worlds._returns = saved_worlds["returns"].to(device)
             worlds._agent_returns = saved_worlds["agent_returns"].to(device)
             for name in ("episodes", "agent_episodes"):
                 rounds = saved_worlds[name]

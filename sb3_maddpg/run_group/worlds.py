@@ -103,7 +103,6 @@ class SpreadRuns:
         """Steps of the current episodes."""
         self.observations = self.reset()
         """The current observations, ``[R, E, obs_dim]``."""
-        self._returns = th.zeros(self.n_runs, worlds_per_run, device=device)
         self.episodes: list[th.Tensor] = []
         """Per finished round of episodes, each run's mean over its worlds of the episode's team reward (the sum over
         agents, as SB3's ``ep_rew_mean`` of the numpy env) and of each metric of :data:`METRICS` at the last step,
@@ -141,16 +140,15 @@ class SpreadRuns:
         distances = self.worlds.step(env_actions)
         rewards = self.worlds.rewards(distances).to(th.float32).reshape(self.n_runs, self.worlds_per_run, n_agents)
         next_observations = self._joint(self.worlds.observations(distances))
-        self._returns += rewards.sum(dim=-1)
         self._agent_returns += rewards
         self.steps += 1
         truncated = self.steps >= self.task.max_cycles
         if truncated:
             metrics = self.worlds.metrics(distances, self.task.capture_radius)
             per_run = [metrics[name].reshape(self.n_runs, self.worlds_per_run).to(th.float32) for name in METRICS]
-            self.episodes.append(th.stack([self._returns, *per_run]).mean(dim=-1))
+            # The team return is the agents' returns summed (derived, not kept beside them).
+            self.episodes.append(th.stack([self._agent_returns.sum(dim=-1), *per_run]).mean(dim=-1))
             self.agent_episodes.append(self._agent_returns.mean(dim=1))
-            self._returns.zero_()
             self._agent_returns.zero_()
             self.observations = self.reset()
         else:
