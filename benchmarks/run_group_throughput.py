@@ -19,9 +19,9 @@ import torch as th
 from stable_baselines3.common.logger import Logger
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.losses import one_member
 from sb3_maddpg.envs import SimpleSpreadVecEnv
-from sb3_maddpg.losses import one_member
 from sb3_maddpg.run_group import RunGroup
 
 

@@ -4,7 +4,7 @@ For every scheme the script builds the scheme's :class:`~sb3_maddpg.sharing.Crit
 for agent ``i`` of a five-agent team, feeds it a joint observation and a joint action whose entries are
 unique tags, and reads back from its output which agent's observation or action sits at which
 position of critic i's input. The figures therefore show what the code does, in the order it does it.
-For the selected scheme, the selection comes from :class:`~sb3_maddpg.selection.NearestAgents` (k=2)
+For the selected scheme, the selection comes from :class:`~sb3_maddpg.common.selection.NearestAgents` (k=2)
 on the positions drawn in the figure.
 
 Usage::
@@ -57,8 +57,8 @@ def probe(scheme: str) -> Seen:
     """
     import torch as th
 
-    from sb3_maddpg.layout import AgentLayout
-    from sb3_maddpg.selection import NearestAgents
+    from sb3_maddpg.common.layout import AgentLayout
+    from sb3_maddpg.common.selection import NearestAgents
     from sb3_maddpg.sharing import resolve_scheme
 
     layout = AgentLayout(

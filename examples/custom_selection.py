@@ -21,11 +21,11 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_maddpg import MADDPG, AgentLayout
+from sb3_maddpg.analysis.evaluation import evaluate_team
+from sb3_maddpg.common.progress import ctrl_c_ends_quietly
+from sb3_maddpg.common.selection import CallableSelector, FixedGraph
+from sb3_maddpg.common.torch_threads import add_threads_argument, use_torch_threads
 from sb3_maddpg.envs import make_simple_spread_vec_env
-from sb3_maddpg.evaluation import evaluate_team
-from sb3_maddpg.progress import ctrl_c_ends_quietly
-from sb3_maddpg.selection import CallableSelector, FixedGraph
-from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 K = 2
 

@@ -17,10 +17,10 @@ import torch as th
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.analysis.evaluation import evaluate_team
+from sb3_maddpg.common.progress import ctrl_c_ends_quietly
+from sb3_maddpg.common.torch_threads import add_threads_argument, use_torch_threads
 from sb3_maddpg.envs import make_simple_spread_vec_env
-from sb3_maddpg.evaluation import evaluate_team
-from sb3_maddpg.progress import ctrl_c_ends_quietly
-from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 
 def make_env(n_envs: int, n_agents: int, mpe2: bool) -> VecEnv:

@@ -23,7 +23,7 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # before pygame (imported by 
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_maddpg.install_hint import extra_install_command
+from sb3_maddpg.common.install_hint import extra_install_command
 
 try:  # the experiments extra's; the package itself does not need them
     import imageio.v3 as iio
@@ -35,10 +35,10 @@ except ModuleNotFoundError as error:
     ) from error
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.analysis.evaluation import evaluate_team
+from sb3_maddpg.common.progress import ctrl_c_ends_quietly
+from sb3_maddpg.common.torch_threads import add_threads_argument, use_torch_threads
 from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread_vec_env
-from sb3_maddpg.evaluation import evaluate_team
-from sb3_maddpg.progress import ctrl_c_ends_quietly
-from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 EPISODE_STEPS = 25
 """simple_spread's episode length (``max_cycles``)."""

@@ -24,8 +24,8 @@ import shlex
 import tempfile
 from pathlib import Path
 
+from sb3_maddpg.common.progress import ctrl_c_ends_quietly
 from sb3_maddpg.experiments.cli import main as sb3_maddpg_cli
-from sb3_maddpg.progress import ctrl_c_ends_quietly
 
 SCALES: dict[str, str] = {
     # The pipeline only: 3 agents, 40 episodes, tiny networks, one seed per scheme.

@@ -19,10 +19,10 @@ import os
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.analysis.evaluation import evaluate_team, side_return_key
+from sb3_maddpg.common.progress import ctrl_c_ends_quietly
+from sb3_maddpg.common.torch_threads import add_threads_argument, use_torch_threads
 from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASK_SIDES, MPE_TASKS, PettingZooToGym, make_mpe_env
-from sb3_maddpg.evaluation import evaluate_team, side_return_key
-from sb3_maddpg.progress import ctrl_c_ends_quietly
-from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 
 def main() -> None:

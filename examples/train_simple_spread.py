@@ -19,11 +19,11 @@ import time
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.analysis.evaluation import describe_result, evaluate_team
+from sb3_maddpg.analysis.normalised_score import describe_normalised, reference_scores
+from sb3_maddpg.common.progress import ProgressLogCallback, ctrl_c_ends_quietly
+from sb3_maddpg.common.torch_threads import add_threads_argument, use_torch_threads
 from sb3_maddpg.envs import make_simple_spread_vec_env
-from sb3_maddpg.evaluation import describe_result, evaluate_team
-from sb3_maddpg.normalised_score import describe_normalised, reference_scores
-from sb3_maddpg.progress import ProgressLogCallback, ctrl_c_ends_quietly
-from sb3_maddpg.torch_threads import add_threads_argument, use_torch_threads
 
 MEANING = (
     "Higher is better for success, coverage and return; lower for collisions and min-dist sum. Return: the team's "

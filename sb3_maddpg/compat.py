@@ -1,4 +1,10 @@
-"""Loading models saved by older versions of sb3-maddpg, in one place: what such a save implies for what it lacks.
+"""Compatibility with older versions of sb3-maddpg, in one place: the import paths that 0.3 moved, and what a model
+saved by an older version implies for what it lacks.
+
+0.3 gave the package SB3's shape (``maddpg/``, ``matd3/``, ``common/``, ``analysis/``); every module path of 0.2 keeps
+working through :data:`MOVED_IN_0_3`: importing one warns once (:class:`MovedModuleWarning`, a ``FutureWarning``) and
+hands out the same objects as the new path, so ``isinstance`` checks and pickles (saved models name their classes'
+modules) keep working.
 
 SB3's ``load`` builds the model with ``_init_setup_model=False`` and sets the saved attributes over it; an attribute
 that a version did not save would keep today's default, and so change how an old model trains. :meth:`MADDPG.load
@@ -6,17 +12,23 @@ that a version did not save would keep today's default, and so change how an old
 never over what the save holds or what the caller passes to ``load``.
 """
 
+import importlib
+import importlib.abc
+import importlib.machinery
 import io
 import pathlib
+import sys
+import types
 import warnings
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 from stable_baselines3.common.save_util import json_to_data, open_path
 
-from sb3_maddpg.update_schedule import UpdateSchedule
-from sb3_maddpg.user_code import user_stacklevel
+from sb3_maddpg.common.update_schedule import UpdateSchedule
+from sb3_maddpg.common.user_code import user_stacklevel
 
 SAVED_BEFORE_0_2: dict[str, Callable[[], Any]] = {
     "update_rule": UpdateSchedule.sb3_semantics,  # SB3's train_freq counted vectorised steps
@@ -26,7 +38,7 @@ SAVED_BEFORE_0_2: dict[str, Callable[[], Any]] = {
 
 SCHEDULE_OF_0_2_DEV = ("transitions_per_update", "_train_freq_from_ratio", "_earn_gradient_steps", "_update_credit")
 """The attributes in which models saved by 0.2.0's development versions kept the update rule (before
-:class:`~sb3_maddpg.update_schedule.UpdateSchedule`)."""
+:class:`~sb3_maddpg.common.update_schedule.UpdateSchedule`)."""
 
 
 RENAMED_IN_0_3 = {"selection": "selector"}
@@ -36,7 +48,7 @@ RENAMED_IN_0_3 = {"selection": "selector"}
 def drop_names_before_0_3(attributes: dict[str, Any]) -> None:
     """
     Remove the attributes a save of sb3-maddpg < 0.3 holds under an old name (:data:`RENAMED_IN_0_3`) from a loaded
-    model: :meth:`~sb3_maddpg.team_algorithm.TeamOffPolicyAlgorithm.load` passed their values under the new name.
+    model: :meth:`~sb3_maddpg.common.team_algorithm.TeamOffPolicyAlgorithm.load` passed their values under the new name.
 
     :param attributes: A loaded model's ``__dict__``.
     """
@@ -141,3 +153,99 @@ def read_saved_data(
         if file is not path:
             file.close()
     return data
+
+
+MOVED_IN_0_3: dict[str, tuple[str, ...]] = {
+    "sb3_maddpg.attention": ("sb3_maddpg.sharing.learned", "sb3_maddpg.analysis.inspection"),
+    "sb3_maddpg.matd3_policies": ("sb3_maddpg.matd3.policies",),
+    "sb3_maddpg.policies": ("sb3_maddpg.maddpg.policies", "sb3_maddpg.common.policies"),
+    **{
+        f"sb3_maddpg.{name}": (f"sb3_maddpg.common.{name}",)
+        for name in (
+            "buffers",
+            "env_checks",
+            "install_hint",
+            "layout",
+            "losses",
+            "networks",
+            "noise",
+            "progress",
+            "selection",
+            "team_algorithm",
+            "torch_threads",
+            "train_logs",
+            "update_schedule",
+            "update_step",
+            "user_code",
+        )
+    },
+    **{
+        f"sb3_maddpg.{name}": (f"sb3_maddpg.analysis.{name}",)
+        for name in ("behaviour", "evaluation", "export", "inspection", "normalised_score")
+    },
+}
+"""Module paths of sb3-maddpg 0.2 that 0.3 moved: old path -> the new modules that hold its names (searched in order)."""
+
+
+class MovedModuleWarning(FutureWarning):
+    """An import through a module path that sb3-maddpg 0.3 moved (:data:`MOVED_IN_0_3`)."""
+
+
+class MovedModule(types.ModuleType):
+    """
+    An old module path: its names are the new modules' own objects, looked up when asked for.
+
+    :param name: The old path.
+    :param targets: The new modules that hold its names, searched in order.
+    """
+
+    def __init__(self, name: str, targets: Sequence[str]) -> None:
+        super().__init__(name, f"Moved in sb3-maddpg 0.3 to {' and '.join(targets)}.")
+        self._targets = tuple(targets)
+
+    def __getattr__(self, attribute: str) -> Any:
+        if attribute.startswith("__"):
+            raise AttributeError(attribute)
+        for target in self._targets:
+            module = importlib.import_module(target)
+            if hasattr(module, attribute):
+                return getattr(module, attribute)
+        raise AttributeError(f"module {self.__name__!r} (moved to {' and '.join(self._targets)}) has no {attribute!r}")
+
+    def __dir__(self) -> list[str]:
+        return sorted({name for target in self._targets for name in dir(importlib.import_module(target))})
+
+
+class MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Finds the old module paths of :data:`MOVED_IN_0_3` and makes each a :class:`MovedModule`, with a warning."""
+
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> importlib.machinery.ModuleSpec | None:
+        if fullname not in MOVED_IN_0_3:
+            return None
+        return importlib.machinery.ModuleSpec(fullname, self)
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> types.ModuleType:
+        return MovedModule(spec.name, MOVED_IN_0_3[spec.name])
+
+    def exec_module(self, module: types.ModuleType) -> None:
+        new = " and ".join(MOVED_IN_0_3[module.__name__])
+        warnings.warn(
+            f"{module.__name__} moved to {new} in sb3-maddpg 0.3: import from there (the old path will be removed)",
+            MovedModuleWarning,
+            stacklevel=2,
+        )
+
+
+def install_moved_module_finder() -> None:
+    """Let the module paths of :data:`MOVED_IN_0_3` be imported (once per interpreter; called on ``import sb3_maddpg``)."""
+    if not any(isinstance(finder, MovedModuleFinder) for finder in sys.meta_path):
+        sys.meta_path.append(MovedModuleFinder())
+
+
+@contextmanager
+def moved_paths_quiet() -> Iterator[None]:
+    """Within: no :class:`MovedModuleWarning` (a saved model names its classes by the paths of the version that saved
+    it; the user did not write them)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MovedModuleWarning)
+        yield

@@ -8,7 +8,7 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
 # One torch thread (unless OMP_NUM_THREADS says otherwise), as the package's entry points use: the tests' tiny
 # networks gain nothing from more, and on a shared CPU several threads wait on each other.
-from sb3_maddpg.torch_threads import use_torch_threads  # after the SDL variables
+from sb3_maddpg.common.torch_threads import use_torch_threads  # after the SDL variables
 
 use_torch_threads()
 
@@ -19,7 +19,7 @@ import pytest  # noqa: E402
 import torch as th  # noqa: E402
 
 from sb3_maddpg import MADDPG  # noqa: E402
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples  # noqa: E402
+from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples  # noqa: E402
 from sb3_maddpg.envs import make_simple_spread  # noqa: E402
 
 BATCH = 8

@@ -1,10 +1,10 @@
-"""A model's losses on a plain replay batch (one team, no member dimension), through :mod:`sb3_maddpg.losses`."""
+"""A model's losses on a plain replay batch (one team, no member dimension), through :mod:`sb3_maddpg.common.losses`."""
 
 import torch as th
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.losses import ActorLossTerms, actor_loss_terms, critic_losses, critic_targets, one_member
+from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.losses import ActorLossTerms, actor_loss_terms, critic_losses, critic_targets, one_member
 
 
 def critic_losses_by_critic(model: MADDPG, data: MultiAgentReplayBufferSamples) -> th.Tensor:

@@ -26,8 +26,8 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.noise import OrnsteinUhlenbeckActionNoise
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.envs import make_simple_spread
-from sb3_maddpg.evaluation import evaluate_team
 
 REFERENCE = Path(__file__).parent / "data" / "same_results.json"
 TINY = dict(learning_starts=50, batch_size=16, buffer_size=1_000, policy_kwargs=dict(net_arch=[8]), seed=0)

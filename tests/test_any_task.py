@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.envs import MPE_TASK_METRICS, make_simple_spread
-from sb3_maddpg.evaluation import evaluate_team
 from sb3_maddpg.experiments import SMOKE, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.results import load_summaries

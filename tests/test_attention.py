@@ -12,10 +12,10 @@ from stable_baselines3.common.logger import configure
 from torch import nn
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.analysis.inspection import critic_listening
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.policies import MultiAgentCritic
 from sb3_maddpg.envs import SimpleSpreadVecEnv
-from sb3_maddpg.inspection import critic_listening
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.policies import MultiAgentCritic
 from sb3_maddpg.sharing import AttentionCriticFeatures, LearnedSelectionCriticFeatures, default_selection_size, resolve_scheme
 
 N_AGENTS, BATCH = 4, 32

@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from sb3_maddpg import MADDPG, MATD3
-from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.experiments import SMOKE, ExperimentConfig, make_report, run_sweep, runner
 from sb3_maddpg.experiments.batched import (
     BatchedRunRefused,

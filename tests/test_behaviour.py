@@ -5,7 +5,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sb3_maddpg.behaviour import behaviour_of, final_distances, team_behaviour
+from sb3_maddpg.analysis.behaviour import behaviour_of, final_distances, team_behaviour
 from sb3_maddpg.envs import RandomTeamPolicy, ScriptedSpreadPolicy, SimpleSpreadVecEnv, make_simple_spread_vec_env
 
 

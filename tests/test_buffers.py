@@ -9,10 +9,10 @@ import torch as th
 from gymnasium import spaces
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.buffers import MultiAgentReplayBuffer
+from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.selection import NearestAgents
 from sb3_maddpg.envs import make_simple_spread
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.selection import NearestAgents
 
 LAYOUT = AgentLayout(("a", "b", "c"), (4, 4, 4), (2, 2, 2))
 OBS_SPACE = spaces.Box(-np.inf, np.inf, (12,), np.float32)

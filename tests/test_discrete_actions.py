@@ -10,9 +10,9 @@ from mpe2 import simple_spread_v3
 from torch import nn
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.policies import AgentActor, MultiAgentActor
 from sb3_maddpg.envs import PettingZooToGym, SimpleSpreadVecEnv, make_simple_spread, make_simple_spread_vec_env
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.policies import AgentActor, MultiAgentActor
 from tests.loss_helpers import team_actor_terms
 from tests.mixed_team import MixedTeam
 
@@ -135,8 +135,8 @@ def test_the_batched_env_replays_mpe2s_discrete_mode() -> None:
 @pytest.mark.parametrize("scheme", ["full", "selected", "attention"])
 def test_a_mixed_team_trains(scheme: str) -> None:
     """speaker-listener with discrete actions: heterogeneous, every agent discrete."""
+    from sb3_maddpg.common.selection import FixedGraph
     from sb3_maddpg.envs import make_mpe_env
-    from sb3_maddpg.selection import FixedGraph
 
     env = make_mpe_env("simple_speaker_listener", continuous_actions=False)
     selection = FixedGraph([[1], [0]]) if scheme == "selected" else None

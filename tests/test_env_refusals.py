@@ -6,7 +6,7 @@ import pytest
 from mpe2 import simple_spread_v3, simple_tag_v3
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.env_checks import pettingzoo_kind
+from sb3_maddpg.common.env_checks import pettingzoo_kind
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
 
 

@@ -18,6 +18,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 import sb3_maddpg  # noqa: F401  (registers the gymnasium ids)
+from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.envs import (
     CAPTURE_RADIUS,
     SIMPLE_SPREAD_ID,
@@ -25,7 +26,6 @@ from sb3_maddpg.envs import (
     SimpleSpreadMetrics,
     make_simple_spread,
 )
-from sb3_maddpg.layout import AgentLayout
 
 MAX_CYCLES = 25  # simple_spread's default episode length (the paper's too)
 METRIC_KEYS = ("coverage", "success", "collisions", "min_dist_sum")

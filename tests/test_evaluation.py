@@ -15,8 +15,8 @@ from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckA
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.analysis.evaluation import EVAL_KEYS, RADIUS_KEYS, SUCCESS_RADII, TeamEvalCallback, evaluate_team, radius_key
 from sb3_maddpg.envs import make_simple_spread
-from sb3_maddpg.evaluation import EVAL_KEYS, RADIUS_KEYS, SUCCESS_RADII, TeamEvalCallback, evaluate_team, radius_key
 
 TINY = dict(
     learning_starts=50, batch_size=32, buffer_size=2_000, train_freq=25, policy_kwargs=dict(net_arch=dict(pi=[8], qf=[8]))

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu
 
+from sb3_maddpg.analysis.normalised_score import reference_scores
 from sb3_maddpg.experiments import EXP1, EXP1_TUNED, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL, PAPER_NAMES, algorithm_argument, setting_label
@@ -30,7 +31,6 @@ from sb3_maddpg.experiments.results import (
 )
 from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.stats import aggregate, mann_whitney, mean_std, significance_stars
-from sb3_maddpg.normalised_score import reference_scores
 
 # ---------------------------------------------------------------------------------------------------------------
 # Configs

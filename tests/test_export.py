@@ -14,9 +14,9 @@ import pytest
 import torch as th
 
 from sb3_maddpg import MADDPG, MATD3
+from sb3_maddpg.analysis.evaluation import evaluate_team
+from sb3_maddpg.analysis.export import EXPORTER_LOGGER, MANIFEST, agent_actors, export_actors
 from sb3_maddpg.envs import PettingZooToGym, make_mpe_env, make_simple_spread
-from sb3_maddpg.evaluation import evaluate_team
-from sb3_maddpg.export import EXPORTER_LOGGER, MANIFEST, agent_actors, export_actors
 from sb3_maddpg.version import __version__
 from tests.mixed_team import MixedTeam
 

@@ -9,8 +9,8 @@ from torch import nn
 from torch.nn import functional as F
 
 from sb3_maddpg import MADDPG, MATD3
+from sb3_maddpg.common.networks import AgentEnsembleMLP
 from sb3_maddpg.envs import make_mpe_env, make_simple_spread
-from sb3_maddpg.networks import AgentEnsembleMLP
 
 IN_DIMS, OUT_DIMS, HIDDEN = (3, 5), (2, 4), (6, 7)
 

@@ -15,12 +15,13 @@ import torch as th
 from stable_baselines3.common.logger import Logger
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.analysis.inspection import critic_listening
+from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.networks import AgentEnsembleMLP
+from sb3_maddpg.common.policies import AgentCritic, MultiAgentCritic
 from sb3_maddpg.envs import PettingZooToGym
-from sb3_maddpg.inspection import critic_listening
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.networks import AgentEnsembleMLP
-from sb3_maddpg.policies import AgentCritic, MADDPGPolicy, MultiAgentCritic
+from sb3_maddpg.maddpg.policies import MADDPGPolicy
 from tests.conftest import BATCH
 from tests.mixed_team import MixedTeam
 

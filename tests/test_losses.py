@@ -4,9 +4,9 @@ import pytest
 import torch as th
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.losses import ActorLossTerms, actor_loss_terms, critic_losses, critic_targets, one_member
 from sb3_maddpg.envs import make_simple_spread
-from sb3_maddpg.losses import ActorLossTerms, actor_loss_terms, critic_losses, critic_targets, one_member
 from tests.loss_helpers import team_actor_terms, team_critic_losses
 
 FAST = dict(learning_starts=50, batch_size=32, buffer_size=1_000, train_freq=25, policy_kwargs=dict(net_arch=[16]))

@@ -11,12 +11,12 @@ import pytest
 import torch as th
 
 from sb3_maddpg import MADDPG, MATD3
+from sb3_maddpg.analysis.evaluation import evaluate_team
+from sb3_maddpg.common.losses import critic_losses, critic_targets, one_member
+from sb3_maddpg.common.policies import AgentCritic
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
-from sb3_maddpg.evaluation import evaluate_team
-from sb3_maddpg.losses import critic_losses, critic_targets, one_member
 from sb3_maddpg.matd3 import smooth_target_actions
-from sb3_maddpg.matd3_policies import MATD3Policy, TwinMultiAgentCritic
-from sb3_maddpg.policies import AgentCritic
+from sb3_maddpg.matd3.policies import MATD3Policy, TwinMultiAgentCritic
 from tests.mixed_team import MixedTeam
 
 pytestmark = pytest.mark.filterwarnings("ignore:learn\\(\\) ended at step")  # make_model() only collects

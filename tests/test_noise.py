@@ -9,16 +9,16 @@ import pytest
 from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise, VectorizedActionNoise
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
-from sb3_maddpg.evaluation import evaluate_team
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.noise import (
+from sb3_maddpg.analysis.evaluation import evaluate_team
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.noise import (
     add_noise,
     default_noise,
     fit_noise_to_envs,
     noise_copy_for_envs,
     per_env_noise,
 )
+from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
 from tests.mixed_team import MixedTeam
 from tests.test_discrete_actions import is_one_hot
 

@@ -12,7 +12,7 @@ import pytest
 from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.evaluation import evaluate_team
+from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.experiments import SMOKE, run_sweep
 from sb3_maddpg.experiments.batched import BatchedRunRefused, check_batched
 from sb3_maddpg.experiments.cli import main

@@ -8,9 +8,9 @@ import torch as th
 from torch import nn
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.policies import MultiAgentCritic
 from sb3_maddpg.envs import SimpleSpreadVecEnv
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.policies import MultiAgentCritic
 from sb3_maddpg.sharing import (
     AttentionCriticFeatures,
     FullCriticFeatures,

@@ -9,8 +9,8 @@ import pytest
 from mpe2 import simple_spread_v3
 
 from sb3_maddpg import MADDPG, MATD3
+from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
-from sb3_maddpg.layout import AgentLayout
 from tests.mixed_team import MixedTeam
 
 SMALL = {"learning_starts": 50, "policy_kwargs": {"net_arch": [16, 16]}}

@@ -13,10 +13,10 @@ import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.analysis.evaluation import evaluate_team
+from sb3_maddpg.common.progress import INTERRUPTED_EXIT_CODE, ProgressLogCallback, ctrl_c_ends_quietly, interrupted_line
+from sb3_maddpg.common.torch_threads import THREAD_VARIABLES, threads_set_by_user, use_torch_threads
 from sb3_maddpg.envs import make_simple_spread
-from sb3_maddpg.evaluation import evaluate_team
-from sb3_maddpg.progress import INTERRUPTED_EXIT_CODE, ProgressLogCallback, ctrl_c_ends_quietly, interrupted_line
-from sb3_maddpg.torch_threads import THREAD_VARIABLES, threads_set_by_user, use_torch_threads
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -122,7 +122,7 @@ class _Clock:
 
 def test_progress_rate_is_over_the_recent_window(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
     clock = _Clock()
-    monkeypatch.setattr("sb3_maddpg.progress.time.perf_counter", clock)
+    monkeypatch.setattr("sb3_maddpg.common.progress.time.perf_counter", clock)
     progress = ProgressLogCallback("run", total_timesteps=1_000_000, every=1.0, every_seconds=10.0, window_seconds=30.0)
     progress.model, progress.num_timesteps = None, 0  # no model: no team return in the lines
     progress._on_training_start()

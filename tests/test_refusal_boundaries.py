@@ -20,11 +20,11 @@ from pettingzoo import ParallelEnv
 from stable_baselines3.common.noise import ActionNoise
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.networks import AgentEnsembleMLP
+from sb3_maddpg.common.noise import draw_noise
+from sb3_maddpg.common.selection import CallableSelector, FixedGraph, NearestAgents, Selector, resolve_selector
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.networks import AgentEnsembleMLP
-from sb3_maddpg.noise import draw_noise
-from sb3_maddpg.selection import CallableSelector, FixedGraph, NearestAgents, Selector, resolve_selector
 from sb3_maddpg.sharing import (
     ActionsCriticFeatures,
     AttentionCriticFeatures,
@@ -351,7 +351,12 @@ def test_a_selection_holds_agent_indices_of_the_team(agent: int, chosen: int, re
 
 @pytest.mark.parametrize(
     ("selector", "refusal"),
-    [(None, None), (1, None), (True, "selector must be a sb3_maddpg.selection.Selector or an int k"), (1.0, "an int k")],
+    [
+        (None, None),
+        (1, None),
+        (True, "selector must be a sb3_maddpg.common.selection.Selector or an int k"),
+        (1.0, "an int k"),
+    ],
 )
 def test_a_selector_is_a_selector_or_an_int(selector: Any, refusal: str | None) -> None:
     """An int k is NearestAgents(k); a bool is not taken for one."""

@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASK_SIDES, MPE_TASKS, make_mpe_env
-from sb3_maddpg.evaluation import (
+from sb3_maddpg.analysis.evaluation import (
     EVAL_KEYS,
     TeamEvalCallback,
     describe_result,
@@ -23,6 +22,7 @@ from sb3_maddpg.evaluation import (
     resolve_sides,
     side_return_label,
 )
+from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASK_SIDES, MPE_TASKS, make_mpe_env
 from sb3_maddpg.experiments import SMOKE, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.marl_eval import ABSOLUTE_METRICS, MARL_EVAL_FILE, marl_eval_data, write_marl_eval

@@ -19,8 +19,8 @@ from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckA
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
 from sb3_maddpg import MADDPG, MATD3, AgentLayout
+from sb3_maddpg.common.selection import CallableSelector, FixedGraph, NearestAgents
 from sb3_maddpg.envs import SIMPLE_SPREAD_ID, PettingZooToGym, SimpleSpreadVecEnv, make_simple_spread
-from sb3_maddpg.selection import CallableSelector, FixedGraph, NearestAgents
 from sb3_maddpg.sharing import SCHEME_ALIASES, SHARING_SCHEMES, CriticFeaturesExtractor
 
 SCHEMES = ("independent", "full", "observations", "actions", "selected")

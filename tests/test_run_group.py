@@ -19,13 +19,13 @@ from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_maddpg import MADDPG, MATD3
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.losses import one_member
+from sb3_maddpg.common.selection import FixedGraph, NearestAgents
 from sb3_maddpg.envs import SimpleSpreadVecEnv
-from sb3_maddpg.losses import one_member
 from sb3_maddpg.run_group import RunGroup, RunReplayBuffers, RunStreams, SpreadTask, clip_grad_norm_per_run_and_agent
 from sb3_maddpg.run_group.buffer import replay_nbytes
 from sb3_maddpg.run_group.selection import select_on_device
-from sb3_maddpg.selection import FixedGraph, NearestAgents
 
 N_AGENTS = 3
 SMALL = {"net_arch": [16, 16]}

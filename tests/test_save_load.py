@@ -12,9 +12,9 @@ from stable_baselines3.common.noise import VectorizedActionNoise
 from stable_baselines3.common.save_util import save_to_pkl
 
 from sb3_maddpg import MADDPG, AgentLayout
+from sb3_maddpg.common.selection import CallableSelector, FixedGraph, NearestAgents
 from sb3_maddpg.envs import make_simple_spread
-from sb3_maddpg.policies import MADDPGPolicy
-from sb3_maddpg.selection import CallableSelector, FixedGraph, NearestAgents
+from sb3_maddpg.maddpg.policies import MADDPGPolicy
 
 SCHEMES = ("independent", "full", "observations", "actions", "selected")
 N_AGENTS = 3
@@ -273,8 +273,8 @@ def test_building_without_setting_up_keeps_what_the_caller_passed() -> None:
 
 
 def test_attributes_missing_from_a_save_by_version() -> None:
+    from sb3_maddpg.common.update_schedule import UpdateSchedule
     from sb3_maddpg.compat import SAVED_BEFORE_0_2, attributes_missing_from
-    from sb3_maddpg.update_schedule import UpdateSchedule
 
     assert attributes_missing_from({"update_rule": UpdateSchedule.sb3_semantics(), "actor_reg_coef": 0.5}) == {}
     before_0_2 = attributes_missing_from({"learning_rate": 0.01})

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.selection import CallableSelector, FixedGraph, NearestAgents
 from sb3_maddpg.envs import make_simple_spread
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.selection import CallableSelector, FixedGraph, NearestAgents
 
 LAYOUT = AgentLayout(("a", "b", "c", "d"), (6,) * 4, (2,) * 4)
 

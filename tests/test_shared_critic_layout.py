@@ -14,8 +14,8 @@ import torch as th
 from mpe2 import simple_spread_v3
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.envs import SimpleSpreadVecEnv
-from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.sharing import SHARING_SCHEMES
 
 N, OBS, ACT, BATCH = 4, 6, 5, 7

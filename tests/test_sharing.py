@@ -4,9 +4,9 @@ import pytest
 import torch as th
 from torch import nn
 
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.networks import AgentEnsembleMLP
-from sb3_maddpg.policies import AgentCritic, MultiAgentCritic
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.networks import AgentEnsembleMLP
+from sb3_maddpg.common.policies import AgentCritic, MultiAgentCritic
 from sb3_maddpg.sharing import (
     SCHEME_ALIASES,
     SHARING_SCHEMES,

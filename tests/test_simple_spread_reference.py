@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
+from sb3_maddpg.analysis.evaluation import evaluate_team
+from sb3_maddpg.analysis.normalised_score import describe_normalised, normalised_score, normalised_scores, reference_scores
 from sb3_maddpg.envs import RandomTeamPolicy, ScriptedSpreadPolicy, SimpleSpreadVecEnv, make_simple_spread
 from sb3_maddpg.envs.simple_spread_reference import POSITION_GAIN, VELOCITY_GAIN
-from sb3_maddpg.evaluation import evaluate_team
-from sb3_maddpg.normalised_score import describe_normalised, normalised_score, normalised_scores, reference_scores
 
 
 def placed(env: SimpleSpreadVecEnv, agents: list, landmarks: list, velocities: list | None = None) -> np.ndarray:

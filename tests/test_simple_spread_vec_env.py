@@ -13,9 +13,9 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.analysis.evaluation import TeamEvalCallback, evaluate_team
 from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread, make_simple_spread_vec_env
 from sb3_maddpg.envs import simple_spread_worlds as worlds_module
-from sb3_maddpg.evaluation import TeamEvalCallback, evaluate_team
 
 TOLERANCE = 1e-5
 """The largest difference allowed from mpe2 (float32 observations of float64 worlds)."""

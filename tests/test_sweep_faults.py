@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 
+from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.experiments import SMOKE, ExperimentConfig, run_sweep
 from sb3_maddpg.experiments.backends import LOST_RUN, ray_parallel_runs
 from sb3_maddpg.experiments.cli import main
@@ -35,7 +36,6 @@ from sb3_maddpg.experiments.results import (
 )
 from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.sweep import SweepProgress, SweepResult, plan_sweep
-from sb3_maddpg.install_hint import extra_install_command
 from tests.fault_helpers import stalled_pid
 from tests.process_helpers import alive, wait_for
 

@@ -8,8 +8,8 @@ import pytest
 import torch as th
 
 from sb3_maddpg import MADDPG, MATD3
+from sb3_maddpg.common.policies import AgentCritic
 from sb3_maddpg.envs import make_simple_spread
-from sb3_maddpg.policies import AgentCritic
 from tests.loss_helpers import team_actor_terms, team_critic_losses
 
 BATCH = 8

@@ -5,8 +5,8 @@ from pathlib import Path
 import pytest
 from stable_baselines3.common.type_aliases import TrainFreq, TrainFrequencyUnit
 
+from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.compat import pop_0_2_dev_schedule
-from sb3_maddpg.update_schedule import UpdateSchedule
 
 
 def steps(n: int) -> TrainFreq:

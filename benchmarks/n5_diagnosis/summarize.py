@@ -27,9 +27,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from sb3_maddpg.analysis.normalised_score import normalised_scores, reference_scores
 from sb3_maddpg.experiments.config import algorithm_argument
 from sb3_maddpg.experiments.results import curve_value_at, load_experiments, load_summaries, read_curve
-from sb3_maddpg.normalised_score import normalised_scores, reference_scores
 
 HERE = Path(__file__).resolve().parent
 BASELINE = "n5_paper"

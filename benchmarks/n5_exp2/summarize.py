@@ -13,7 +13,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
-from sb3_maddpg.normalised_score import reference_scores
+from sb3_maddpg.analysis.normalised_score import reference_scores
 
 HERE = Path(__file__).resolve().parent
 CURVE_STEPS = (200_000, 400_000, 600_000, 800_000, 1_000_000)

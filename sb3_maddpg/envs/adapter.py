@@ -7,7 +7,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.common.layout import AgentLayout
 
 MetricsFn = Callable[[Any], dict[str, float]]
 """A per-environment hook: called with the PettingZoo env after every reset and step, returns task metrics."""
@@ -29,7 +29,7 @@ class PettingZooToGym(gym.Env):
     - Termination: the episode is terminated when every agent is terminated, and truncated
       otherwise when any agent is truncated; the per-agent flags are in ``info["agent_terminations"]``
       and ``info["agent_truncations"]``, the agents' own infos in ``info["agent_infos"]``.
-    - Layout: ``agent_layout`` (an :class:`~sb3_maddpg.layout.AgentLayout` with agent ids,
+    - Layout: ``agent_layout`` (an :class:`~sb3_maddpg.common.layout.AgentLayout` with agent ids,
       observation and action slices and sizes) is public, and readable through
       ``VecEnv.get_attr("agent_layout")``.
     - Metrics: an optional ``metrics_fn(parallel_env) -> dict`` adds task metrics to ``info``

@@ -31,7 +31,7 @@ class TaskMetric:
 
     :param key: The key in ``info``.
     :param per_episode: How an episode is scored: ``"last"``, the value at the episode's last step, or ``"sum"``,
-        the sum over the episode's steps (as :func:`~sb3_maddpg.evaluation.evaluate_team` does for ``collisions``).
+        the sum over the episode's steps (as :func:`~sb3_maddpg.analysis.evaluation.evaluate_team` does for ``collisions``).
     :param better: ``"lower"`` or ``"higher"``: which way is better for ``team``.
     :param team: Whose objective ``better`` refers to: ``"team"`` (every agent, a cooperative task),
         ``"good agents"`` or ``"adversaries"``.
@@ -144,7 +144,7 @@ def catch_metrics(parallel_env: Any) -> dict[str, float]:
     (catches: the sum of mpe2's ``benchmark_data`` over the adversaries, what the rewards' catch terms count).
 
     Contacts between two adversaries, or an agent and an obstacle, are not counted. The key is ``collisions`` so
-    that :func:`~sb3_maddpg.evaluation.evaluate_team` sums it over each episode: catches per episode.
+    that :func:`~sb3_maddpg.analysis.evaluation.evaluate_team` sums it over each episode: catches per episode.
 
     :param parallel_env: An mpe2 ``simple_tag_v3`` or ``simple_world_comm_v3`` env (or a wrapper around one).
     :return: The metrics of the current world state.
@@ -199,7 +199,7 @@ MPE_TASK_SIDES: dict[str, dict[str, tuple[str, ...]]] = {
 """The sides of each competitive MPE task: side -> the names of its agents (an agent id ``<name>_<index>``, e.g.
 ``adversary_0``, belongs to the side that lists ``<name>``). The sides match :class:`TaskMetric`'s ``team`` and mpe2's
 ``adversary`` flag; the cooperative tasks (``simple``, ``simple_reference``, ``simple_speaker_listener``,
-``simple_spread``) have one team and no entry. Pass them to :func:`~sb3_maddpg.evaluation.evaluate_team` as ``sides``
+``simple_spread``) have one team and no entry. Pass them to :func:`~sb3_maddpg.analysis.evaluation.evaluate_team` as ``sides``
 to score each side's return rather than a sum over opponents."""
 
 

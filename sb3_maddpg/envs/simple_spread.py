@@ -21,7 +21,7 @@ class SimpleSpreadMetrics:
     - ``collisions``: number of agent pairs in contact (distance below the sum of their sizes);
     - ``min_dist_sum``: sum over landmarks of the distance to the nearest agent;
     - ``landmark_distances``: each landmark's distance to its nearest agent (a list, landmark order), from which
-      :func:`~sb3_maddpg.evaluation.evaluate_team` scores coverage and success at other radii.
+      :func:`~sb3_maddpg.analysis.evaluation.evaluate_team` scores coverage and success at other radii.
 
     :param capture_radius: Distance within which an agent covers a landmark (mpe2 uses 0.1; small
         training budgets rarely reach it, so a larger radius can be useful for diagnostics).

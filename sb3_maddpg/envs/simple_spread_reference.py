@@ -4,7 +4,7 @@ The scripted controller reads the joint observation (it is a centralised referen
 each agent's position and velocity from its own slice, the landmarks from agent 0's (its position plus the offsets),
 assigns agents to landmarks by the assignment of least total distance (``scipy.optimize.linear_sum_assignment``),
 recomputed every step, and steers each agent to its landmark by a proportional-derivative law on mpe2's force
-actions. It ignores collisions. Both have SB3's ``predict``, so :func:`~sb3_maddpg.evaluation.evaluate_team` scores
+actions. It ignores collisions. Both have SB3's ``predict``, so :func:`~sb3_maddpg.analysis.evaluation.evaluate_team` scores
 them like a model, on :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv` or on mpe2 through the adapter.
 """
 

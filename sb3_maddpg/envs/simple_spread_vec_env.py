@@ -9,9 +9,9 @@ from gymnasium.utils import seeding
 from stable_baselines3.common.vec_env import DummyVecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
+from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS, check_simple_spread_arguments, make_simple_spread
 from sb3_maddpg.envs.simple_spread_worlds import ACTION_SIZE, SimpleSpreadWorlds, WorldDistances
-from sb3_maddpg.layout import AgentLayout
 
 SETTABLE_ATTRIBUTES = ("local_ratio", "capture_radius")
 """Settings ``set_attr`` may change (for every world at once: the worlds share them)."""

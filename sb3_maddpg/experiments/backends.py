@@ -20,10 +20,10 @@ from contextlib import contextmanager
 from multiprocessing import get_context
 from typing import Any
 
+from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.results import write_result_files
 from sb3_maddpg.experiments.runner import execute_run
-from sb3_maddpg.install_hint import extra_install_command
 
 BACKENDS = ("local", "ray", "batched")
 """Where runs execute: a local process pool, Ray tasks, or run groups in this process

@@ -23,6 +23,8 @@ from typing import Any, cast
 import torch as th
 from stable_baselines3.common.logger import configure
 
+from sb3_maddpg.common.progress import ProgressLogCallback, log_line
+from sb3_maddpg.common.train_logs import record_losses
 from sb3_maddpg.experiments.backends import (
     OnResult,
     collect_ray_tasks,
@@ -51,8 +53,6 @@ from sb3_maddpg.experiments.runner import (
     start_run_directory,
     training_line,
 )
-from sb3_maddpg.progress import ProgressLogCallback, log_line
-from sb3_maddpg.train_logs import record_losses
 
 STATE_PREFIX = "group_seeds_"
 """A group's state file: ``<results>/<experiment>/<scheme>/group_seeds_<seeds>.pt`` (e.g. ``group_seeds_0-30.pt``)."""
@@ -408,7 +408,7 @@ class _SummedSteps:
 class GroupProgress(ProgressLogCallback):
     """
     A group's progress lines: env steps summed over its runs, their rate and the time left, as
-    :class:`~sb3_maddpg.progress.ProgressLogCallback` says them for one run; each line goes to every run's
+    :class:`~sb3_maddpg.common.progress.ProgressLogCallback` says them for one run; each line goes to every run's
     ``train.log`` and, once, to stdout.
 
     :param label: The group's name in the lines.
@@ -445,7 +445,7 @@ class GroupRecorder:
     """
     What a group writes while it trains (a :class:`~sb3_maddpg.run_group.GroupCallback`): each run's checkpoints
     (:class:`~sb3_maddpg.experiments.runner.CheckpointAtSteps`), learning curve (the runner's
-    :class:`~sb3_maddpg.evaluation.TeamEvalCallback`), ``progress.csv`` rows (about as many as the runner's),
+    :class:`~sb3_maddpg.analysis.evaluation.TeamEvalCallback`), ``progress.csv`` rows (about as many as the runner's),
     the group's progress lines, and its state at each save point.
 
     :param configs: The group's runs.

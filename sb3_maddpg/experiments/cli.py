@@ -12,8 +12,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
+from sb3_maddpg.analysis.evaluation import side_return_key
+from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
-from sb3_maddpg.evaluation import side_return_key
 from sb3_maddpg.experiments.config import (
     DEFAULT_ENV,
     DEFAULT_N_ENVS,
@@ -26,7 +27,6 @@ from sb3_maddpg.experiments.config import (
     scaled_schedule,
 )
 from sb3_maddpg.experiments.stats import METRICS
-from sb3_maddpg.install_hint import extra_install_command
 
 DEFAULT_RESULTS = "runs/experiments"
 

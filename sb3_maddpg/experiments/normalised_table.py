@@ -1,20 +1,20 @@
 """The report's normalised scores: each simple_spread setting's runs between random actions (0) and the scripted
-controller (1), see :mod:`sb3_maddpg.normalised_score`."""
+controller (1), see :mod:`sb3_maddpg.analysis.normalised_score`."""
 
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
+from sb3_maddpg.analysis.normalised_score import REFERENCE_EPISODES, normalised_scores, reference_scores
 from sb3_maddpg.experiments.config import DEFAULT_ENV, EPISODE_LENGTH, PAPER_NAMES, ordered_schemes, setting_label
-from sb3_maddpg.normalised_score import REFERENCE_EPISODES, normalised_scores, reference_scores
 
 
 def setting_references(experiment: dict[str, Any] | None) -> dict[str, dict[str, float]] | None:
     """
     :param experiment: A stored experiment config.
-    :return: Its task's references (:func:`~sb3_maddpg.normalised_score.reference_scores`), or ``None`` where there are
-        none: another task than simple_spread, or its discrete actions (the controller drives continuous ones).
+    :return: Its task's references (:func:`~sb3_maddpg.analysis.normalised_score.reference_scores`), or ``None``
+        where there are none: another task than simple_spread, or its discrete actions (the controller drives continuous ones).
     """
     if not experiment or experiment.get("env", DEFAULT_ENV) != DEFAULT_ENV:
         return None
@@ -39,7 +39,7 @@ def format_normalised_markdown(summaries: Sequence[dict[str, Any]], experiments:
         "### Normalised scores: 0 = uniformly random actions, 1 = the scripted controller (higher is better)",
         "",
         f"Means over runs; each reference measured over {REFERENCE_EPISODES} episodes of the same task "
-        "(`sb3_maddpg.normalised_score`).",
+        "(`sb3_maddpg.analysis.normalised_score`).",
         "",
         "| setting | method | runs | min-dist sum | normalised | team return | normalised |",
         "|---|---|---|---|---|---|---|",

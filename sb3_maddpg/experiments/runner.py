@@ -14,8 +14,16 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
 
-from sb3_maddpg.behaviour import team_behaviour
-from sb3_maddpg.evaluation import TeamEvalCallback, eval_keys, evaluate_team, side_return_label, side_returns, write_rows
+from sb3_maddpg.analysis.behaviour import team_behaviour
+from sb3_maddpg.analysis.evaluation import (
+    TeamEvalCallback,
+    eval_keys,
+    evaluate_team,
+    side_return_label,
+    side_returns,
+    write_rows,
+)
+from sb3_maddpg.common.progress import ProgressLogCallback, format_seconds
 from sb3_maddpg.experiments.config import DEFAULT_ENV, PAPER_NAMES, RunConfig, load_algorithm
 from sb3_maddpg.experiments.results import (
     CHECKPOINT_DIR,
@@ -31,7 +39,6 @@ from sb3_maddpg.experiments.results import (
     write_json_atomic,
 )
 from sb3_maddpg.experiments.tasks import describe, make_task_vec_env, task_metrics, task_sides
-from sb3_maddpg.progress import ProgressLogCallback, format_seconds
 
 
 def make_env(config: RunConfig, n_envs: int | None = None) -> VecEnv:
@@ -97,7 +104,7 @@ def load_observation_statistics(eval_env: VecEnv, model_path: str | os.PathLike[
 class NormalizedObservationPolicy:
     """
     A model that acts on raw observations: each is normalised by an evaluation env's statistics first (for
-    :func:`~sb3_maddpg.behaviour.team_behaviour`, which reads positions from the raw observations).
+    :func:`~sb3_maddpg.analysis.behaviour.team_behaviour`, which reads positions from the raw observations).
 
     :param model: The model (trained on normalised observations).
     :param normalization: The ``VecNormalize`` whose statistics normalise the observations.
@@ -149,7 +156,7 @@ def final_behaviour(config: RunConfig, model: Any, eval_env: VecEnv) -> dict[str
     :param config: The run.
     :param model: Its last checkpoint.
     :param eval_env: Its evaluation env.
-    :return: What the team does at its episodes' end (:func:`~sb3_maddpg.behaviour.team_behaviour`, over
+    :return: What the team does at its episodes' end (:func:`~sb3_maddpg.analysis.behaviour.team_behaviour`, over
         ``eval_episodes`` episodes), for simple_spread runs that observe every landmark; else ``None``.
     """
     neighbors = config.env_kwargs.get("num_landmark_neighbors")
@@ -174,7 +181,7 @@ def execute_run(
     lines), ``learning_curve.csv`` (team evaluations during training), ``checkpoint_evals.csv`` (one
     evaluation of ``eval_episodes`` episodes per checkpoint), ``summary.json`` (the run's score: each
     metric's mean over the checkpoints, timings and, for simple_spread, ``behaviour``: what the last checkpoint's
-    team does at its episodes' end, see :mod:`sb3_maddpg.behaviour`), ``checkpoints/`` (model files, unless
+    team does at its episodes' end, see :mod:`sb3_maddpg.analysis.behaviour`), ``checkpoints/`` (model files, unless
     ``keep_checkpoints`` is off) and the ``done`` marker, written last.
 
     :param config: The run.

@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from sb3_maddpg.analysis.evaluation import SUCCESS_RADII, radius_key
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_METRICS
-from sb3_maddpg.evaluation import SUCCESS_RADII, radius_key
 from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, ordered_schemes
 
 
@@ -47,7 +47,7 @@ METRICS: dict[str, Metric] = {
 }
 """The metrics a report can score runs by: ``success_rate`` (the paper's, at mpe2's 0.1 radius), ``coverage``,
 ``min_dist_sum``, ``return_mean``, ``collisions``, and success and coverage at each radius of
-:data:`~sb3_maddpg.evaluation.SUCCESS_RADII` (``success_rate_r0.2``: every landmark within 0.2 of an agent),
+:data:`~sb3_maddpg.analysis.evaluation.SUCCESS_RADII` (``success_rate_r0.2``: every landmark within 0.2 of an agent),
 ``group_return`` (the summed return of a run's ``score_agents``), and the other MPE tasks' metrics
 (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`, added below with their direction)."""
 

@@ -7,11 +7,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from sb3_maddpg.common.progress import format_seconds, log_line
 from sb3_maddpg.experiments.backends import BACKENDS, LOST_RUN, run_local, run_ray
 from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
 from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, lock_results, write_experiment
 from sb3_maddpg.experiments.runner import never_updated_line, score_line
-from sb3_maddpg.progress import format_seconds, log_line
 
 
 @dataclass

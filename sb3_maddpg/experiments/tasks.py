@@ -6,7 +6,7 @@ from collections.abc import Callable
 import gymnasium as gym
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
-from sb3_maddpg.evaluation import SIDE_RETURN_PREFIX, DeclaredMetric, side_return_label
+from sb3_maddpg.analysis.evaluation import SIDE_RETURN_PREFIX, DeclaredMetric, side_return_label
 from sb3_maddpg.experiments.config import DEFAULT_ENV, RunConfig
 from sb3_maddpg.experiments.stats import METRICS, Metric
 from sb3_maddpg.experiments.task_envs import task_env_factory

@@ -21,14 +21,14 @@ from typing import Any
 
 import numpy as np
 
-from sb3_maddpg.evaluation import TeamEvalCallback
+from sb3_maddpg.analysis.evaluation import TeamEvalCallback
+from sb3_maddpg.common.install_hint import extra_install_command
+from sb3_maddpg.common.torch_threads import use_torch_threads
 from sb3_maddpg.experiments.backends import worker_pool
 from sb3_maddpg.experiments.config import DEFAULT_ENV, ExperimentConfig, RunConfig, load_algorithm, merge_model_kwargs
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
 from sb3_maddpg.experiments.runner import make_eval_env, make_train_env
 from sb3_maddpg.experiments.tasks import task_metrics
-from sb3_maddpg.install_hint import extra_install_command
-from sb3_maddpg.torch_threads import use_torch_threads
 
 HEARTBEAT_SECONDS = 60
 """How often a running trial tells the study it is alive; a trial silent for twice as long is failed and retried."""
@@ -256,7 +256,7 @@ class TuneSettings:
 
 def objective_value(row: dict[str, float], objective: str, references: dict[str, dict[str, float]] | None) -> float:
     """
-    :param row: One evaluation (:class:`~sb3_maddpg.evaluation.TeamEvalCallback`'s history row).
+    :param row: One evaluation (:class:`~sb3_maddpg.analysis.evaluation.TeamEvalCallback`'s history row).
     :param objective: A key of :func:`task_objectives`.
     :param references: The task's references, for ``"normalised"``.
     :return: The evaluation's objective: its value in the row, or for ``"normalised"`` the mean of the min-dist sum's
@@ -264,7 +264,7 @@ def objective_value(row: dict[str, float], objective: str, references: dict[str,
     """
     if objective != "normalised":
         return float(row[objective])
-    from sb3_maddpg.normalised_score import normalised_scores
+    from sb3_maddpg.analysis.normalised_score import normalised_scores
 
     assert references is not None
     scores = normalised_scores(row, references)
@@ -273,7 +273,7 @@ def objective_value(row: dict[str, float], objective: str, references: dict[str,
 
 class TrialEvalCallback(TeamEvalCallback):
     """
-    :class:`~sb3_maddpg.evaluation.TeamEvalCallback` that reports each evaluation's objective to an Optuna trial and
+    :class:`~sb3_maddpg.analysis.evaluation.TeamEvalCallback` that reports each evaluation's objective to an Optuna trial and
     stops training when the pruner says so.
 
     :param trial: The trial.
@@ -281,7 +281,7 @@ class TrialEvalCallback(TeamEvalCallback):
     :param references: The task's references, for ``"normalised"``.
     :param log: Called with a line after each evaluation (the trial's progress), or ``None``.
     :param budget: The trial's env steps, for those lines.
-    :param kwargs: For :class:`~sb3_maddpg.evaluation.TeamEvalCallback`.
+    :param kwargs: For :class:`~sb3_maddpg.analysis.evaluation.TeamEvalCallback`.
     """
 
     def __init__(
@@ -487,7 +487,7 @@ def optimize(settings: TuneSettings, threads: int | None = 1, log: Callable[[str
     Run trials in this process until the study has ``n_trials`` finished ones.
 
     :param settings: The study.
-    :param threads: Torch threads (see :func:`~sb3_maddpg.torch_threads.use_torch_threads`).
+    :param threads: Torch threads (see :func:`~sb3_maddpg.common.torch_threads.use_torch_threads`).
     :param log: Where each trial's lines go: one per evaluation (its progress) and one when it ends.
     :param worker: This worker's number among those started together (its sampler's seed, :func:`sampler_seed`).
     :return: The study.

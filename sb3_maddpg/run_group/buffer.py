@@ -11,7 +11,7 @@ from typing import Any
 
 import torch as th
 
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.run_group.streams import RunStreams
 
 ROW_FIELDS = ("observations", "actions", "rewards", "dones", "selections")
@@ -66,7 +66,7 @@ def replay_nbytes(
 class RunReplayBuffers:
     """
     One replay buffer per run, held together on ``device``: one row per joint transition, as
-    :class:`~sb3_maddpg.buffers.MultiAgentReplayBuffer` (joint observations, actions and next observations, per-agent
+    :class:`~sb3_maddpg.common.buffers.MultiAgentReplayBuffer` (joint observations, actions and next observations, per-agent
     rewards and terminations, the selections made when a transition was stored). All runs are written together,
     ``rows_per_step`` rows at a time (one per world), so they share one write position; each run samples its rows
     from its own generator, uniformly over what it holds, so its batches depend on its seed only.

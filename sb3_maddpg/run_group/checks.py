@@ -6,10 +6,10 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.noise import NormalActionNoise
 
+from sb3_maddpg.common.noise import per_env_noise
+from sb3_maddpg.common.selection import FixedGraph, NearestAgents, Selector
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.matd3 import MATD3
-from sb3_maddpg.noise import per_env_noise
-from sb3_maddpg.selection import FixedGraph, NearestAgents, Selector
 from sb3_maddpg.sharing import LEARNED_SCHEMES, schemes_per_agent
 
 SAME_EXCEPT_SEED = (

@@ -2,8 +2,8 @@
 
 import torch as th
 
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.selection import FixedGraph, NearestAgents, Selector
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.selection import FixedGraph, NearestAgents, Selector
 
 
 class DeviceSelector:

@@ -2,8 +2,8 @@
 The networks of ``R`` teams stacked along a run dimension: every parameter of R copies of one module as one tensor
 ``[R, ...]``, evaluated for every run at once with ``torch.func.vmap`` over ``functional_call``.
 
-The modules themselves are the package's (:class:`~sb3_maddpg.policies.MultiAgentActor`,
-:class:`~sb3_maddpg.policies.MultiAgentCritic`), so their forward passes are not copied; only their parameters are
+The modules themselves are the package's (:class:`~sb3_maddpg.common.policies.MultiAgentActor`,
+:class:`~sb3_maddpg.common.policies.MultiAgentCritic`), so their forward passes are not copied; only their parameters are
 stacked. Run r's outputs depend on run r's parameters and inputs only, and its gradients land in slice ``[r]``.
 """
 
@@ -15,10 +15,10 @@ import torch as th
 from torch import nn
 from torch.func import functional_call, vmap
 
-from sb3_maddpg.networks import clip_coefficients
-from sb3_maddpg.policies import MultiAgentActor, MultiAgentCritic
+from sb3_maddpg.common.networks import clip_coefficients
+from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
+from sb3_maddpg.common.update_step import polyak_update_foreach
 from sb3_maddpg.run_group.streams import RunStreams
-from sb3_maddpg.update_step import polyak_update_foreach
 
 
 class _Method(nn.Module):
@@ -98,8 +98,8 @@ class StackedModule:
 
 class StackedTeams:
     """
-    The actors, critics and their targets of ``R`` teams, stacked: :class:`~sb3_maddpg.update_step.MemberModules` of
-    ``M = R`` members, the many-runs counterpart of :class:`~sb3_maddpg.update_step.TeamModules`.
+    The actors, critics and their targets of ``R`` teams, stacked: :class:`~sb3_maddpg.common.update_step.MemberModules` of
+    ``M = R`` members, the many-runs counterpart of :class:`~sb3_maddpg.common.update_step.TeamModules`.
 
     :param actors: Each run's team actor.
     :param critics: Each run's team critic (MATD3's: both twins).
@@ -156,7 +156,7 @@ class StackedTeams:
 def clip_grad_norm_per_run_and_agent(params: Sequence[th.Tensor], max_norm: float) -> None:
     """
     Clip each run's and agent's gradient norm separately, as ``clip_grad_norm_per_agent`` does within one run: the
-    gradients of an :class:`~sb3_maddpg.networks.AgentEnsembleMLP`, stacked, are ``[R, n_members, ...]``, and slice
+    gradients of an :class:`~sb3_maddpg.common.networks.AgentEnsembleMLP`, stacked, are ``[R, n_members, ...]``, and slice
     ``[r, i]`` is agent i's network in run r (one slice for all agents with shared parameters). The launches do not
     grow with ``R``: one concatenation for the norms, then one scale per parameter (a multi-tensor call, which on
     CUDA takes its per-tensor path: the factors broadcast over each gradient).

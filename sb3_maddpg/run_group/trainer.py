@@ -10,19 +10,19 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.utils import update_learning_rate
 
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.losses import ActionParts
+from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.losses import ActionParts
+from sb3_maddpg.common.noise import per_env_noise
+from sb3_maddpg.common.update_schedule import UpdateSchedule
+from sb3_maddpg.common.update_step import LOSS_NAMES as LOSS_NAMES  # its import path of 0.3.0.dev
+from sb3_maddpg.common.update_step import StepLosses, summarise_steps, update_step
 from sb3_maddpg.maddpg import MADDPG
-from sb3_maddpg.noise import per_env_noise
 from sb3_maddpg.run_group.buffer import RunReplayBuffers, buffer_capacity
 from sb3_maddpg.run_group.checks import check_models
 from sb3_maddpg.run_group.selection import DeviceSelector
 from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams
 from sb3_maddpg.run_group.streams import RunStreams
 from sb3_maddpg.run_group.worlds import METRICS, SpreadRuns, SpreadTask
-from sb3_maddpg.update_schedule import UpdateSchedule
-from sb3_maddpg.update_step import LOSS_NAMES as LOSS_NAMES  # its import path of 0.3.0.dev
-from sb3_maddpg.update_step import StepLosses, summarise_steps, update_step
 
 STATE_VERSION = 3
 """The layout of :meth:`RunGroup.state_dict`'s value (a state of another version is refused)."""
@@ -57,7 +57,7 @@ class RunGroup:
 
     Each run's actors, critics and targets are the parameters of its model stacked along a run dimension
     (:class:`~sb3_maddpg.run_group.stacked.StackedTeams`); one update of every run is the algorithm's own update step
-    (:func:`~sb3_maddpg.update_step.update_step`, which ``MADDPG.train`` and ``MATD3.train`` run with ``M = 1``) with
+    (:func:`~sb3_maddpg.common.update_step.update_step`, which ``MADDPG.train`` and ``MATD3.train`` run with ``M = 1``) with
     ``M = R`` members: one optimiser step (the models' optimiser, element-wise: Adam's state of run r is run r's),
     gradient clipping per run and agent, Polyak updates. Data come from ``R`` runs of ``E`` simple_spread worlds in
     torch on the same device, into replay buffers there; each run's new episodes, exploration noise, warm-up actions,
@@ -150,7 +150,7 @@ class RunGroup:
         actors (against the updated critics) and the targets when due.
 
         :param batch: Each run's batch, ``[R, batch, ...]`` each field, on the group's device.
-        :return: This step's :data:`~sb3_maddpg.update_step.LOSS_NAMES` (the actors' only when they were updated),
+        :return: This step's :data:`~sb3_maddpg.common.update_step.LOSS_NAMES` (the actors' only when they were updated),
             ``[R, n_agents]`` each.
         """
         return summarise_steps([self._step(batch)])

@@ -5,10 +5,10 @@ from typing import Any, NamedTuple
 
 import torch as th
 
+from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS
 from sb3_maddpg.envs.simple_spread_worlds import ACTION_SIZE, DIM_P
 from sb3_maddpg.envs.torch_spread_worlds import TorchSpreadWorlds
-from sb3_maddpg.layout import AgentLayout
 from sb3_maddpg.run_group.streams import RunStreams
 
 METRICS = ("coverage", "success", "collisions", "min_dist_sum")

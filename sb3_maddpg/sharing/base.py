@@ -5,7 +5,7 @@ from typing import ClassVar
 import torch as th
 from torch import nn
 
-from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.common.layout import AgentLayout
 
 
 class CriticFeaturesExtractor(nn.Module):

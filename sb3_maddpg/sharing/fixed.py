@@ -24,8 +24,8 @@ from collections.abc import Sequence
 
 import torch as th
 
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.networks import stack_padded
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.networks import stack_padded
 from sb3_maddpg.sharing.base import CriticFeaturesExtractor, check_agent_index
 
 

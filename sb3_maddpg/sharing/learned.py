@@ -31,8 +31,8 @@ from typing import ClassVar
 import torch as th
 from torch import nn
 
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.networks import AgentEnsembleMLP, stack_padded
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.networks import AgentEnsembleMLP, stack_padded
 from sb3_maddpg.sharing.base import CriticFeaturesExtractor, check_agent_index
 
 DEFAULT_POSITION_SLICE = slice(2, 4)

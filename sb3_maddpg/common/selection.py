@@ -12,8 +12,8 @@ from collections.abc import Callable, Hashable, Sequence
 
 import numpy as np
 
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.user_code import user_stacklevel
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.user_code import user_stacklevel
 
 SelectionFn = Callable[[np.ndarray, AgentLayout], np.ndarray]
 """``fn(observations [n_envs, obs_dim], layout) -> int array [n_envs, n_agents, k]``."""
@@ -223,7 +223,7 @@ def resolve_selector(selector: Selector | int | None) -> Selector:
         return NearestAgents(k=selector)
     if not isinstance(selector, Selector):
         raise TypeError(
-            f"selector must be a sb3_maddpg.selection.Selector or an int k (the k nearest agents), got "
+            f"selector must be a sb3_maddpg.common.selection.Selector or an int k (the k nearest agents), got "
             f"{type(selector).__name__}: wrap a function as CallableSelector(fn, k=...)."
         )
     return selector

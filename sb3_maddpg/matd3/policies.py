@@ -6,8 +6,9 @@ from typing import Any, ClassVar
 import torch as th
 from torch import nn
 
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.policies import MADDPGPolicy, MultiAgentCritic
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.policies import MultiAgentCritic
+from sb3_maddpg.maddpg.policies import MADDPGPolicy
 from sb3_maddpg.sharing import CriticFeaturesExtractor
 
 
@@ -17,7 +18,7 @@ class TwinMultiAgentCritic(MultiAgentCritic):
     own network (their initial weights differ).
 
     This module *is* the first twin (its :meth:`forward` is Q_i1, what the actors ascend, what
-    :attr:`~sb3_maddpg.policies.MADDPGPolicy.critics`, ``q_values`` and the extractors' diagnostics read) and holds
+    :attr:`~sb3_maddpg.maddpg.policies.MADDPGPolicy.critics`, ``q_values`` and the extractors' diagnostics read) and holds
     the second as :attr:`twin`: its ``parameters()`` are both twins', so one optimiser and one Polyak update cover
     both, as SB3's TD3 critic.
 
@@ -28,7 +29,7 @@ class TwinMultiAgentCritic(MultiAgentCritic):
     :param hidden_sizes: Hidden layer sizes.
     :param activation_fn: Activation function.
     :param share_parameters: One critic network per twin for all agents (needs equal feature sizes).
-    :param layer_norm: Layer normalisation of every hidden layer (see :class:`~sb3_maddpg.networks.AgentEnsembleMLP`).
+    :param layer_norm: Layer normalisation of every hidden layer (see :class:`~sb3_maddpg.common.networks.AgentEnsembleMLP`).
     """
 
     def __init__(
@@ -66,7 +67,7 @@ class TwinMultiAgentCritic(MultiAgentCritic):
 
 class MATD3Policy(MADDPGPolicy):
     """
-    Policy for MATD3: :class:`~sb3_maddpg.policies.MADDPGPolicy` (same arguments) whose ``critic`` and
+    Policy for MATD3: :class:`~sb3_maddpg.maddpg.policies.MADDPGPolicy` (same arguments) whose ``critic`` and
     ``critic_target`` are :class:`TwinMultiAgentCritic`: two critics per agent, each fed by its own instance of the
     agent's sharing scheme's extractor, under one critic optimiser.
     """

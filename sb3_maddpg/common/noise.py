@@ -8,7 +8,7 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.noise import ActionNoise, NormalActionNoise, VectorizedActionNoise
 
-from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.common.layout import AgentLayout
 
 
 def default_noise(
@@ -98,7 +98,7 @@ def add_noise(actions: np.ndarray, action_noise: ActionNoise, discrete: np.ndarr
     :param actions: Joint actions in [-1, 1], ``[n_envs, action_dim]``.
     :param action_noise: The noise (over the joint action, or vectorised over the envs).
     :param discrete: Which action components belong to discrete agents
-        (:meth:`~sb3_maddpg.layout.AgentLayout.discrete_components`), or None.
+        (:meth:`~sb3_maddpg.common.layout.AgentLayout.discrete_components`), or None.
     :return: The noisy actions, ``[n_envs, action_dim]``.
     """
     noise = draw_noise(action_noise, actions.shape)

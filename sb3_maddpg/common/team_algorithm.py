@@ -9,7 +9,7 @@ import io
 import pathlib
 import warnings
 from collections.abc import Mapping, Sequence
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import torch as th
@@ -21,25 +21,28 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, TrainFreq
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_maddpg.buffers import MultiAgentReplayBuffer, refuse_buffer_of_another_team
+from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, refuse_buffer_of_another_team
+from sb3_maddpg.common.env_checks import check_same_layout, layout_of, refuse_env_of_another_team, refuse_reward_normalization
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.noise import add_noise, default_noise, fit_noise_to_envs
+from sb3_maddpg.common.selection import Selector, resolve_selector, warn_if_selecting_everyone
+from sb3_maddpg.common.torch_threads import package_threads
+from sb3_maddpg.common.train_logs import record_agent_returns
+from sb3_maddpg.common.update_schedule import UpdateSchedule
+from sb3_maddpg.common.user_code import user_stacklevel
 from sb3_maddpg.compat import (
     RENAMED_IN_0_3,
     attributes_missing_from,
     drop_names_before_0_3,
+    moved_paths_quiet,
     pop_0_2_dev_schedule,
     read_saved_data,
     renamed_argument,
 )
-from sb3_maddpg.env_checks import check_same_layout, layout_of, refuse_env_of_another_team, refuse_reward_normalization
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.noise import add_noise, default_noise, fit_noise_to_envs
-from sb3_maddpg.policies import MADDPGPolicy
-from sb3_maddpg.selection import Selector, resolve_selector, warn_if_selecting_everyone
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent
-from sb3_maddpg.torch_threads import package_threads
-from sb3_maddpg.train_logs import record_agent_returns
-from sb3_maddpg.update_schedule import UpdateSchedule
-from sb3_maddpg.user_code import user_stacklevel
+
+if TYPE_CHECKING:  # the algorithms' policy; the base class only names its type
+    from sb3_maddpg.maddpg.policies import MADDPGPolicy
 
 SelfTeamAlgorithm = TypeVar("SelfTeamAlgorithm", bound="TeamOffPolicyAlgorithm")
 
@@ -50,11 +53,11 @@ LOG_INTERVAL = 1000
 class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
     """
     SB3's ``OffPolicyAlgorithm`` for a team whose joint observation and action an
-    :class:`~sb3_maddpg.layout.AgentLayout` describes. A subclass calls :meth:`_set_up_team` in its constructor,
+    :class:`~sb3_maddpg.common.layout.AgentLayout` describes. A subclass calls :meth:`_set_up_team` in its constructor,
     after SB3's, and implements ``train``.
     """
 
-    policy: MADDPGPolicy
+    policy: "MADDPGPolicy"
     replay_buffer: MultiAgentReplayBuffer
     agent_layout: AgentLayout | None
     selector: Selector | None
@@ -304,7 +307,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param progress_bar: Display a progress bar (needs tqdm and rich).
         :return: The trained model.
         """
-        with package_threads():  # one torch thread unless the user chose one (sb3_maddpg.torch_threads)
+        with package_threads():  # one torch thread unless the user chose one (sb3_maddpg.common.torch_threads)
             result = super().learn(
                 total_timesteps=total_timesteps,
                 callback=callback,
@@ -366,7 +369,8 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param kwargs: Attributes to set on the model over the saved ones.
         :return: The model.
         """
-        data = read_saved_data(path, custom_objects)  # read once: for the team check and for older saves
+        with moved_paths_quiet():  # an older save names its classes by the paths of its version
+            data = read_saved_data(path, custom_objects)  # read once: for the team check and for older saves
         if env is not None:
             refuse_env_of_another_team(data, env)
         # What an older save lacks, filled with what its version implies, and what it holds under an old name under
@@ -377,7 +381,8 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             if old in kwargs:
                 kwargs[new] = renamed_argument(kwargs.get(new), kwargs.pop(old), old, new)
         attributes = {**missing, **renamed, **kwargs}
-        return super().load(path, env, device, custom_objects, print_system_info, force_reset, **attributes)
+        with moved_paths_quiet():
+            return super().load(path, env, device, custom_objects, print_system_info, force_reset, **attributes)
 
     def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
         """

@@ -14,9 +14,9 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.noise import VectorizedActionNoise
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, unwrap_vec_normalize
 
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.noise import add_noise, noise_copy_for_envs
-from sb3_maddpg.torch_threads import in_package_threads
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.noise import add_noise, noise_copy_for_envs
+from sb3_maddpg.common.torch_threads import in_package_threads
 
 TASK_METRICS = ("success", "coverage", "collisions", "min_dist_sum")
 """The task metrics read from ``info`` (see :class:`~sb3_maddpg.envs.SimpleSpreadMetrics`)."""
@@ -191,7 +191,7 @@ class PredictsActions(Protocol):
     ) -> tuple[np.ndarray, Any]: ...
 
 
-@in_package_threads  # one torch thread unless the user chose one (sb3_maddpg.torch_threads)
+@in_package_threads  # one torch thread unless the user chose one (sb3_maddpg.common.torch_threads)
 def evaluate_team(
     model: PredictsActions,
     env: gym.Env | VecEnv,
@@ -416,7 +416,7 @@ def _exploration_noise(model: PredictsActions, n_envs: int) -> VectorizedActionN
 def _add_noise(
     actions: np.ndarray, noise: VectorizedActionNoise, action_space: gym.Space, discrete: np.ndarray | None
 ) -> np.ndarray:
-    """The env's actions explored as in training: :func:`~sb3_maddpg.noise.add_noise` in the [-1, 1] space."""
+    """The env's actions explored as in training: :func:`~sb3_maddpg.common.noise.add_noise` in the [-1, 1] space."""
     assert isinstance(action_space, spaces.Box), "exploration noise needs continuous (Box) actions"
     low, high = action_space.low, action_space.high
     scaled = add_noise(2.0 * (actions - low) / (high - low) - 1.0, noise, discrete)

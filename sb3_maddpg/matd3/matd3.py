@@ -9,13 +9,13 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
+from sb3_maddpg.common.losses import ActionParts
+from sb3_maddpg.common.selection import Selector
+from sb3_maddpg.common.update_step import MemberModules, StepSettings, UpdateNetworks
 from sb3_maddpg.compat import renamed_argument
-from sb3_maddpg.losses import ActionParts
 from sb3_maddpg.maddpg import MADDPG
-from sb3_maddpg.matd3_policies import MATD3Policy, MlpPolicy, TwinMultiAgentCritic
-from sb3_maddpg.selection import Selector
+from sb3_maddpg.matd3.policies import MATD3Policy, MlpPolicy, TwinMultiAgentCritic
 from sb3_maddpg.sharing import CriticSharing
-from sb3_maddpg.update_step import MemberModules, StepSettings, UpdateNetworks
 
 
 def smooth_target_actions(
@@ -40,10 +40,10 @@ def smooth_target_actions(
 
 class TwinUpdateNetworks(UpdateNetworks):
     """
-    MATD3's networks as the functions of the losses, over :class:`~sb3_maddpg.update_step.MemberModules`: both twins
+    MATD3's networks as the functions of the losses, over :class:`~sb3_maddpg.common.update_step.MemberModules`: both twins
     trained, the minimum of the target twins, target actions with clipped smoothing noise.
 
-    :param modules: The members' modules (their critics :class:`~sb3_maddpg.matd3_policies.TwinMultiAgentCritic`).
+    :param modules: The members' modules (their critics :class:`~sb3_maddpg.matd3.policies.TwinMultiAgentCritic`).
     :param noise_std: The smoothing noise's standard deviation (``target_policy_noise``).
     :param noise_clip: Its clip (``target_noise_clip``).
     :param continuous: The continuous agents' action components, ``[action_dim]`` (bool).
@@ -77,11 +77,11 @@ class MATD3(MADDPG):
     scheme's extractor; critic i's target is ``r_i + gamma * (1 - done_i) * min(Q_i1', Q_i2')`` at the target actors'
     actions plus clipped smoothing noise; the actors ascend their first critic, and the actors and every target network
     move once every ``policy_delay`` critic updates. The update is MADDPG's step
-    (:func:`~sb3_maddpg.update_step.update_step`) with MATD3's networks (:class:`TwinUpdateNetworks`).
+    (:func:`~sb3_maddpg.common.update_step.update_step`) with MATD3's networks (:class:`TwinUpdateNetworks`).
     TD3's parameters have SB3's names and defaults; every other parameter is :class:`~sb3_maddpg.MADDPG`'s, with the
     paper's defaults (Lowe et al.).
 
-    :param policy: The policy model to use (``"MlpPolicy"`` or a :class:`~sb3_maddpg.matd3_policies.MATD3Policy`
+    :param policy: The policy model to use (``"MlpPolicy"`` or a :class:`~sb3_maddpg.matd3.policies.MATD3Policy`
         subclass).
     :param env: The environment to learn from (see :class:`~sb3_maddpg.MADDPG`).
     :param critic_sharing: What each critic sees: a scheme's name, a
@@ -112,7 +112,7 @@ class MATD3(MADDPG):
     :param actor_reg_coef: Weight of the penalty on each actor's pre-``tanh`` output (see :class:`~sb3_maddpg.MADDPG`).
     :param critic_sharing_kwargs: Extra keyword arguments for the sharing scheme's extractors, or, keyed by agent id,
         each agent's own (both twins get the same).
-    :param replay_buffer_class: Replay buffer class (default :class:`~sb3_maddpg.buffers.MultiAgentReplayBuffer`).
+    :param replay_buffer_class: Replay buffer class (default :class:`~sb3_maddpg.common.buffers.MultiAgentReplayBuffer`).
     :param replay_buffer_kwargs: Keyword arguments for the replay buffer.
     :param stats_window_size: Window size for the rollout logging (episodes).
     :param tensorboard_log: The log location for tensorboard (None: no logging).

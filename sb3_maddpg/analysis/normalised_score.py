@@ -11,8 +11,8 @@ episodes, once per task and process.
 import functools
 import math
 
+from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.envs import RandomTeamPolicy, ScriptedSpreadPolicy, SimpleSpreadVecEnv
-from sb3_maddpg.evaluation import evaluate_team
 
 NORMALISED_METRICS = ("min_dist_sum", "return_mean")
 """The scores normalised: the min-dist sum at the last step and the team return."""
@@ -28,7 +28,7 @@ def reference_scores(n_agents: int, local_ratio: float = 0.5, max_cycles: int = 
     :param n_agents: Agents (and landmarks).
     :param local_ratio: mpe2's weight of the collision penalty.
     :param max_cycles: Steps per episode.
-    :return: ``{"random": ..., "scripted": ...}``, each :func:`~sb3_maddpg.evaluation.evaluate_team`'s result over
+    :return: ``{"random": ..., "scripted": ...}``, each :func:`~sb3_maddpg.analysis.evaluation.evaluate_team`'s result over
         :data:`REFERENCE_EPISODES` episodes.
     """
     results = {}
@@ -56,7 +56,7 @@ def normalised_score(value: float, random: float, reference: float) -> float:
 
 def normalised_scores(result: dict[str, float], references: dict[str, dict[str, float]]) -> dict[str, float]:
     """
-    :param result: A team's scores (an :func:`~sb3_maddpg.evaluation.evaluate_team` result or a run's score).
+    :param result: A team's scores (an :func:`~sb3_maddpg.analysis.evaluation.evaluate_team` result or a run's score).
     :param references: From :func:`reference_scores`.
     :return: The normalised score of each of :data:`NORMALISED_METRICS`.
     """

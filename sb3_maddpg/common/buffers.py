@@ -8,8 +8,8 @@ from gymnasium import spaces
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.vec_env import VecNormalize
 
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.selection import Selector
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.selection import Selector
 
 
 class MultiAgentReplayBufferSamples(NamedTuple):

@@ -22,9 +22,9 @@ import numpy as np
 import torch as th
 from torch import nn
 
-from sb3_maddpg.layout import AgentLayout
-from sb3_maddpg.networks import LAYER_NORM_EPS, AgentEnsembleMLP
-from sb3_maddpg.user_code import user_stacklevel
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.networks import LAYER_NORM_EPS, AgentEnsembleMLP
+from sb3_maddpg.common.user_code import user_stacklevel
 from sb3_maddpg.version import __version__
 
 FORMATS = {"onnx": ".onnx", "torchscript": ".pt"}
@@ -211,7 +211,7 @@ def _export_onnx(actor: AgentActor, example: th.Tensor, path: Path) -> None:
         import onnx  # noqa: F401
         import onnxscript  # noqa: F401
     except ModuleNotFoundError as error:
-        from sb3_maddpg.install_hint import extra_install_command
+        from sb3_maddpg.common.install_hint import extra_install_command
 
         raise ModuleNotFoundError(
             "export_actors(format='onnx') needs onnx and onnxscript, which are not installed: "

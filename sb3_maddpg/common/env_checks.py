@@ -8,7 +8,7 @@ from typing import Any
 from gymnasium import spaces
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_normalize
 
-from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.common.layout import AgentLayout
 
 WRAP_HINT = (
     "wrap it: sb3_maddpg.envs.PettingZooToGym(env) for any ParallelEnv, or build one ready to use with "

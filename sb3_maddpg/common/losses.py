@@ -5,7 +5,7 @@ loss terms.
 Every tensor has a leading member dimension ``M``: the networks of ``M`` teams (runs trained together, each with its
 own batch) are evaluated at once, and each member's losses depend on its own networks and batch only. One team is
 ``M = 1`` (:func:`one_member`). The networks are passed as functions
-(:class:`~sb3_maddpg.update_step.UpdateNetworks`), so that a sibling algorithm changes them, not the math: MATD3's
+(:class:`~sb3_maddpg.common.update_step.UpdateNetworks`), so that a sibling algorithm changes them, not the math: MATD3's
 target actor adds its smoothing noise, its target critic returns the minimum of its twins, and its critic returns both
 twins stacked in front (``[2, M, batch, n_agents]``), which :func:`critic_losses` broadcasts over.
 """
@@ -17,8 +17,8 @@ from typing import NamedTuple
 import torch as th
 from torch.nn import functional as F
 
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.layout import AgentLayout
+from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.layout import AgentLayout
 
 SATURATION_THRESHOLD = 0.99
 """An action component with ``|a| >`` this, in the policy's [-1, 1] space, counts as saturated in the logs."""

@@ -10,20 +10,18 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
-from sb3_maddpg.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
-from sb3_maddpg.compat import renamed_argument
-from sb3_maddpg.env_checks import refuse_unsupported_env
-from sb3_maddpg.losses import SATURATION_THRESHOLD as SATURATION_THRESHOLD  # import paths of 0.2.0.dev
-from sb3_maddpg.losses import ActionParts, check_loss_settings, critic_targets, one_member
-from sb3_maddpg.losses import ActorLossTerms as ActorLossTerms
-from sb3_maddpg.policies import MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentCritic
-from sb3_maddpg.selection import Selector
-from sb3_maddpg.sharing import CriticSharing, validate_critic_sharing
-from sb3_maddpg.team_algorithm import LOG_INTERVAL as LOG_INTERVAL  # import path of 0.2
-from sb3_maddpg.team_algorithm import TeamOffPolicyAlgorithm
-from sb3_maddpg.train_logs import record_critic_diagnostics, record_losses
-from sb3_maddpg.update_schedule import UpdateSchedule
-from sb3_maddpg.update_step import (
+from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
+from sb3_maddpg.common.env_checks import refuse_unsupported_env
+from sb3_maddpg.common.losses import SATURATION_THRESHOLD as SATURATION_THRESHOLD  # import paths of 0.2.0.dev
+from sb3_maddpg.common.losses import ActionParts, check_loss_settings, critic_targets, one_member
+from sb3_maddpg.common.losses import ActorLossTerms as ActorLossTerms
+from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
+from sb3_maddpg.common.selection import Selector
+from sb3_maddpg.common.team_algorithm import LOG_INTERVAL as LOG_INTERVAL  # import path of 0.2
+from sb3_maddpg.common.team_algorithm import TeamOffPolicyAlgorithm
+from sb3_maddpg.common.train_logs import record_critic_diagnostics, record_losses
+from sb3_maddpg.common.update_schedule import UpdateSchedule
+from sb3_maddpg.common.update_step import (
     MemberModules,
     StepSettings,
     TeamModules,
@@ -31,6 +29,9 @@ from sb3_maddpg.update_step import (
     summarise_steps,
     update_step,
 )
+from sb3_maddpg.compat import renamed_argument
+from sb3_maddpg.maddpg.policies import MADDPGPolicy, MlpPolicy
+from sb3_maddpg.sharing import CriticSharing, validate_critic_sharing
 
 
 class MADDPG(TeamOffPolicyAlgorithm):
@@ -44,7 +45,7 @@ class MADDPG(TeamOffPolicyAlgorithm):
     observation, the joint action and (for ``"selected"``) the agents i selected.
     Defaults are the paper's (from Lowe et al.).
 
-    :param policy: The policy model to use (``"MlpPolicy"`` or a :class:`~sb3_maddpg.policies.MADDPGPolicy` subclass).
+    :param policy: The policy model to use (``"MlpPolicy"`` or a :class:`~sb3_maddpg.maddpg.policies.MADDPGPolicy` subclass).
     :param env: The environment to learn from: a :class:`~sb3_maddpg.envs.PettingZooToGym` env (or a VecEnv of
         them, or a registered id), which exposes ``agent_layout`` and ``info["agent_rewards"]``.
     :param critic_sharing: What critic i sees: ``"independent"`` (IDDPG), ``"full"`` (MADDPG),
@@ -53,7 +54,7 @@ class MADDPG(TeamOffPolicyAlgorithm):
         ``"learned_selection"`` (:mod:`sb3_maddpg.attention`), or a :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor`
         subclass; or a mapping from each agent id to its own critic's scheme, e.g. ``{"adversary_0": "full",
         "agent_0": "independent", "agent_1": "independent"}``.
-    :param selector: For schemes that use a selection, the rule that selects: a :class:`~sb3_maddpg.selection.Selector`,
+    :param selector: For schemes that use a selection, the rule that selects: a :class:`~sb3_maddpg.common.selection.Selector`,
         or an int ``k`` for ``NearestAgents(k)`` (default ``NearestAgents(k=2)``). It is applied to the observation
         when a transition is stored. A ``k`` of ``n_agents - 1`` selects every other agent (full sharing in another
         order) and gets a warning.
@@ -89,7 +90,7 @@ class MADDPG(TeamOffPolicyAlgorithm):
         code, 1e-3). It keeps the actors out of ``tanh`` saturation; 0 turns it off.
     :param critic_sharing_kwargs: Extra keyword arguments for the sharing scheme's extractor (e.g. ``{"k": 1}`` for
         ``learned_selection``), or, keyed by agent id, each critic's own.
-    :param replay_buffer_class: Replay buffer class (default :class:`~sb3_maddpg.buffers.MultiAgentReplayBuffer`).
+    :param replay_buffer_class: Replay buffer class (default :class:`~sb3_maddpg.common.buffers.MultiAgentReplayBuffer`).
     :param replay_buffer_kwargs: Keyword arguments for the replay buffer.
     :param stats_window_size: Window size for the rollout logging (episodes).
     :param tensorboard_log: The log location for tensorboard (None: no logging).
@@ -215,7 +216,7 @@ class MADDPG(TeamOffPolicyAlgorithm):
             # Sample replay buffer: one joint batch, the same rows for every agent (and every critic of one)
             replay_data = one_member(self.replay_buffer.sample(batch_size, env=self._vec_normalize_env))
             # The critics (their extractors recording their diagnostics on this batch, as replayed), then the actors
-            # and the targets when due: the one step every trainer shares (sb3_maddpg.update_step)
+            # and the targets when due: the one step every trainer shares (sb3_maddpg.common.update_step)
             due = settings.actor_due(self._n_updates)
             steps.append(update_step(self._team, optimizers, replay_data, settings, due, self.critic.recording_diagnostics))
         # Kept on the device until here: one transfer per train() call, not one per gradient step.

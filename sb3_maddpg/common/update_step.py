@@ -15,9 +15,9 @@ from typing import Any, NamedTuple, Protocol
 
 import torch as th
 
-from sb3_maddpg.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
-from sb3_maddpg.policies import MultiAgentActor, MultiAgentCritic
+from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
+from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
 
 MODULE_NAMES = ("actor", "critic", "actor_target", "critic_target")
 """The four modules of a team, as :class:`MemberModules` names them."""
@@ -58,7 +58,7 @@ class MemberModules(Protocol):
 
 class UpdateNetworks:
     """
-    MADDPG's networks as the functions of :mod:`sb3_maddpg.losses`, over :class:`MemberModules`.
+    MADDPG's networks as the functions of :mod:`sb3_maddpg.common.losses`, over :class:`MemberModules`.
 
     :param modules: The members' modules.
     """
