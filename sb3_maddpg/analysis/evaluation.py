@@ -250,82 +250,133 @@ def evaluate_team(
     if n_episodes < 1:
         raise ValueError(f"n_episodes must be at least 1, got {n_episodes}.")
     vec_env: VecEnv = env if isinstance(env, VecEnv) else DummyVecEnv([lambda: env])  # type: ignore[list-item, return-value]
-    n_envs = vec_env.num_envs
     if seed is not None:
         vec_env.seed(seed)
-    observations = vec_env.reset()
+    tally = EpisodeTally(vec_env.num_envs, n_episodes, task_metrics)
+    _play(model, vec_env, tally, deterministic)
+    _warn_missing_metrics(tally)
+    return _summarise(tally, vec_env, task_metrics, score_agents, sides)
 
-    targets = np.array([(n_episodes + i) // n_envs for i in range(n_envs)], dtype=int)
-    counts = np.zeros(n_envs, dtype=int)
-    team_returns = np.zeros(n_envs)
-    lengths = np.zeros(n_envs, dtype=int)
-    collisions = np.zeros(n_envs)
-    agent_returns: list[np.ndarray | None] = [None] * n_envs
-    episodes: dict[str, list[Any]] = {key: [] for key in ("return", "length", "agent_returns", *TASK_METRICS, *RADIUS_KEYS)}
-    declared = {metric.key: metric.per_episode for metric in task_metrics}
-    declared_values: dict[str, list[float]] = {key: [] for key in declared}
-    declared_sums = {key: np.zeros(n_envs) for key, per_episode in declared.items() if per_episode == "sum"}
+
+class EpisodeTally:
+    """
+    What :func:`evaluate_team` counts: each env's running sums over its current episode, and each finished episode's
+    values, up to each env's share of the episodes (spread evenly, as SB3's ``evaluate_policy`` does).
+
+    :param n_envs: Number of envs.
+    :param n_episodes: Number of episodes in all.
+    :param task_metrics: Task metrics declared besides simple_spread's.
+    """
+
+    def __init__(self, n_envs: int, n_episodes: int, task_metrics: Sequence[DeclaredMetric]) -> None:
+        self.targets = np.array([(n_episodes + i) // n_envs for i in range(n_envs)], dtype=int)
+        self.counts = np.zeros(n_envs, dtype=int)
+        self.team_returns = np.zeros(n_envs)
+        self.lengths = np.zeros(n_envs, dtype=int)
+        self.collisions = np.zeros(n_envs)
+        self.agent_returns: list[np.ndarray | None] = [None] * n_envs
+        self.episodes: dict[str, list[Any]] = {
+            key: [] for key in ("return", "length", "agent_returns", *TASK_METRICS, *RADIUS_KEYS)
+        }
+        self.declared = {metric.key: metric.per_episode for metric in task_metrics}
+        self.declared_values: dict[str, list[float]] = {key: [] for key in self.declared}
+        self.declared_sums = {key: np.zeros(n_envs) for key, per_episode in self.declared.items() if per_episode == "sum"}
+
+    @property
+    def done(self) -> bool:
+        """Whether every env has played its share."""
+        return bool((self.counts >= self.targets).all())
+
+    def add_step(self, rewards: np.ndarray, dones: np.ndarray, infos: Sequence[dict[str, Any]]) -> None:
+        """
+        :param rewards: The team rewards of one step of every env.
+        :param dones: Which envs' episodes ended (they were reset).
+        :param infos: The envs' infos (the last step's, for an env whose episode ended).
+        """
+        self.team_returns += rewards
+        self.lengths += 1
+        for i, info in enumerate(infos):
+            self.collisions[i] += float(info.get("collisions", np.nan))
+            for key, sums in self.declared_sums.items():
+                sums[i] += float(info.get(key, np.nan))
+            if "agent_rewards" in info:
+                step_rewards = np.asarray(info["agent_rewards"], dtype=np.float64)
+                previous = self.agent_returns[i]
+                self.agent_returns[i] = step_rewards if previous is None else previous + step_rewards
+            if dones[i]:
+                self._end_episode(i, info)
+
+    def _end_episode(self, i: int, info: dict[str, Any]) -> None:
+        """Keep env ``i``'s episode if it is within the env's share, and start its next one from zero."""
+        if self.counts[i] < self.targets[i]:
+            self.episodes["return"].append(float(self.team_returns[i]))
+            self.episodes["length"].append(int(self.lengths[i]))
+            self.episodes["agent_returns"].append(self.agent_returns[i])
+            self.episodes["collisions"].append(float(self.collisions[i]))
+            for key in ("success", "coverage", "min_dist_sum"):
+                self.episodes[key].append(float(info.get(key, np.nan)))
+            for key, value in _radius_metrics(info.get("landmark_distances")).items():
+                self.episodes[key].append(value)
+            for key, per_episode in self.declared.items():
+                self.declared_values[key].append(
+                    self.declared_sums[key][i] if per_episode == "sum" else float(info.get(key, np.nan))
+                )
+            self.counts[i] += 1
+        self.team_returns[i], self.lengths[i], self.collisions[i], self.agent_returns[i] = 0.0, 0, 0.0, None
+        for sums in self.declared_sums.values():
+            sums[i] = 0.0
+
+
+def _play(model: PredictsActions, vec_env: VecEnv, tally: EpisodeTally, deterministic: bool) -> None:
+    """Let the team act in ``vec_env`` (reset here), with the training's exploration when not deterministic, until
+    ``tally`` holds every episode."""
+    n_envs = vec_env.num_envs
+    observations = vec_env.reset()
     states = None
     episode_starts = np.ones(n_envs, dtype=bool)
     exploration = None if deterministic else _exploration_noise(model, n_envs)
     layout = getattr(model, "agent_layout", None)  # a MADDPG model's: no noise on its discrete agents' one-hots
     discrete = layout.discrete_components() if isinstance(layout, AgentLayout) else None
-
-    while (counts < targets).any():
+    while not tally.done:
         actions, states = model.predict(observations, state=states, episode_start=episode_starts, deterministic=deterministic)
         if exploration is not None:
             actions = _add_noise(actions, exploration, vec_env.action_space, discrete)
         observations, rewards, dones, infos = vec_env.step(actions)
-        team_returns += rewards
-        lengths += 1
-        for i in range(n_envs):
-            info = infos[i]
-            collisions[i] += float(info.get("collisions", np.nan))
-            for key, sums in declared_sums.items():
-                sums[i] += float(info.get(key, np.nan))
-            if "agent_rewards" in info:
-                step_rewards = np.asarray(info["agent_rewards"], dtype=np.float64)
-                previous = agent_returns[i]
-                agent_returns[i] = step_rewards if previous is None else previous + step_rewards
-            if not dones[i]:
-                continue
-            if counts[i] < targets[i]:
-                episodes["return"].append(float(team_returns[i]))
-                episodes["length"].append(int(lengths[i]))
-                episodes["agent_returns"].append(agent_returns[i])
-                episodes["collisions"].append(float(collisions[i]))
-                for key in ("success", "coverage", "min_dist_sum"):
-                    episodes[key].append(float(info.get(key, np.nan)))
-                for key, value in _radius_metrics(info.get("landmark_distances")).items():
-                    episodes[key].append(value)
-                for key, per_episode in declared.items():
-                    declared_values[key].append(
-                        declared_sums[key][i] if per_episode == "sum" else float(info.get(key, np.nan))
-                    )
-                counts[i] += 1
-            team_returns[i], lengths[i], collisions[i], agent_returns[i] = 0.0, 0, 0.0, None
-            for sums in declared_sums.values():
-                sums[i] = 0.0
+        tally.add_step(rewards, dones, infos)
         episode_starts = dones
         if exploration is not None and dones.any():
             exploration.reset(np.flatnonzero(dones))
 
-    returns = np.asarray(episodes["return"])
-    per_agent = [r for r in episodes["agent_returns"] if r is not None]
-    if declared:
-        missing = [key for key, values in declared_values.items() if np.isnan(values).all()]
+
+def _warn_missing_metrics(tally: EpisodeTally) -> None:
+    """Warn about the metrics the env's info never held (they are ``nan``), saying where they come from."""
+    if tally.declared:
+        missing = [key for key, values in tally.declared_values.items() if np.isnan(values).all()]
         hint = "the task_metrics given are not in the env's info"
     else:
-        missing = [key for key in TASK_METRICS if np.isnan(episodes[key]).all()]
-        missing += ["landmark_distances"] if np.isnan(episodes[RADIUS_KEYS[0]]).all() else []
+        missing = [key for key in TASK_METRICS if np.isnan(tally.episodes[key]).all()]
+        missing += ["landmark_distances"] if np.isnan(tally.episodes[RADIUS_KEYS[0]]).all() else []
         hint = (
             "simple_spread's envs give them; for another MPE task pass its task_metrics=MPE_TASK_METRICS[task], "
             "or read return_mean and agent_returns"
         )
     if missing:
         warnings.warn(
-            f"evaluate_team: the env's info has no task metrics for {missing}, so they are nan: {hint}.", stacklevel=2
+            f"evaluate_team: the env's info has no task metrics for {missing}, so they are nan: {hint}.", stacklevel=3
         )
+
+
+def _summarise(
+    tally: EpisodeTally,
+    vec_env: VecEnv,
+    task_metrics: Sequence[DeclaredMetric],
+    score_agents: Sequence[str],
+    sides: Mapping[str, Sequence[str]] | None,
+) -> dict[str, Any]:
+    """:func:`evaluate_team`'s result from its episodes: the means of :func:`eval_keys`'s keys, and the agents'."""
+    episodes = tally.episodes
+    returns = np.asarray(episodes["return"])
+    per_agent = [r for r in episodes["agent_returns"] if r is not None]
     everything = {
         "success_rate": float(np.mean(episodes["success"])),
         "coverage": float(np.mean(episodes["coverage"])),
@@ -335,7 +386,7 @@ def evaluate_team(
         "return_std": float(returns.std()),
         "episode_length": float(np.mean(episodes["length"])),
         **{key: float(np.mean(episodes[key])) for key in RADIUS_KEYS},
-        **{key: float(np.mean(values)) for key, values in declared_values.items()},
+        **{key: float(np.mean(values)) for key, values in tally.declared_values.items()},
         **({"group_return": _group_return(vec_env, per_agent, score_agents)} if score_agents else {}),
         **_side_returns(vec_env, per_agent, len(returns), sides or {}),
     }
