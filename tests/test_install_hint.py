@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from sb3_maddpg import install_hint
+from sb3_maddpg.common import install_hint
 
 
 class _Distribution:
@@ -38,4 +38,4 @@ def test_this_checkout_is_named_when_installed_editable() -> None:
     checkout = install_hint.editable_checkout()
     if checkout is None:
         pytest.skip("the package is not installed editable here")
-    assert (Path(checkout) / "sb3_maddpg" / "install_hint.py").is_file()
+    assert (Path(checkout) / "sb3_maddpg" / "common" / "install_hint.py").is_file()
