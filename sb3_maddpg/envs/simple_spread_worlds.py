@@ -3,7 +3,7 @@
 Every formula here is mpe2's (``mpe2/_mpe_utils/core.py``, ``simple_env.py`` and
 ``simple_spread/simple_spread.py``, version 1.1), computed in float64 as mpe2 does, with the worlds on the
 first axis and the agents on the second, so that a step costs a few dozen array calls whatever the
-number of worlds. ``tests/test_simple_spread_vec_env.py`` checks it against mpe2 itself.
+number of worlds. ``tests/envs/test_simple_spread_vec_env.py`` checks it against mpe2 itself.
 
 The rules (:class:`SpreadWorldRules`) are written once against the array API standard: the namespace ``xp``
 of the state's arrays runs them, numpy here (:class:`SimpleSpreadWorlds`) and torch on any device in

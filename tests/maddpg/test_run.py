@@ -22,23 +22,10 @@ from sb3_maddpg import MADDPG, MATD3, AgentLayout
 from sb3_maddpg.common.selection import CallableSelector, FixedGraph, NearestAgents
 from sb3_maddpg.envs import SIMPLE_SPREAD_ID, PettingZooToGym, SimpleSpreadVecEnv, make_simple_spread
 from sb3_maddpg.sharing import SCHEME_ALIASES, SHARING_SCHEMES, CriticFeaturesExtractor
+from tests.settings import N_AGENTS, TRAINS_QUICKLY, make_team
 
 SCHEMES = ("independent", "full", "observations", "actions", "selected")
-N_AGENTS = 3
 ACTION_SIZE = 5  # simple_spread: Box(0, 1, (5,)) per agent
-# Tiny and fast: learning starts after two short episodes, then a gradient step every 10 env steps.
-FAST = dict(
-    learning_starts=50,
-    batch_size=32,
-    buffer_size=2_000,
-    train_freq=10,
-    policy_kwargs=dict(net_arch=[16, 16]),
-    seed=0,
-)
-
-
-def make_team(n_agents: int = N_AGENTS, max_cycles: int = 25) -> PettingZooToGym:
-    return make_simple_spread(n_agents=n_agents, max_cycles=max_cycles)
 
 
 def ring_selection(observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
@@ -76,9 +63,9 @@ def read_csv_keys(path: Path) -> set[str]:
 
 
 @pytest.mark.parametrize("scheme", SCHEMES)
-def test_schemes_learn(scheme):
+def test_each_scheme_trains_over_two_envs_with_its_extractor(scheme):
     env = make_vec_env(make_team, n_envs=2, vec_env_cls=DummyVecEnv)
-    model = MADDPG("MlpPolicy", env, critic_sharing=scheme, **FAST)
+    model = MADDPG("MlpPolicy", env, critic_sharing=scheme, **TRAINS_QUICKLY)
     model.learn(total_timesteps=200)
     assert model.num_timesteps == 200
     assert model._n_updates > 0
@@ -88,11 +75,11 @@ def test_schemes_learn(scheme):
 
 @pytest.mark.parametrize("alias", sorted(SCHEME_ALIASES))
 def test_scheme_aliases(alias):
-    model = MADDPG("MlpPolicy", make_team(), critic_sharing=alias, **FAST)
+    model = MADDPG("MlpPolicy", make_team(), critic_sharing=alias, **TRAINS_QUICKLY)
     expected = SHARING_SCHEMES[SCHEME_ALIASES[alias]]
     assert all(type(extractor) is expected for extractor in model.critic.extractors)
     # Upper case names resolve too.
-    upper = MADDPG("MlpPolicy", make_team(), critic_sharing=alias.upper(), **FAST)
+    upper = MADDPG("MlpPolicy", make_team(), critic_sharing=alias.upper(), **TRAINS_QUICKLY)
     assert type(upper.critic.extractors[0]) is expected
 
 
@@ -101,7 +88,7 @@ def test_subproc_vec_env():
     # (which registers the id) there first.
     env = make_vec_env(f"sb3_maddpg:{SIMPLE_SPREAD_ID}", n_envs=2, vec_env_cls=SubprocVecEnv, env_kwargs=dict(n_agents=3))
     try:
-        model = MADDPG("MlpPolicy", env, critic_sharing="selected", **FAST)
+        model = MADDPG("MlpPolicy", env, critic_sharing="selected", **TRAINS_QUICKLY)
         model.learn(total_timesteps=200)
         assert model.num_timesteps == 200
         assert model._n_updates > 0
@@ -113,11 +100,11 @@ def test_subproc_vec_env():
 
 
 def test_registered_id_as_env():
-    model = MADDPG("MlpPolicy", SIMPLE_SPREAD_ID, **FAST)
+    model = MADDPG("MlpPolicy", SIMPLE_SPREAD_ID, **TRAINS_QUICKLY)
     assert model.agent_layout.n_agents == 5  # make_simple_spread's default team
     model.learn(total_timesteps=60)
     env = make_vec_env(SIMPLE_SPREAD_ID, n_envs=2, env_kwargs=dict(n_agents=2))
-    assert MADDPG("MlpPolicy", env, **FAST).agent_layout.n_agents == 2
+    assert MADDPG("MlpPolicy", env, **TRAINS_QUICKLY).agent_layout.n_agents == 2
 
 
 # ---------------------------------------------------------------------------------------------- callbacks and logging
@@ -144,7 +131,7 @@ def test_callbacks(tmp_path, algorithm):
     checkpoint = CheckpointCallback(save_freq=50, save_path=str(tmp_path / "checkpoints"), name_prefix="maddpg")
     evaluation = EvalCallback(eval_env, eval_freq=50, n_eval_episodes=2, log_path=str(tmp_path / "eval"), warn=False)
     counting = CountingCallback()
-    model = algorithm("MlpPolicy", env, **FAST)
+    model = algorithm("MlpPolicy", env, **TRAINS_QUICKLY)
     model.learn(total_timesteps=200, callback=[checkpoint, evaluation, counting])
     # 200 steps over 2 envs = 100 calls; a checkpoint every 50 calls.
     assert counting.n_calls_seen == 100
@@ -161,7 +148,7 @@ def test_callbacks(tmp_path, algorithm):
 
 
 def test_logger_keys_and_learning_starts(tmp_path):
-    model = MADDPG("MlpPolicy", make_team(), **{**FAST, "learning_starts": 100})
+    model = MADDPG("MlpPolicy", make_team(), **{**TRAINS_QUICKLY, "learning_starts": 100})
     model.set_logger(configure(str(tmp_path / "before"), ["csv"]))
     model.learn(total_timesteps=100, log_interval=1)  # 4 episodes, all before learning starts
     keys = read_csv_keys(tmp_path / "before" / "progress.csv")
@@ -193,7 +180,7 @@ def test_learn_that_ends_before_any_update_warns_once():
 
 @pytest.mark.parametrize("kwargs", [dict(), dict(gradient_steps=0)])
 def test_no_warning_when_the_model_updates_or_is_told_not_to(kwargs):
-    model = MADDPG("MlpPolicy", make_team(), **{**FAST, **kwargs})
+    model = MADDPG("MlpPolicy", make_team(), **{**TRAINS_QUICKLY, **kwargs})
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         model.learn(total_timesteps=100)
@@ -202,7 +189,9 @@ def test_no_warning_when_the_model_updates_or_is_told_not_to(kwargs):
 
 def test_default_log_interval_writes_a_readable_log(tmp_path):
     """verbose=1 prints a table per log_interval finished episodes: 1000 by default (SB3's 4 floods the console)."""
-    model = MADDPG("MlpPolicy", make_vec_env(lambda: make_team(max_cycles=1), n_envs=8), **{**FAST, "gradient_steps": 0})
+    model = MADDPG(
+        "MlpPolicy", make_vec_env(lambda: make_team(max_cycles=1), n_envs=8), **{**TRAINS_QUICKLY, "gradient_steps": 0}
+    )
     model.set_logger(configure(str(tmp_path), ["csv"]))
     model.learn(total_timesteps=2_000)  # 2,000 episodes of 1 step
     with open(tmp_path / "progress.csv") as file:
@@ -211,7 +200,7 @@ def test_default_log_interval_writes_a_readable_log(tmp_path):
 
 def test_tensorboard(tmp_path):
     pytest.importorskip("tensorboard")
-    model = MADDPG("MlpPolicy", make_team(), tensorboard_log=str(tmp_path), **FAST)
+    model = MADDPG("MlpPolicy", make_team(), tensorboard_log=str(tmp_path), **TRAINS_QUICKLY)
     model.learn(total_timesteps=150, log_interval=1)
     assert glob.glob(str(tmp_path / "MADDPG_1" / "events.out.tfevents.*"))
 
@@ -219,7 +208,7 @@ def test_tensorboard(tmp_path):
 def test_progress_bar():
     pytest.importorskip("tqdm")
     pytest.importorskip("rich")
-    model = MADDPG("MlpPolicy", make_team(), **FAST)
+    model = MADDPG("MlpPolicy", make_team(), **TRAINS_QUICKLY)
     model.learn(total_timesteps=100, progress_bar=True)
     assert model.num_timesteps == 100
 
@@ -229,7 +218,7 @@ def test_progress_bar():
 
 def test_predict_shapes_and_bounds():
     env = make_team()
-    model = MADDPG("MlpPolicy", env, **FAST)
+    model = MADDPG("MlpPolicy", env, **TRAINS_QUICKLY)
     model.learn(total_timesteps=100)
     obs, _ = env.reset(seed=0)
     action, state = model.predict(obs, deterministic=True)
@@ -249,7 +238,7 @@ def test_predict_shapes_and_bounds():
 
 @pytest.mark.parametrize("device", ["cpu", "auto"])
 def test_device(device):
-    model = MADDPG("MlpPolicy", make_team(), device=device, **FAST)
+    model = MADDPG("MlpPolicy", make_team(), device=device, **TRAINS_QUICKLY)
     expected = "cuda" if device == "auto" and th.cuda.is_available() else "cpu"
     assert model.device.type == expected
     assert next(model.actor.parameters()).device.type == expected
@@ -257,7 +246,7 @@ def test_device(device):
 
 
 def test_set_env():
-    model = MADDPG("MlpPolicy", make_team(), **FAST)
+    model = MADDPG("MlpPolicy", make_team(), **TRAINS_QUICKLY)
     model.learn(total_timesteps=60)
     model.set_env(make_vec_env(make_team, n_envs=1))
     model.learn(total_timesteps=60, reset_num_timesteps=False)
@@ -268,7 +257,7 @@ def test_set_env():
 
 def test_set_env_same_spaces_other_layout_keeps_model_env():
     # Same joint spaces, other agent ids: only the layout check can catch it.
-    model = MADDPG("MlpPolicy", make_team(), **FAST)
+    model = MADDPG("MlpPolicy", make_team(), **TRAINS_QUICKLY)
     old_env = model.get_env()
     other = make_team()
     layout = other.agent_layout
@@ -283,54 +272,54 @@ def test_set_env_same_spaces_other_layout_keeps_model_env():
 
 def test_env_without_layout():
     with pytest.raises(ValueError, match="PettingZooToGym"):
-        MADDPG("MlpPolicy", gym.make("Pendulum-v1"), **FAST)
+        MADDPG("MlpPolicy", gym.make("Pendulum-v1"), **TRAINS_QUICKLY)
 
 
 def test_unknown_scheme():
     with pytest.raises(ValueError, match="Unknown critic_sharing 'everything'") as error:
-        MADDPG("MlpPolicy", make_team(), critic_sharing="everything", **FAST)
+        MADDPG("MlpPolicy", make_team(), critic_sharing="everything", **TRAINS_QUICKLY)
     for name in SCHEMES:
         assert repr(name) in str(error.value)
 
 
 def test_selection_k_out_of_range():
     with pytest.raises(ValueError, match="k=3"):
-        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=NearestAgents(k=3), **FAST)
+        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=NearestAgents(k=3), **TRAINS_QUICKLY)
 
 
 @pytest.mark.parametrize("scheme", ["full", "independent", "observations", "actions"])
 def test_selection_for_scheme_without_selection(scheme):
     with pytest.raises(ValueError, match="selector is used only by"):
-        MADDPG("MlpPolicy", make_team(), critic_sharing=scheme, selector=NearestAgents(k=1), **FAST)
+        MADDPG("MlpPolicy", make_team(), critic_sharing=scheme, selector=NearestAgents(k=1), **TRAINS_QUICKLY)
 
 
 def test_selection_as_k_nearest_agents():
-    model = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=1, **FAST)
+    model = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=1, **TRAINS_QUICKLY)
     assert isinstance(model.selector, NearestAgents) and model.selector.k == 1
     with pytest.raises(ValueError, match="k=4"):
-        MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=4, **FAST)
+        MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=4, **TRAINS_QUICKLY)
 
 
 def test_selecting_every_other_agent_warns():
     # k = n - 1 (here the default k=2 at N=3) is full sharing in another order.
     with pytest.warns(UserWarning, match="selects every other agent of this 3-agent team"):
-        MADDPG("MlpPolicy", make_team(n_agents=3), critic_sharing="selected", **FAST)
+        MADDPG("MlpPolicy", make_team(n_agents=3), critic_sharing="selected", **TRAINS_QUICKLY)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        MADDPG("MlpPolicy", make_team(n_agents=3), critic_sharing="selected", selector=1, **FAST)
-        MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", **FAST)
+        MADDPG("MlpPolicy", make_team(n_agents=3), critic_sharing="selected", selector=1, **TRAINS_QUICKLY)
+        MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", **TRAINS_QUICKLY)
 
 
 def test_selection_not_a_selector():
     with pytest.raises(TypeError, match="CallableSelector"):
-        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=ring_selection, **FAST)
+        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=ring_selection, **TRAINS_QUICKLY)
 
 
 def test_vec_normalize():
     with pytest.raises(ValueError, match="norm_reward=False"):
-        MADDPG("MlpPolicy", VecNormalize(make_vec_env(make_team, n_envs=2), norm_reward=True), **FAST)
+        MADDPG("MlpPolicy", VecNormalize(make_vec_env(make_team, n_envs=2), norm_reward=True), **TRAINS_QUICKLY)
     env = VecNormalize(make_vec_env(make_team, n_envs=2), norm_reward=False)
-    model = MADDPG("MlpPolicy", env, critic_sharing="selected", **FAST)
+    model = MADDPG("MlpPolicy", env, critic_sharing="selected", **TRAINS_QUICKLY)
     model.learn(total_timesteps=200)
     assert model._n_updates > 0
     assert env.obs_rms.count > 100  # observation statistics were updated
@@ -339,17 +328,17 @@ def test_vec_normalize():
         model.set_env(VecNormalize(make_vec_env(make_team, n_envs=2), norm_reward=True))
 
 
-def test_discrete_actions():
+def test_a_gymnasium_discrete_action_space_is_refused_naming_the_box_it_needs():
     # A gymnasium env with a Discrete joint action space (the adapter makes discrete agents one-hot slots of a Box).
     with pytest.raises(TypeError, match=r"one joint Box action space, but the env's action space is Discrete\(2\)"):
-        MADDPG("MlpPolicy", gym.make("CartPole-v1"), **FAST)
+        MADDPG("MlpPolicy", gym.make("CartPole-v1"), **TRAINS_QUICKLY)
 
 
 # ---------------------------------------------------------------------------------------------- customisation
 
 
 def test_custom_critic_features_extractor():
-    model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=MeanOthersActionFeatures, **FAST)
+    model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=MeanOthersActionFeatures, **TRAINS_QUICKLY)
     assert all(isinstance(extractor, MeanOthersActionFeatures) for extractor in model.critic.extractors)
     assert model.critic.extractors[0].features_dim == model.agent_layout.obs_sizes[0] + 2 * ACTION_SIZE
     before = [p.detach().clone() for p in model.actor.parameters()]
@@ -359,7 +348,9 @@ def test_custom_critic_features_extractor():
 
 
 def test_callable_selector():
-    model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=CallableSelector(ring_selection, k=1), **FAST)
+    model = MADDPG(
+        "MlpPolicy", make_team(), critic_sharing="selected", selector=CallableSelector(ring_selection, k=1), **TRAINS_QUICKLY
+    )
     model.learn(total_timesteps=100)
     stored = model.replay_buffer.selections[: model.replay_buffer.pos, 0]
     np.testing.assert_array_equal(stored, np.broadcast_to([[1], [2], [0]], stored.shape))
@@ -367,20 +358,26 @@ def test_callable_selector():
 
 def test_callable_selector_out_of_range():
     model = MADDPG(
-        "MlpPolicy", make_team(), critic_sharing="selected", selector=CallableSelector(out_of_range_selection, k=1), **FAST
+        "MlpPolicy",
+        make_team(),
+        critic_sharing="selected",
+        selector=CallableSelector(out_of_range_selection, k=1),
+        **TRAINS_QUICKLY,
     )
     with pytest.raises(ValueError, match="out of range for 3 agents"):
         model.learn(total_timesteps=100)
 
 
 def test_fixed_graph_selector():
-    model = MADDPG("MlpPolicy", make_team(), critic_sharing="soa", selector=FixedGraph([[2], [0], [1]]), **FAST)
+    model = MADDPG("MlpPolicy", make_team(), critic_sharing="soa", selector=FixedGraph([[2], [0], [1]]), **TRAINS_QUICKLY)
     model.learn(total_timesteps=100)
     assert model._n_updates > 0
 
 
 def test_share_parameters():
-    model = MADDPG("MlpPolicy", make_team(), **{**FAST, "policy_kwargs": dict(net_arch=[16, 16], share_parameters=True)})
+    model = MADDPG(
+        "MlpPolicy", make_team(), **{**TRAINS_QUICKLY, "policy_kwargs": dict(net_arch=[16, 16], share_parameters=True)}
+    )
     assert model.actor.mlp.n_members == 1 and model.critic.mlp.n_members == 1
     model.learn(total_timesteps=150)
     assert model._n_updates > 0
@@ -395,13 +392,13 @@ def test_share_parameters_heterogeneous():
         MADDPG(
             "MlpPolicy",
             make_speaker_listener(),
-            **{**FAST, "policy_kwargs": dict(net_arch=[16, 16], share_parameters=True)},
+            **{**TRAINS_QUICKLY, "policy_kwargs": dict(net_arch=[16, 16], share_parameters=True)},
         )
 
 
 def test_heterogeneous_team():
     env = make_vec_env(make_speaker_listener, n_envs=2)
-    model = MADDPG("MlpPolicy", env, critic_sharing="full", **FAST)
+    model = MADDPG("MlpPolicy", env, critic_sharing="full", **TRAINS_QUICKLY)
     assert model.agent_layout.obs_sizes == (3, 11) and model.agent_layout.action_sizes == (3, 5)
     model.learn(total_timesteps=200)
     assert model._n_updates > 0
@@ -415,11 +412,13 @@ def test_selected_sharing_on_a_heterogeneous_team_names_the_cause_first(selectio
     # 3-component observation (not the default k=2, too many for a team of two).
     message = "position_slice=slice(2, 4, None) does not fit agent 'speaker_0''s observation of size 3"
     with pytest.raises(ValueError, match=re.escape(message) + r".*FixedGraph, CallableSelector"):
-        MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selector=selection, **FAST)
+        MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selector=selection, **TRAINS_QUICKLY)
 
 
 def test_selected_sharing_trains_a_heterogeneous_team_with_padded_slots():
-    model = MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selector=FixedGraph([[1], [0]]), **FAST)
+    model = MADDPG(
+        "MlpPolicy", make_speaker_listener(), critic_sharing="selected", selector=FixedGraph([[1], [0]]), **TRAINS_QUICKLY
+    )
     # Each slot holds the largest observation (11) and action (5): (1 + k) * (11 + 5).
     assert [extractor.features_dim for extractor in model.critic.extractors] == [32, 32]
     model.learn(total_timesteps=120)
@@ -430,24 +429,24 @@ def test_selected_sharing_trains_a_heterogeneous_team_with_padded_slots():
 
 
 def test_default_noise_scale():
-    model = MADDPG("MlpPolicy", make_team(), **FAST)  # noise_std=0.1 in mpe2's [0, 1] units
+    model = MADDPG("MlpPolicy", make_team(), **TRAINS_QUICKLY)  # noise_std=0.1 in mpe2's [0, 1] units
     assert isinstance(model.action_noise, NormalActionNoise)
     np.testing.assert_allclose(model.action_noise._sigma, np.full(N_AGENTS * ACTION_SIZE, 0.2))
     np.testing.assert_allclose(model.action_noise._mu, 0.0)
 
 
 def test_per_agent_noise_std():
-    model = MADDPG("MlpPolicy", make_team(), noise_std=[0.1, 0.0, 0.3], **FAST)
+    model = MADDPG("MlpPolicy", make_team(), noise_std=[0.1, 0.0, 0.3], **TRAINS_QUICKLY)
     expected = np.repeat([0.2, 0.0, 0.6], ACTION_SIZE)
     np.testing.assert_allclose(model.action_noise._sigma, expected)
 
 
 def test_no_noise():
-    model = MADDPG("MlpPolicy", make_team(), noise_std=0.0, **{**FAST, "gradient_steps": 0})
+    model = MADDPG("MlpPolicy", make_team(), noise_std=0.0, **{**TRAINS_QUICKLY, "gradient_steps": 0})
     assert model.action_noise is None
     # Without noise (and without updates), every action stored past learning_starts is the actor's own.
     model.learn(total_timesteps=80)
-    rows = slice(FAST["learning_starts"], 80)
+    rows = slice(TRAINS_QUICKLY["learning_starts"], 80)
     with th.no_grad():
         expected = model.actor(th.as_tensor(model.replay_buffer.observations[rows, 0])).numpy()
     np.testing.assert_allclose(model.replay_buffer.actions[rows, 0], expected, rtol=1e-5, atol=1e-6)
@@ -465,7 +464,7 @@ class CountingNoise(OrnsteinUhlenbeckActionNoise):
 
 def test_user_action_noise():
     noise = CountingNoise(N_AGENTS * ACTION_SIZE)
-    model = MADDPG("MlpPolicy", make_team(), action_noise=noise, noise_std=0.5, **FAST)
+    model = MADDPG("MlpPolicy", make_team(), action_noise=noise, noise_std=0.5, **TRAINS_QUICKLY)
     assert model.action_noise is noise
     model.learn(total_timesteps=100)
     # As in SB3, the noise is drawn on every step, also on the random steps before learning_starts.
@@ -476,7 +475,7 @@ def test_user_action_noise():
 def test_noisy_actions_are_clipped_to_the_box(learning_starts):
     """Noise is added in [-1, 1] space and the sum clipped there: the buffer and the env never see more."""
     env = make_vec_env(make_team, n_envs=2)
-    model = MADDPG("MlpPolicy", env, noise_std=5.0, **{**FAST, "learning_starts": learning_starts})
+    model = MADDPG("MlpPolicy", env, noise_std=5.0, **{**TRAINS_QUICKLY, "learning_starts": learning_starts})
     sent: list[np.ndarray] = []
     step_async = env.step_async
     env.step_async = lambda actions: (sent.append(actions.copy()), step_async(actions))[1]  # type: ignore[method-assign]
@@ -494,7 +493,7 @@ def test_noisy_actions_are_clipped_to_the_box(learning_starts):
 def test_action_noise_of_the_wrong_size(n_envs, learning_starts):
     noise = NormalActionNoise(mean=np.zeros(10), sigma=np.full(10, 0.1))  # 2 agents' worth, the team has 3
     env = make_vec_env(make_team, n_envs=n_envs)
-    model = MADDPG("MlpPolicy", env, action_noise=noise, **{**FAST, "learning_starts": learning_starts})
+    model = MADDPG("MlpPolicy", env, action_noise=noise, **{**TRAINS_QUICKLY, "learning_starts": learning_starts})
     noise_shape = f"({n_envs}, 10)" if n_envs > 1 else "(10,)"  # SB3 vectorises the noise over 2 envs
     message = f"action_noise gives noise of shape {noise_shape}, but the joint actions have shape ({n_envs}, 15)"
     with pytest.raises(ValueError, match=re.escape(message)):
@@ -522,8 +521,8 @@ def _team_return(policy, n_agents: int, seeds) -> float:
 @pytest.mark.parametrize("seed", [0])
 def test_learns_simple_spread(seed):
     # Settings checked with seeds 0, 1 and 2 (team return -22.4, -23.1, -22.1 against -39.1 for random actions, on
-    # mpe2's episodes); about 25 s of CPU with one thread. The batched env (equal to mpe2, tests/test_simple_spread_vec_env.py)
-    # makes the 15k steps cheap; the 1,750 gradient steps are the cost.
+    # mpe2's episodes); about 25 s of CPU with one thread. The batched env (equal to mpe2,
+    # tests/envs/test_simple_spread_vec_env.py) makes the 15k steps cheap; the 1,750 gradient steps are the cost.
     threads = th.get_num_threads()
     th.set_num_threads(1)
     try:

@@ -475,7 +475,7 @@ def test_multi_discrete_actions_are_refused() -> None:
 
 
 def test_dict_observations_are_flattened() -> None:
-    """A Dict observation space is taken (flattened as gymnasium flattens it; tests/test_structured_observations.py
+    """A Dict observation space is taken (flattened as gymnasium flattens it; tests/envs/test_structured_observations.py
     checks the values on mpe2), not refused."""
     obs_space = spaces.Dict({"position": spaces.Box(-1, 1, (2,), np.float32), "id": spaces.Discrete(3)})
     env = PettingZooToGym(FakeParallelEnv(obs_space=obs_space))

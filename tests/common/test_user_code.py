@@ -6,8 +6,7 @@ import pytest
 
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.envs import make_simple_spread
-
-FAST = dict(learning_starts=1_000, buffer_size=500, batch_size=16, policy_kwargs=dict(net_arch=[8]), seed=0)
+from tests.settings import NEVER_UPDATES
 
 
 @pytest.mark.parametrize("algorithm", [MADDPG, MATD3])
@@ -15,7 +14,7 @@ def test_warnings_point_at_the_line_that_called_the_package(algorithm: type[MADD
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         # k=2 of 3 selects everyone, under the name of 0.2: two warnings from the constructor
-        model = algorithm("MlpPolicy", make_simple_spread(n_agents=3), critic_sharing="selected", selection=2, **FAST)
+        model = algorithm("MlpPolicy", make_simple_spread(n_agents=3), critic_sharing="selected", selection=2, **NEVER_UPDATES)
         model.learn(50)  # ends before learning_starts: the never-updated warning
     messages = {
         "selects every other agent": UserWarning,

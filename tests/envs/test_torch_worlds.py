@@ -267,7 +267,7 @@ def test_bad_arguments_are_refused() -> None:
 
 def test_the_env_package_never_imports_torch() -> None:
     """Only torch_spread_worlds imports torch; the numpy worlds load and step without torch ever being imported."""
-    envs = Path(__file__).resolve().parents[1] / "sb3_maddpg" / "envs"
+    envs = Path(__file__).resolve().parents[2] / "sb3_maddpg" / "envs"
     importing_torch = set()
     for path in envs.glob("*.py"):
         for node in ast.walk(ast.parse(path.read_text())):

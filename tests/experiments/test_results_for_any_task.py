@@ -34,7 +34,7 @@ from sb3_maddpg.experiments.results import (
     write_json_atomic,
 )
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 OLD_TAG_RESULTS = REPO / "benchmarks" / "discrete_and_tasks" / "results" / "tag"
 """simple_tag runs written before 0.3: NaN in summary.json, no n_updates, the team return summed over both sides."""
 

@@ -15,10 +15,10 @@ from sb3_maddpg.common.policies import AgentActor, MultiAgentActor
 from sb3_maddpg.envs import PettingZooToGym, SimpleSpreadVecEnv, make_simple_spread, make_simple_spread_vec_env
 from tests.loss_helpers import team_actor_terms
 from tests.mixed_team import MixedTeam
+from tests.settings import UPDATES_PER_10_TRANSITIONS
 
 # Agent 0 continuous (2 components), agent 1 discrete (3 actions).
 MIXED = AgentLayout(("mover", "chooser"), (4, 4), (2, 3), discrete_actions=(False, True))
-FAST = dict(learning_starts=100, batch_size=32, buffer_size=2_000, transitions_per_update=10, policy_kwargs={"net_arch": [16]})
 
 
 def mixed_actor() -> MultiAgentActor:
@@ -78,7 +78,7 @@ def test_greedy_sampled_and_straight_through_actions() -> None:
 
 def test_maddpg_explores_and_stores_one_hots(tmp_path: Path) -> None:
     env = make_simple_spread(n_agents=3, continuous_actions=False)
-    model = MADDPG("MlpPolicy", env, noise_std=0.3, seed=0, **FAST)
+    model = MADDPG("MlpPolicy", env, noise_std=0.3, seed=0, **UPDATES_PER_10_TRANSITIONS)
     assert model.action_noise is not None and np.all(model.action_noise._sigma == 0)  # no noise on one-hots
     model.learn(400)
     stored = model.replay_buffer.actions[:400, 0].reshape(400, 3, 5)
@@ -100,7 +100,7 @@ def test_maddpg_explores_and_stores_one_hots(tmp_path: Path) -> None:
 
 
 def test_critic_targets_use_a_sample_of_the_target_actors() -> None:
-    model = MADDPG("MlpPolicy", make_simple_spread(n_agents=3, continuous_actions=False), seed=0, **FAST)
+    model = MADDPG("MlpPolicy", make_simple_spread(n_agents=3, continuous_actions=False), seed=0, **UPDATES_PER_10_TRANSITIONS)
     model.learn(150)
     data = model.replay_buffer.sample(256)
     th.manual_seed(1)
@@ -140,7 +140,7 @@ def test_a_mixed_team_trains(scheme: str) -> None:
 
     env = make_mpe_env("simple_speaker_listener", continuous_actions=False)
     selection = FixedGraph([[1], [0]]) if scheme == "selected" else None
-    model = MADDPG("MlpPolicy", env, critic_sharing=scheme, selector=selection, seed=0, **FAST)
+    model = MADDPG("MlpPolicy", env, critic_sharing=scheme, selector=selection, seed=0, **UPDATES_PER_10_TRANSITIONS)
     model.learn(300)
     assert model._n_updates > 0
 
@@ -148,7 +148,7 @@ def test_a_mixed_team_trains(scheme: str) -> None:
 def test_a_team_of_continuous_and_discrete_agents_trains_end_to_end(tmp_path: Path) -> None:
     env = PettingZooToGym(MixedTeam())
     assert env.agent_layout.discrete_actions == (False, True) and env.agent_layout.action_sizes == (1, 3)
-    model = MADDPG("MlpPolicy", env, seed=0, **FAST)
+    model = MADDPG("MlpPolicy", env, seed=0, **UPDATES_PER_10_TRANSITIONS)
     model.learn(400)
     stored = model.replay_buffer.actions[:400, 0]
     assert is_one_hot(stored[:, 1:]) and not is_one_hot(stored[:, :1])  # the mover's action is continuous

@@ -410,7 +410,7 @@ def test_cli_run_and_report(tmp_path: Path, local_results: Path, capsys: pytest.
 # ---------------------------------------------------------------------------------------------------------------
 # The committed small-scale result
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 PAPER_SMALL_RESULTS = REPO / "benchmarks" / "paper_small" / "results"
 
 
@@ -431,7 +431,9 @@ def test_report_regenerates_the_committed_results(results: Path, report: Path, t
     link_complete_seeds(results, tmp_path / "view")
     written = make_report(tmp_path / "view", tmp_path / "report", metrics=metrics)
     for path in written:
-        if path.name == MARL_EVAL_FILE:  # not committed with the docs (tests/test_results_for_any_task.py checks it)
+        if (
+            path.name == MARL_EVAL_FILE
+        ):  # not committed with the docs (tests/experiments/test_results_for_any_task.py checks it)
             continue
         committed = report / path.name
         assert committed.exists(), committed

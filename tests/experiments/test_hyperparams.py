@@ -115,7 +115,7 @@ def test_an_entry_is_a_copy() -> None:
 
 def test_exp1_tuned_is_the_configuration_measured_in_benchmarks() -> None:
     # The yml's exp1 comment reports benchmarks/n5_tuned's runs: exp1_tuned's full runs must be those runs.
-    measured = json.loads((Path(__file__).resolve().parents[1] / "benchmarks/n5_tuned/exp1_shared_best.json").read_text())
+    measured = json.loads((Path(__file__).resolve().parents[2] / "benchmarks/n5_tuned/exp1_shared_best.json").read_text())
     run = EXP1_TUNED.replace(schemes=("full",), seeds=(0,)).runs()[0].to_dict()
     differs = {key for key, value in measured.items() if run.get(key, value) != value}
     assert differs == {"keep_checkpoints"}  # kept by exp1 (a protocol choice), not a learning one

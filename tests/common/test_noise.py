@@ -19,8 +19,8 @@ from sb3_maddpg.common.noise import (
     per_env_noise,
 )
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
+from tests.maddpg.test_discrete_actions import is_one_hot
 from tests.mixed_team import MixedTeam
-from tests.test_discrete_actions import is_one_hot
 
 FAST = dict(learning_starts=0, batch_size=16, buffer_size=500, policy_kwargs=dict(net_arch=[8]), seed=0)
 MIXED = AgentLayout(("mover", "chooser", "other"), (1, 1, 1), (2, 3, 1), discrete_actions=(False, True, False))

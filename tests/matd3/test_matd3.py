@@ -18,6 +18,7 @@ from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
 from sb3_maddpg.matd3 import smooth_target_actions
 from sb3_maddpg.matd3.policies import MATD3Policy, TwinMultiAgentCritic
 from tests.mixed_team import MixedTeam
+from tests.settings import UPDATES_PER_10_TRANSITIONS
 
 pytestmark = pytest.mark.filterwarnings("ignore:learn\\(\\) ended at step")  # make_model() only collects
 
@@ -202,7 +203,7 @@ def visible(scheme: Any, i: int, selections: th.Tensor | None) -> tuple[list[set
         "actions": (alone, everyone),
         "attention": (everyone, everyone),
         # Straight-through: the backward pass is the softmax mixture of every other agent's slot (the value sees only
-        # the k chosen agents: tests/test_attention.py)
+        # the k chosen agents: tests/sharing/test_attention.py)
         "learned_selection": (everyone, everyone),
         "selected": (None, None),
     }[scheme]
@@ -344,11 +345,8 @@ def test_refuses_bad_td3_settings() -> None:
         MATD3("MlpPolicy", env, target_noise_clip=-0.1)
 
 
-FAST = dict(learning_starts=100, batch_size=32, buffer_size=2_000, transitions_per_update=10, policy_kwargs={"net_arch": [16]})
-
-
 def test_trains_on_simple_spread() -> None:
-    model = MATD3("MlpPolicy", make_simple_spread(n_agents=N_AGENTS), seed=0, **FAST)
+    model = MATD3("MlpPolicy", make_simple_spread(n_agents=N_AGENTS), seed=0, **UPDATES_PER_10_TRANSITIONS)
     model.learn(400)
     assert model._n_updates == 30  # one critic update per 10 transitions past learning_starts
     logged = model.logger.name_to_value
@@ -357,7 +355,7 @@ def test_trains_on_simple_spread() -> None:
 
 def test_a_team_of_continuous_and_discrete_agents_trains(tmp_path: Path) -> None:
     env = PettingZooToGym(MixedTeam())
-    model = MATD3("MlpPolicy", env, seed=0, **FAST)
+    model = MATD3("MlpPolicy", env, seed=0, **UPDATES_PER_10_TRANSITIONS)
     model.learn(400)
     assert model._n_updates == 30
     action, _ = model.predict(env.reset(seed=0)[0], deterministic=True)

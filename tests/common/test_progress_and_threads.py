@@ -18,7 +18,7 @@ from sb3_maddpg.common.progress import INTERRUPTED_EXIT_CODE, ProgressLogCallbac
 from sb3_maddpg.common.torch_threads import THREAD_VARIABLES, threads_set_by_user, use_torch_threads
 from sb3_maddpg.envs import make_simple_spread
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture

@@ -39,7 +39,7 @@ from sb3_maddpg.experiments.sweep import SweepProgress, SweepResult, plan_sweep
 from tests.fault_helpers import stalled_pid
 from tests.process_helpers import alive, wait_for
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 STALLING = "tests.fault_helpers:StallingMADDPG"
 FOUR = ("full", "independent", "actions", "observations")
 

@@ -36,8 +36,7 @@ from sb3_maddpg.sharing import (
     SelectedCriticFeatures,
     validate_critic_sharing,
 )
-
-FAST: dict[str, Any] = dict(learning_starts=1_000, buffer_size=100, batch_size=8, policy_kwargs=dict(net_arch=[8]), seed=0)
+from tests.settings import NEVER_UPDATES
 
 
 def team(n_agents: int, obs_size: int = 6) -> AgentLayout:
@@ -168,10 +167,10 @@ class Solo(ParallelEnv):
 def test_maddpg_names_a_team_of_one_as_the_cause_for_selected_sharing(selector: int | None) -> None:
     """MADDPG says the team is too small for 'selected', not what the selector (whatever its k) fails at later."""
     with pytest.raises(ValueError, match="critic_sharing='selected' needs at least 2 agents, got 1"):
-        MADDPG("MlpPolicy", PettingZooToGym(Solo()), critic_sharing="selected", selector=selector, **FAST)
+        MADDPG("MlpPolicy", PettingZooToGym(Solo()), critic_sharing="selected", selector=selector, **NEVER_UPDATES)
     # The warning's advice fits the team: a team of 2 cannot select fewer than its one other agent.
     with pytest.warns(UserWarning, match="selects every other agent of this 2-agent team.*A team of 2 has one other"):
-        model = MADDPG("MlpPolicy", make_simple_spread(n_agents=2), critic_sharing="selected", selector=1, **FAST)
+        model = MADDPG("MlpPolicy", make_simple_spread(n_agents=2), critic_sharing="selected", selector=1, **NEVER_UPDATES)
     assert model.critic.extractors[0].selection_size == 1  # two agents: accepted
 
 
@@ -401,7 +400,7 @@ def test_q_values_takes_the_old_name_of_selections_with_a_warning() -> None:
     caller; both at once are refused, as the constructor's ``selection=``."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # k = 2 of 3 selects everyone: not what is tested here
-        policy = MADDPG("MlpPolicy", make_simple_spread(n_agents=3), critic_sharing="selected", **FAST).policy
+        policy = MADDPG("MlpPolicy", make_simple_spread(n_agents=3), critic_sharing="selected", **NEVER_UPDATES).policy
     th.manual_seed(0)
     observations, actions = th.randn(4, 54), th.rand(4, 15) * 2 - 1
     selections = th.tensor([[1, 2], [2, 0], [0, 1]]).expand(4, 3, 2)

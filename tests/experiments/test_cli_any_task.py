@@ -16,7 +16,7 @@ from sb3_maddpg.experiments import EXP1, EXP2, SMOKE, ExperimentConfig
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import describe_setting, scaled_schedule
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 SCHEDULE = ("n_checkpoints", "eval_episodes", "curve_points", "curve_eval_episodes")
 

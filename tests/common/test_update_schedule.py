@@ -82,7 +82,7 @@ def test_a_model_saved_by_0_2_dev_keeps_its_credit() -> None:
     # tests/data/maddpg_0.2.0.dev.zip: sb3-maddpg 0.2.0.dev (commit 95b3d6b), SimpleSpreadVecEnv(4, n_agents=3),
     # learning_starts=0, transitions_per_update=30, batch_size=16, buffer_size=200, net_arch=[8], seed=0, learn(100):
     # 112 steps, 3 gradient steps, a credit of 22 transitions counted at step 112.
-    path = Path(__file__).parent / "data" / "maddpg_0.2.0.dev.zip"
+    path = Path(__file__).parents[1] / "data" / "maddpg_0.2.0.dev.zip"
     model = MADDPG.load(path, env=SimpleSpreadVecEnv(4, n_agents=3))
     assert model.update_rule == UpdateSchedule(30, True, True, credit=22, counted_at=112)
     assert model.transitions_per_update == 30 and model.train_freq == steps(7)

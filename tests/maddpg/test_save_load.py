@@ -13,23 +13,10 @@ from stable_baselines3.common.save_util import save_to_pkl
 
 from sb3_maddpg import MADDPG, AgentLayout
 from sb3_maddpg.common.selection import CallableSelector, FixedGraph, NearestAgents
-from sb3_maddpg.envs import make_simple_spread
 from sb3_maddpg.maddpg.policies import MADDPGPolicy
+from tests.settings import N_AGENTS, TRAINS_QUICKLY, make_team
 
 SCHEMES = ("independent", "full", "observations", "actions", "selected")
-N_AGENTS = 3
-FAST = dict(
-    learning_starts=50,
-    batch_size=32,
-    buffer_size=1_000,
-    train_freq=10,
-    policy_kwargs=dict(net_arch=[16, 16]),
-    seed=0,
-)
-
-
-def make_team(n_agents: int = N_AGENTS):
-    return make_simple_spread(n_agents=n_agents)
 
 
 def reverse_ring(observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
@@ -84,7 +71,7 @@ def assert_same_model(model: MADDPG, loaded: MADDPG, obs: np.ndarray, obs_t, act
 
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_save_load(tmp_path, scheme):
-    model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=scheme, **FAST)
+    model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=scheme, **TRAINS_QUICKLY)
     model.learn(total_timesteps=200)
     assert model._n_updates > 0
     # Optimisers that have stepped hold state (Adam moments): the comparison below is not vacuous.
@@ -107,18 +94,18 @@ def test_save_load(tmp_path, scheme):
 
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_replay_buffer_round_trip(tmp_path, scheme):
-    model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=scheme, **FAST)
+    model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=scheme, **TRAINS_QUICKLY)
     model.learn(total_timesteps=150)
     path = tmp_path / "buffer.pkl"
     model.save_replay_buffer(path)
 
-    other = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=scheme, **FAST)
+    other = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=scheme, **TRAINS_QUICKLY)
     other.load_replay_buffer(path)
     saved, loaded = model.replay_buffer, other.replay_buffer
     assert loaded.pos == saved.pos > 0 and loaded.full == saved.full
     for name in ("observations", "next_observations", "actions", "rewards", "dones", "timeouts", "selections"):
         np.testing.assert_array_equal(getattr(loaded, name), getattr(saved, name), err_msg=name)
-    assert loaded.rewards.shape == (FAST["buffer_size"] // 2, 2, N_AGENTS)
+    assert loaded.rewards.shape == (TRAINS_QUICKLY["buffer_size"] // 2, 2, N_AGENTS)
     assert np.any(loaded.rewards != 0)
     if scheme == "selected":
         assert loaded.selections.shape[-1] == 2 and np.any(loaded.selections[: loaded.pos] != 0)
@@ -129,27 +116,27 @@ def test_replay_buffer_round_trip(tmp_path, scheme):
 
 
 def test_replay_buffer_of_another_team_is_refused(tmp_path):
-    model = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=2, **FAST)
+    model = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=2, **TRAINS_QUICKLY)
     model.learn(total_timesteps=60)
     model.save_replay_buffer(tmp_path / "buffer.pkl")
     layout = model.agent_layout
 
-    other_team = MADDPG("MlpPolicy", make_team(n_agents=5), critic_sharing="selected", selector=2, **FAST)
+    other_team = MADDPG("MlpPolicy", make_team(n_agents=5), critic_sharing="selected", selector=2, **TRAINS_QUICKLY)
     own_buffer = other_team.replay_buffer
     with pytest.raises(ValueError, match="agent layout") as error:
         other_team.load_replay_buffer(tmp_path / "buffer.pkl")
     assert str(layout) in str(error.value) and str(other_team.agent_layout) in str(error.value)
     assert other_team.replay_buffer is own_buffer  # the refused buffer is not kept
 
-    other_k = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=1, **FAST)
+    other_k = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=1, **TRAINS_QUICKLY)
     expected = re.escape(f"{layout} with selections of k=2") + ".*" + re.escape(f"{layout} with k=1")
     with pytest.raises(ValueError, match=expected):
         other_k.load_replay_buffer(tmp_path / "buffer.pkl")
-    without_selection = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="full", **FAST)
+    without_selection = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="full", **TRAINS_QUICKLY)
     with pytest.raises(ValueError, match="k=2.*k=0"):
         without_selection.load_replay_buffer(tmp_path / "buffer.pkl")
     env = make_vec_env(make_team, n_envs=2, env_kwargs=dict(n_agents=4))
-    two_envs = MADDPG("MlpPolicy", env, critic_sharing="selected", selector=2, **FAST)
+    two_envs = MADDPG("MlpPolicy", env, critic_sharing="selected", selector=2, **TRAINS_QUICKLY)
     with pytest.raises(ValueError, match=r"from 1 env\(s\).*and 2 env\(s\)"):
         two_envs.load_replay_buffer(tmp_path / "buffer.pkl")
 
@@ -158,14 +145,14 @@ def test_replay_buffer_of_another_team_is_refused(tmp_path):
         other_team.load_replay_buffer(tmp_path / "plain.pkl")
 
     # The same team loads it, and stores new rows with its own selector.
-    same = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=NearestAgents(k=2), **FAST)
+    same = MADDPG("MlpPolicy", make_team(n_agents=4), critic_sharing="selected", selector=NearestAgents(k=2), **TRAINS_QUICKLY)
     same.load_replay_buffer(tmp_path / "buffer.pkl")
     assert same.replay_buffer.pos == 60 and same.replay_buffer.selector is same.selector
 
 
 def test_callable_selector_survives_save_load(tmp_path):
     selector = CallableSelector(reverse_ring, k=1)
-    model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=selector, **FAST)
+    model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=selector, **TRAINS_QUICKLY)
     model.learn(total_timesteps=100)
     model.save(tmp_path / "model.zip")
     loaded = MADDPG.load(tmp_path / "model.zip", env=make_team())
@@ -180,7 +167,7 @@ def test_callable_selector_survives_save_load(tmp_path):
 @pytest.mark.parametrize("n_envs", [4, 1])
 def test_load_with_another_number_of_envs_rebuilds_the_noise(tmp_path, n_envs):
     """The default noise was vectorised for the 2 envs it was saved with: learn() fits it to the new env."""
-    model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), **FAST)
+    model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), **TRAINS_QUICKLY)
     model.learn(total_timesteps=100)
     assert isinstance(model.action_noise, VectorizedActionNoise) and model.action_noise.n_envs == 2
     model.save(tmp_path / "model.zip")
@@ -196,7 +183,7 @@ def test_load_with_another_number_of_envs_rebuilds_the_noise(tmp_path, n_envs):
 
 
 def test_load_with_other_layout(tmp_path):
-    model = MADDPG("MlpPolicy", make_team(), **FAST)
+    model = MADDPG("MlpPolicy", make_team(), **TRAINS_QUICKLY)
     model.save(tmp_path / "model.zip")
     # Said before SB3's space check, whose message names neither the agents nor what to do.
     with pytest.raises(ValueError, match=r"team differs from the model's \(the model has 3 agents, the env 4\)"):
@@ -207,7 +194,7 @@ def test_load_with_other_layout(tmp_path):
 
 
 def test_load_with_same_spaces_other_layout(tmp_path):
-    model = MADDPG("MlpPolicy", make_team(), **FAST)
+    model = MADDPG("MlpPolicy", make_team(), **TRAINS_QUICKLY)
     model.save(tmp_path / "model.zip")
     other = make_team()
     layout = other.agent_layout
@@ -220,7 +207,7 @@ def test_a_model_saved_by_0_1_keeps_its_training_rules() -> None:
     """0.1 had SB3's train_freq and no actor regulariser: a model it saved must not pick up 0.2's defaults on load."""
     # tests/data/maddpg_0.1.0.zip: sb3-maddpg 0.1.0, make_simple_spread(n_agents=3), train_freq=(1, "episode"),
     # gradient_steps=3, learning_starts=50, batch_size=16, buffer_size=500, net_arch=[8], seed=0, learn(100).
-    path = Path(__file__).parent / "data" / "maddpg_0.1.0.zip"
+    path = Path(__file__).parents[1] / "data" / "maddpg_0.1.0.zip"
     model = MADDPG.load(path, env=make_team())
     assert model.actor_reg_coef == 0.0
     assert (model.train_freq.frequency, model.train_freq.unit.value, model.gradient_steps) == (1, "episode", 3)
@@ -228,7 +215,7 @@ def test_a_model_saved_by_0_1_keeps_its_training_rules() -> None:
     updates = model._n_updates
     model.learn(100, reset_num_timesteps=False)  # four more episodes, 3 gradient steps after each
     assert model._n_updates == updates + 12
-    fresh = MADDPG("MlpPolicy", make_team(), **FAST)  # a model built by 0.2 has 0.2's defaults
+    fresh = MADDPG("MlpPolicy", make_team(), **TRAINS_QUICKLY)  # a model built by 0.2 has 0.2's defaults
     assert fresh.actor_reg_coef == 1e-3
     # What the save lacks is filled in, never over what the caller passes to load.
     chosen = MADDPG.load(path, env=make_team(), actor_reg_coef=1e-2)
@@ -239,7 +226,7 @@ def test_a_model_saved_by_0_2_keeps_its_selector_under_the_new_name() -> None:
     # tests/data/maddpg_0.2.0_selected.zip: sb3-maddpg 0.2.0 (83f1f74), make_simple_spread(n_agents=3),
     # critic_sharing="selected", selection=NearestAgents(k=1), learning_starts=100, batch_size=32, buffer_size=500,
     # net_arch=[16, 16], seed=0, learn(300). 0.2 kept the rule in model.selection; 0.3 calls it model.selector.
-    model = MADDPG.load(Path(__file__).parent / "data" / "maddpg_0.2.0_selected.zip", env=make_team())
+    model = MADDPG.load(Path(__file__).parents[1] / "data" / "maddpg_0.2.0_selected.zip", env=make_team())
     assert isinstance(model.selector, NearestAgents) and model.selector.k == 1
     assert "selection" not in model.__dict__ and model.selection_size == 1
     updates = model._n_updates
@@ -247,26 +234,26 @@ def test_a_model_saved_by_0_2_keeps_its_selector_under_the_new_name() -> None:
     assert model._n_updates > updates and model.replay_buffer.selections.shape[-1] == 1  # its rows select k=1
     # A selector the caller passes to load wins over the save's, under either name (the old one warns).
     graph = FixedGraph([[2], [0], [1]])
-    chosen = MADDPG.load(Path(__file__).parent / "data" / "maddpg_0.2.0_selected.zip", env=make_team(), selector=graph)
+    chosen = MADDPG.load(Path(__file__).parents[1] / "data" / "maddpg_0.2.0_selected.zip", env=make_team(), selector=graph)
     assert chosen.selector is graph and chosen.replay_buffer.selector is graph
     with pytest.warns(FutureWarning, match=r"selection= is renamed selector="):
-        old_name = MADDPG.load(Path(__file__).parent / "data" / "maddpg_0.2.0_selected.zip", selection=graph)
+        old_name = MADDPG.load(Path(__file__).parents[1] / "data" / "maddpg_0.2.0_selected.zip", selection=graph)
     assert old_name.selector is graph and "selection" not in old_name.__dict__
 
 
 def test_the_old_name_of_selector_still_works_and_warns() -> None:
     with pytest.warns(FutureWarning, match=r"selection= is renamed selector="):
-        model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selection=1, **FAST)
+        model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selection=1, **TRAINS_QUICKLY)
     assert isinstance(model.selector, NearestAgents) and model.selector.k == 1
     with pytest.warns(FutureWarning, match=r"model.selection is renamed model.selector"):
         assert model.selection is model.selector
     with pytest.raises(TypeError, match=r"Got both selector= and selection="):
-        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=1, selection=1, **FAST)
+        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=1, selection=1, **TRAINS_QUICKLY)
 
 
 def test_building_without_setting_up_keeps_what_the_caller_passed() -> None:
     # The compatibility with 0.1's saves lives in load(): the constructor never replaces a caller's arguments.
-    kwargs = {name: value for name, value in FAST.items() if name != "train_freq"}
+    kwargs = {name: value for name, value in TRAINS_QUICKLY.items() if name != "train_freq"}
     model = MADDPG("MlpPolicy", make_team(), actor_reg_coef=1e-3, transitions_per_update=50, _init_setup_model=False, **kwargs)
     assert model.actor_reg_coef == 1e-3
     assert model.update_rule.earns_gradient_steps and model.update_rule.transitions_per_update == 50
@@ -289,7 +276,7 @@ def test_attributes_missing_from_a_save_by_version() -> None:
 @pytest.mark.parametrize("scheme", ["full", "selected"])
 def test_policy_save_load_round_trip(tmp_path, scheme):
     """policy.save() / MADDPGPolicy.load(): SB3's policy-only round trip (no lr_schedule in the file, as TD3's)."""
-    kwargs = dict(FAST, selector=1) if scheme == "selected" else FAST
+    kwargs = dict(TRAINS_QUICKLY, selector=1) if scheme == "selected" else TRAINS_QUICKLY
     model = MADDPG("MlpPolicy", make_team(), critic_sharing=scheme, **kwargs)
     model.learn(total_timesteps=100)
     obs, obs_t, actions_t, selection = joint_batch(model)

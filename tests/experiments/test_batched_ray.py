@@ -16,7 +16,7 @@ from sb3_maddpg.experiments.batched import BatchedRunRefused, run_batched_ray
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.results import SWEEP_LOG, load_summaries
-from tests.test_batched_backend import files, keys, read_rows
+from tests.experiments.test_batched_backend import files, keys, read_rows
 
 WARM_UP_ONLY = dataclasses.replace(
     SMOKE,

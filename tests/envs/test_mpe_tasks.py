@@ -23,7 +23,7 @@ NINE = (
     "simple_tag",
     "simple_world_comm",
 )
-DOCS_GUIDE = Path(__file__).resolve().parent.parent / "docs" / "guide" / "pettingzoo.rst"
+DOCS_GUIDE = Path(__file__).resolve().parents[2] / "docs" / "guide" / "pettingzoo.rst"
 
 
 def built(task: str, **kwargs: Any) -> PettingZooToGym:
