@@ -3,7 +3,7 @@
 import os
 import sys
 
-PACKAGE_DIRECTORY = os.path.dirname(os.path.realpath(__file__)) + os.sep
+PACKAGE_DIRECTORY = os.path.dirname(os.path.dirname(os.path.realpath(__file__))) + os.sep  # sb3_maddpg/, above common/
 
 
 def user_stacklevel() -> int:
