@@ -47,7 +47,7 @@ def with_small_budgets(code: str) -> str:
 PAGES = sorted(page for page in DOCS.rglob("*.rst") if "_build" not in page.parts and python_blocks(page))
 
 
-def test_pages_with_snippets_are_found() -> None:
+def test_snippet_pages_are_found_and_budgets_are_cut() -> None:
     names = {page.name for page in PAGES}
     assert {"quickstart.rst", "selection.rst", "sharing.rst", "learned_selection.rst", "index.rst"} <= names
     assert with_small_budgets("model.learn(1_000_000); model.learn(total_timesteps=300_000)") == (

@@ -147,7 +147,7 @@ def test_the_onnx_export_is_quiet(tmp_path: Path) -> None:
     assert logging.getLogger(EXPORTER_LOGGER).filters == []  # the filter is gone once the export is done
 
 
-def test_a_batch_of_any_size_and_the_model_stays_usable(tmp_path: Path) -> None:
+def test_onnx_actor_takes_batches_of_1_5_100_and_learn_runs_after_export(tmp_path: Path) -> None:
     model = trained("homogeneous")
     files = export_actors(model, tmp_path)
     session = onnxruntime.InferenceSession(str(files["agent_1"]))

@@ -33,7 +33,7 @@ def test_extra_install_command_fits_the_install(monkeypatch: pytest.MonkeyPatch,
     assert install_hint.extra_install_command("experiments") == command
 
 
-def test_this_checkout_is_named_when_installed_editable() -> None:
+def test_editable_checkout_points_at_this_source_tree() -> None:
     # The test environment is the README's `pip install -e ".[dev]"`: the hint names this checkout.
     checkout = install_hint.editable_checkout()
     if checkout is None:

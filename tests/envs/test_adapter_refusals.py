@@ -14,7 +14,7 @@ def test_aec_env_is_refused_at_construction(module) -> None:
         PettingZooToGym(module.env(continuous_actions=True))
 
 
-def test_aec_env_converted_to_parallel_works() -> None:
+def test_aec_to_parallel_env_resets_to_the_joint_shape_and_steps() -> None:
     env = PettingZooToGym(aec_to_parallel(simple_adversary_v3.env(continuous_actions=True)))
     obs, _ = env.reset(seed=0)
     assert obs.shape == env.observation_space.shape

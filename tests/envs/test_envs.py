@@ -474,7 +474,7 @@ def test_multi_discrete_actions_are_refused() -> None:
     assert "'a0'" in str(error.value) and "Discrete or continuous actions" in str(error.value)
 
 
-def test_dict_observations_are_flattened() -> None:
+def test_dict_observation_space_is_accepted_with_its_flat_size() -> None:
     """A Dict observation space is taken (flattened as gymnasium flattens it; tests/envs/test_structured_observations.py
     checks the values on mpe2), not refused."""
     obs_space = spaces.Dict({"position": spaces.Box(-1, 1, (2,), np.float32), "id": spaces.Discrete(3)})

@@ -101,7 +101,7 @@ def test_declared_metrics_in_info_at_reset_and_every_step(task: str) -> None:
 
 @pytest.mark.parametrize("continuous_actions", [True, False], ids=["continuous", "discrete"])
 @pytest.mark.parametrize("task", NINE)
-def test_maddpg_trains_and_predicts(task: str, continuous_actions: bool) -> None:
+def test_maddpg_updates_and_predicts_valid_actions_on_each_mpe_task(task: str, continuous_actions: bool) -> None:
     env = make_mpe_env(task, continuous_actions=continuous_actions)
     assert env.agent_layout.has_discrete_actions == (not continuous_actions)
     model = MADDPG(

@@ -79,7 +79,7 @@ def test_each_agents_slice_is_its_observation_as_gymnasium_flattens_it(kind: str
         plain_obs, *_ = plain.step(action)
 
 
-def test_a_model_trains_and_acts_on_dict_observations() -> None:
+def test_a_model_updates_and_acts_in_space_on_dict_observations() -> None:
     env = make("dict")
     model = MADDPG(
         "MlpPolicy", env, learning_starts=50, batch_size=16, transitions_per_update=10, policy_kwargs={"net_arch": [8]}

@@ -113,7 +113,7 @@ def test_a_trained_groups_progress_csv_has_the_local_runs_header(tmp_path: Path)
     assert sorted(headers["batched"]) == sorted(headers["local"])
 
 
-def test_same_scores_as_the_local_backend(warm_up_results: dict[str, Path]) -> None:
+def test_never_updated_runs_evaluate_identically_on_batched_and_local(warm_up_results: dict[str, Path]) -> None:
     local, batched = warm_up_results["local"], warm_up_results["batched"]
     finals: dict[str, list[float]] = {"local": [], "batched": []}
     for config in WARM_UP_ONLY.runs():

@@ -145,7 +145,7 @@ def docs_run_commands() -> list[tuple[str, list[str]]]:
 
 
 @pytest.mark.parametrize(("where", "argv"), docs_run_commands(), ids=lambda value: value if isinstance(value, str) else "")
-def test_the_docs_run_commands_train(
+def test_the_docs_run_commands_pass_a_dry_run_without_the_train_nothing_warning(
     where: str, argv: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.chdir(REPO)  # JSON settings named relative to the repository

@@ -133,7 +133,7 @@ def test_the_batched_env_replays_mpe2s_discrete_mode() -> None:
 
 
 @pytest.mark.parametrize("scheme", ["full", "selected", "attention"])
-def test_a_mixed_team_trains(scheme: str) -> None:
+def test_discrete_speaker_listener_makes_updates_under_each_scheme(scheme: str) -> None:
     """speaker-listener with discrete actions: heterogeneous, every agent discrete."""
     from sb3_maddpg.common.selection import FixedGraph
     from sb3_maddpg.envs import make_mpe_env
@@ -145,7 +145,7 @@ def test_a_mixed_team_trains(scheme: str) -> None:
     assert model._n_updates > 0
 
 
-def test_a_team_of_continuous_and_discrete_agents_trains_end_to_end(tmp_path: Path) -> None:
+def test_a_continuous_discrete_team_stores_one_hots_acts_and_reloads_layout(tmp_path: Path) -> None:
     env = PettingZooToGym(MixedTeam())
     assert env.agent_layout.discrete_actions == (False, True) and env.agent_layout.action_sizes == (1, 3)
     model = MADDPG("MlpPolicy", env, seed=0, **UPDATES_PER_10_TRANSITIONS)

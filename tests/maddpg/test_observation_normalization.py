@@ -78,7 +78,7 @@ def test_the_behaviour_is_read_from_raw_observations(finished_run: Path) -> None
     assert again == pytest.approx(summary["behaviour"])
 
 
-def test_a_normalising_run_trains_on_normalised_observations_and_acts_on_raw_ones_through_the_wrapper() -> None:
+def test_a_normalising_run_uses_obs_only_vecnormalize_and_the_wrapper_normalises() -> None:
     model = build_model(NORMALIZED.runs()[0])
     normalization = model.get_vec_normalize_env()
     assert isinstance(normalization, VecNormalize) and normalization.norm_obs and not normalization.norm_reward

@@ -63,7 +63,7 @@ def read_csv_keys(path: Path) -> set[str]:
 
 
 @pytest.mark.parametrize("scheme", SCHEMES)
-def test_each_scheme_trains_over_two_envs_with_its_extractor(scheme):
+def test_each_scheme_updates_over_two_envs_with_its_extractor(scheme):
     env = make_vec_env(make_team, n_envs=2, vec_env_cls=DummyVecEnv)
     model = MADDPG("MlpPolicy", env, critic_sharing=scheme, **TRAINS_QUICKLY)
     model.learn(total_timesteps=200)
@@ -205,7 +205,7 @@ def test_tensorboard(tmp_path):
     assert glob.glob(str(tmp_path / "MADDPG_1" / "events.out.tfevents.*"))
 
 
-def test_progress_bar():
+def test_learn_with_progress_bar_reaches_total_timesteps():
     pytest.importorskip("tqdm")
     pytest.importorskip("rich")
     model = MADDPG("MlpPolicy", make_team(), **TRAINS_QUICKLY)
@@ -368,7 +368,7 @@ def test_callable_selector_out_of_range():
         model.learn(total_timesteps=100)
 
 
-def test_fixed_graph_selector():
+def test_fixed_graph_selector_with_soa_runs_updates():
     model = MADDPG("MlpPolicy", make_team(), critic_sharing="soa", selector=FixedGraph([[2], [0], [1]]), **TRAINS_QUICKLY)
     model.learn(total_timesteps=100)
     assert model._n_updates > 0
@@ -415,7 +415,7 @@ def test_selected_sharing_on_a_heterogeneous_team_names_the_cause_first(selectio
         MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selector=selection, **TRAINS_QUICKLY)
 
 
-def test_selected_sharing_trains_a_heterogeneous_team_with_padded_slots():
+def test_selected_sharing_pads_heterogeneous_slots_and_updates():
     model = MADDPG(
         "MlpPolicy", make_speaker_listener(), critic_sharing="selected", selector=FixedGraph([[1], [0]]), **TRAINS_QUICKLY
     )

@@ -51,7 +51,7 @@ def test_targets_use_target_actors_not_online_ones(collected_model: Any, replay_
     assert changed.tolist() == [True, True, True]
 
 
-def test_each_critic_learns_from_its_own_reward(collected_model: Any, replay_batch: Any) -> None:
+def test_each_critics_loss_depends_only_on_its_own_reward(collected_model: Any, replay_batch: Any) -> None:
     model = collected_model()
     data = replay_batch(model)
     base = team_critic_losses(model, data).detach()

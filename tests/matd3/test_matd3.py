@@ -345,7 +345,7 @@ def test_refuses_bad_td3_settings() -> None:
         MATD3("MlpPolicy", env, target_noise_clip=-0.1)
 
 
-def test_trains_on_simple_spread() -> None:
+def test_matd3_makes_one_update_per_10_transitions_with_finite_losses() -> None:
     model = MATD3("MlpPolicy", make_simple_spread(n_agents=N_AGENTS), seed=0, **UPDATES_PER_10_TRANSITIONS)
     model.learn(400)
     assert model._n_updates == 30  # one critic update per 10 transitions past learning_starts
@@ -378,7 +378,7 @@ def test_the_experiments_runner_trains_matd3_with_algo(tmp_path: Path, capsys: p
     assert "| smoke_matd3 (MATD3, N=3" in (tmp_path / "report" / "table_min_dist_sum.md").read_text()
 
 
-def test_target_noise_set_after_building_is_used_by_train() -> None:
+def test_train_rebuilds_the_team_with_the_current_target_policy_noise() -> None:
     """MATD3's train() reads target_policy_noise as it is at the call, as every other setting (the networks are
     rebuilt from the model's attributes per call)."""
     model = MATD3("MlpPolicy", make_simple_spread(n_agents=2), learning_starts=10, batch_size=8, seed=0)

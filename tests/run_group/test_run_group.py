@@ -531,7 +531,7 @@ def test_an_empty_group_and_worlds_of_another_team_are_refused() -> None:
 
 
 @pytest.mark.skipif(not th.cuda.is_available(), reason="needs a CUDA device")
-def test_a_group_on_cuda_updates_as_on_the_cpu_and_learns() -> None:
+def test_a_group_on_cuda_updates_as_on_the_cpu_and_runs_learn_on_device() -> None:
     models = three_runs(critic_sharing="selected", **{"selector": 1})
     generator = th.Generator().manual_seed(8)
     batch = stack_batches([random_batch(models[0], 32, generator) for _ in models])

@@ -329,7 +329,7 @@ def test_distance_ranks_follow_positions() -> None:
     assert LearnedSelectionCriticFeatures(LAYOUT, 0, k=1, position_slice=None)._distance_ranks(obs) is None
 
 
-def test_diagnostics_are_computed_only_when_the_logs_are_written(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_diagnostics_are_computed_less_than_every_other_update(monkeypatch: pytest.MonkeyPatch) -> None:
     env = SimpleSpreadVecEnv(n_envs=4, n_agents=3)
     model = MADDPG("MlpPolicy", env, critic_sharing="attention", critic_sharing_kwargs={"embed_dim": 8}, seed=0, **FAST)
     calls = {"diagnostics": 0, "updates": 0}

@@ -204,7 +204,7 @@ class MeanOthersActionFeatures(CriticFeaturesExtractor):
         return th.cat([*own, self.scale * th.stack(others).mean(0)], dim=1)
 
 
-def test_user_scheme_subclass_works_and_trains_its_parameters() -> None:
+def test_user_scheme_params_get_gradient_from_own_critic_and_are_registered() -> None:
     critic = MultiAgentCritic(LAYOUT, MeanOthersActionFeatures, {}, 0, [16], nn.ReLU)
     obs, actions = th.randn(BATCH, LAYOUT.obs_dim), th.rand(BATCH, LAYOUT.action_dim)
     q = critic(obs, actions)
