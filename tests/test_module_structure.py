@@ -82,9 +82,8 @@ def test_a_planted_cycle_is_found() -> None:
     [
         ("sb3_maddpg.sharing", ["CriticFeaturesExtractor", "FullCriticFeatures", "SelectedCriticFeatures", "resolve_scheme"]),
         ("sb3_maddpg.sharing", ["AttentionCriticFeatures", "LearnedSelectionCriticFeatures", "learned_schemes"]),
-        ("sb3_maddpg.attention", ["AttentionCriticFeatures", "LearnedSelectionCriticFeatures", "critic_listening"]),
     ],
 )
-def test_the_import_paths_of_0_2_keep_working(module: str, names: list[str]) -> None:
+def test_the_sharing_package_exports_its_schemes(module: str, names: list[str]) -> None:
     imported = __import__(module, fromlist=names)
     assert all(hasattr(imported, name) for name in names)
