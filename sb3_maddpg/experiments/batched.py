@@ -26,12 +26,14 @@ from stable_baselines3.common.logger import configure
 
 from sb3_maddpg.common.progress import log_line
 from sb3_maddpg.experiments.backends import (
+    Execution,
     OnResult,
-    collect_ray_tasks,
+    SweepLog,
+    SweepPlan,
     ray_parallel_tasks,
     ray_session,
     ray_task_options,
-    set_worker_threads,
+    submit_ray_tasks,
 )
 from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.group_plan import (
@@ -39,10 +41,12 @@ from sb3_maddpg.experiments.group_plan import (
     BatchedRunRefused,
     check_batched,
     check_device,
+    check_runs_per_process,
     group_key,
     memory_bound,
     plan_groups,
     resolve_device,
+    too_large_groups,
 )
 from sb3_maddpg.experiments.group_recorder import STATE_FRACTION, GroupProgress, GroupRecorder
 from sb3_maddpg.experiments.group_state import (
@@ -231,10 +235,27 @@ def run_batched(
     :param most_runs: For :func:`plan_groups` when ``runs_per_process`` is ``None`` (default: :func:`memory_bound` on
         ``device``, saying a split on stdout).
     """
-    th.set_num_threads(threads)
     if runs_per_process is None and most_runs is None:
         most_runs = memory_bound(device, log=print if verbose else None)
-    for group in plan_groups(configs, runs_per_process, most_runs):
+    train_groups(plan_groups(configs, runs_per_process, most_runs), results_dir, on_result, device, threads, verbose)
+
+
+def train_groups(
+    groups: Sequence[Sequence[RunConfig]], results_dir: str, on_result: OnResult, device: str, threads: int, verbose: int
+) -> None:
+    """
+    Train groups one after another in this process; a group that fails fails its runs (each reported with the
+    traceback) and the sweep goes on.
+
+    :param groups: The groups (:func:`plan_groups`).
+    :param results_dir: The sweep's results directory.
+    :param on_result: Called for each run as its group ends.
+    :param device: Where the groups train.
+    :param threads: Torch threads.
+    :param verbose: 1 to print each group's progress lines.
+    """
+    th.set_num_threads(threads)
+    for group in groups:
         try:
             results = train_group(group, results_dir, device=device, verbose=verbose)
         except Exception:
@@ -259,12 +280,7 @@ def run_batched_ray(
     on_parallel: Callable[[int, str], None] | None = None,
 ) -> None:
     """
-    Run the sweep's groups (:func:`plan_groups`) as Ray tasks, one task per group: on a CUDA device each asks Ray
-    for one GPU (so each GPU of a cluster trains one group at a time), else for ``threads`` CPUs. Ray is reached as
-    by :func:`~sb3_maddpg.experiments.backends.run_ray` (``address``, or a local instance), and its tasks are
-    collected by the same code: a group lost with its worker or node is run again, up to
-    :data:`~sb3_maddpg.experiments.backends.RAY_MAX_RETRIES` times, and resumes from its state file when it sees
-    it (the results directory shared by the nodes); a group's runs are reported when the group ends.
+    Run the sweep's groups (:func:`plan_groups`) as Ray tasks, one task per group (:func:`train_groups_on_ray`).
 
     :param configs: The runs (checked with :func:`check_batched` before: this submits them as they are).
     :param results_dir: The sweep's results directory (on a cluster, an absolute path on shared storage).
@@ -281,28 +297,139 @@ def run_batched_ray(
         task.
     """
     groups = plan_groups(configs, runs_per_process)
-    with ray_session(address, num_cpus, verbose) as ray:
+    execution = Execution("batched-ray", num_cpus or 0, threads, address, device, runs_per_process, verbose)
+    train_groups_on_ray(groups, results_dir, on_result, execution, on_parallel)
+
+
+def train_groups_on_ray(
+    groups: Sequence[Sequence[RunConfig]],
+    results_dir: str,
+    on_result: OnResult,
+    execution: Execution,
+    on_parallel: Callable[[int, str], None] | None = None,
+) -> None:
+    """
+    Train groups as Ray tasks, one task per group: on a CUDA device each asks Ray for one GPU (so each GPU of a
+    cluster trains one group at a time), else for ``threads`` CPUs. Ray is reached as by
+    :func:`~sb3_maddpg.experiments.backends.run_ray` (``ray_address``, or a local instance), and its tasks are
+    collected by the same code: a group lost with its worker or node is run again, up to
+    :data:`~sb3_maddpg.experiments.backends.RAY_MAX_RETRIES` times, and resumes from its state file when it sees
+    it (the results directory shared by the nodes); a group's runs are reported when the group ends.
+
+    :param groups: The groups (:func:`plan_groups`).
+    :param results_dir: The sweep's results directory (on a cluster, an absolute path on shared storage).
+    :param on_result: Called for each run as its group ends.
+    :param execution: Where and how (its device, threads, Ray address and CPUs, verbosity).
+    :param on_parallel: Called once Ray is up with the groups that train at once and the device they train on.
+    :raise BatchedRunRefused: For a CUDA device on a cluster without GPUs (its tasks would wait forever), before any
+        task.
+    """
+    threads = execution.threads
+    with ray_session(execution.ray_address, execution.ray_cpus, execution.verbose) as ray:
         resources = ray.cluster_resources()
-        gpus = resources.get("GPU", 0)
-        if device == "auto":
-            device = "cuda" if gpus > 0 else "cpu"
-        elif device.split(":")[0] == "cuda":
-            if gpus < 1:
-                raise BatchedRunRefused(
-                    f"The run groups cannot train on {device} under Ray: the Ray cluster has no GPU, so a task asking "
-                    "for one would wait forever. Use --device cpu (or auto), or a cluster with GPU nodes."
-                )
-            device = "cuda"  # Ray picks each task's GPU (its CUDA_VISIBLE_DEVICES): "cuda:1" would name another
-        options = ray_task_options(threads, device)
+        device = _ray_device(execution.device, resources.get("GPU", 0))
         if on_parallel is not None:
-            on_parallel(ray_parallel_tasks(resources, options), device)
-        remote = ray.remote(**options)(_ray_group_task)
-        tasks = {remote.remote(group, results_dir, device, threads, verbose): group for group in groups}
-        collect_ray_tasks(ray, tasks, results_dir, on_result)
+            on_parallel(ray_parallel_tasks(resources, ray_task_options(threads, device)), device)
+        submit_ray_tasks(ray, groups, results_dir, _train_group_task, device, threads, execution.verbose, on_result)
 
 
-def _ray_group_task(
+def _ray_device(device: str, gpus: float) -> str:
+    """:return: The device a group task trains on, given ``--device`` and the Ray cluster's GPUs."""
+    if device == "auto":
+        return "cuda" if gpus > 0 else "cpu"
+    if device.split(":")[0] == "cuda":
+        if gpus < 1:
+            raise BatchedRunRefused(
+                f"The run groups cannot train on {device} under Ray: the Ray cluster has no GPU, so a task asking "
+                "for one would wait forever. Use --device cpu (or auto), or a cluster with GPU nodes."
+            )
+        return "cuda"  # Ray picks each task's GPU (its CUDA_VISIBLE_DEVICES): "cuda:1" would name another
+    return device
+
+
+def _train_group_task(
     configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int
 ) -> list[dict[str, Any]]:
-    set_worker_threads(threads)
+    """A Ray task's work (:data:`~sb3_maddpg.experiments.backends.TaskWork`): train one group."""
     return train_group(configs, results_dir, device=device, verbose=verbose)
+
+
+class GroupBackend:
+    """
+    Runs in run groups, one group after another in this process (``--backend batched``).
+
+    :param execution: Where and how the groups train.
+    """
+
+    name = "batched"
+    on_ray = False
+
+    def __init__(self, execution: Execution) -> None:
+        self.execution = execution
+
+    def check(self, runs: Sequence[RunConfig]) -> None:
+        """
+        :param runs: The runs to do.
+        :raise BatchedRunRefused: For the device or the first run a group cannot train (:func:`check_batched`).
+        """
+        check_runs_per_process(self.execution.runs_per_process)
+        check_batched(runs, device=None if self.on_ray else self.execution.device)  # Ray: its tasks' machines
+
+    def plan(self, runs: Sequence[RunConfig], results_dir: str) -> SweepPlan:
+        """
+        :param runs: The runs to do (checked).
+        :param results_dir: The sweep's results directory.
+        :return: The groups: as many runs of a setting and scheme as fit in the device's memory (``--runs-per-process``
+            sets another size, which is warned of when it may not fit).
+        """
+        notes: list[str] = []  # a setting's seeds split to fit the memory: said once the sweep log is open
+        device, runs_per_process = self.execution.device, self.execution.runs_per_process
+        fits = memory_bound(device, log=notes.append if runs_per_process is None else None)
+        groups = plan_groups(runs, runs_per_process, fits)
+        if runs_per_process is not None:
+            notes += too_large_groups(groups, fits)
+        return self._plan(groups, results_dir, notes)
+
+    def _plan(self, groups: list[list[RunConfig]], results_dir: str, notes: list[str]) -> SweepPlan:
+        parallel = max((len(group) for group in groups), default=1)  # a group's runs finish together
+        where = f"in {len(groups)} run group(s) of up to {parallel} run(s) on {self.execution.device}"
+        return SweepPlan(results_dir, groups, parallel, where + (", a Ray task each" if self.on_ray else ""), notes)
+
+    def run(self, plan: SweepPlan, on_result: OnResult, progress: SweepLog) -> None:
+        """See :meth:`~sb3_maddpg.experiments.backends.Backend.run`."""
+        execution = self.execution
+        train_groups(plan.units, plan.results_dir, on_result, execution.device, execution.threads, execution.verbose)
+
+
+class GroupRayBackend(GroupBackend):
+    """
+    Runs in run groups, each a Ray task (``--backend batched --ray``, or ``batched-ray``).
+
+    :param execution: Where and how the groups train.
+    """
+
+    name = "batched"  # the sweep log says "a Ray task each"
+    on_ray = True
+
+    def plan(self, runs: Sequence[RunConfig], results_dir: str) -> SweepPlan:
+        """
+        :param runs: The runs to do (checked).
+        :param results_dir: The sweep's results directory.
+        :return: The groups, all seeds of a setting and scheme (or ``--runs-per-process``) each: the memory of the
+            tasks' machines is not known here.
+        """
+        return self._plan(plan_groups(runs, self.execution.runs_per_process), results_dir, [])
+
+    def run(self, plan: SweepPlan, on_result: OnResult, progress: SweepLog) -> None:
+        """See :meth:`~sb3_maddpg.experiments.backends.Backend.run`."""
+        group_size = plan.parallel
+        each = f"{self.execution.threads} CPU(s)"
+
+        def on_parallel(slots: int, device: str) -> None:
+            progress.parallel = slots * group_size  # a group's runs finish together
+            progress.log(
+                f"Ray: {slots} run group(s) at once ({'a GPU' if device == 'cuda' else each} each) on {device}; a "
+                "group's runs are reported as it ends"
+            )
+
+        train_groups_on_ray(plan.units, plan.results_dir, on_result, self.execution, on_parallel)

@@ -15,6 +15,7 @@ from typing import Any, NoReturn
 from sb3_maddpg.analysis.evaluation import side_return_key
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
+from sb3_maddpg.experiments.backends import BACKENDS
 from sb3_maddpg.experiments.config import (
     DEFAULT_ENV,
     DEFAULT_N_ENVS,
@@ -233,10 +234,9 @@ def _add_run_execution(execution: Any) -> None:
     """:param execution: ``run``'s argument group of where and how the runs execute."""
     execution.add_argument(
         "--backend",
-        choices=("local", "ray", "batched"),
+        choices=tuple(BACKENDS),
         default="local",
-        help="local process pool, Ray, or batched: a setting and scheme's seeds trained together in one process (run "
-        "groups, fixed schemes on the batched simple_spread env; see --device, --runs-per-process, --ray)",
+        help="; ".join(f"{name}: {entry.help}" for name, entry in BACKENDS.items()) + " (default: %(default)s)",
     )
     execution.add_argument(
         "--device", default="auto", help="batched: where the run groups train, cpu or cuda (default auto: cuda if there)"
@@ -647,12 +647,12 @@ def tune_command(args: argparse.Namespace) -> int:
 
 def _check_execution(args: argparse.Namespace) -> None:
     """:param args: Parsed ``run`` arguments, whose execution options are refused (a ``ValueError``) if they clash."""
-    if args.ray and args.backend != "batched":
+    if args.ray and args.backend not in ("batched", "batched-ray"):
         raise ValueError(
             f"--ray runs the batched backend's run groups as Ray tasks, but the backend is {args.backend}: use --backend "
             "batched --ray, or --backend ray for one Ray task per run."
         )
-    if args.ray_address and args.backend == "batched" and not args.ray:
+    if args.ray_address and args.backend == "batched" and not args.ray:  # batched-ray is on Ray
         raise ValueError(
             "--ray-address is Ray's, but --backend batched without --ray trains in this process: add --ray to run the "
             "groups as Ray tasks there."
@@ -705,7 +705,7 @@ def run_command(args: argparse.Namespace) -> int:
             verbose=1 if args.quiet else 2,
             device=args.device,
             runs_per_process=args.runs_per_process,
-            on_ray=args.ray,
+            on_ray=args.ray and args.backend == "batched",
         )
     except BatchedRunRefused as error:  # said before anything trained
         print(f"sb3-maddpg run: {error}", file=sys.stderr)

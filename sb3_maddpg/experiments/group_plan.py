@@ -34,8 +34,7 @@ def plan_groups(
         given those runs (e.g. :func:`memory_bound`).
     :return: The groups, each the runs of one setting and scheme (different seeds), in the sweep's order.
     """
-    if runs_per_process is not None and runs_per_process < 1:
-        raise ValueError(f"runs_per_process must be at least 1, got {runs_per_process}: e.g. 31 (one scheme's seeds).")
+    check_runs_per_process(runs_per_process)
     buckets: dict[str, list[RunConfig]] = {}
     for config in configs:
         buckets.setdefault(group_key(config), []).append(config)
@@ -44,6 +43,32 @@ def plan_groups(
         size = runs_per_process or (len(runs) if most_runs is None else max(1, min(len(runs), most_runs(runs))))
         groups += [runs[start : start + size] for start in range(0, len(runs), size)]
     return groups
+
+
+def check_runs_per_process(runs_per_process: int | None) -> None:
+    """
+    :param runs_per_process: The most runs in one group, or ``None``.
+    :raise ValueError: For fewer than one.
+    """
+    if runs_per_process is not None and runs_per_process < 1:
+        raise ValueError(f"runs_per_process must be at least 1, got {runs_per_process}: e.g. 31 (one scheme's seeds).")
+
+
+def too_large_groups(groups: Sequence[Sequence[RunConfig]], fits: Callable[[Sequence[RunConfig]], int]) -> list[str]:
+    """
+    :param groups: Groups of a size given by ``--runs-per-process``.
+    :param fits: The most runs one group holds (:func:`memory_bound`).
+    :return: A warning for each setting and scheme whose groups may not fit, said by its first (largest) group.
+    """
+    warnings: dict[str, str] = {}
+    for group in groups:
+        setting = f"{group[0].experiment}/{group[0].scheme}"
+        if setting not in warnings and len(group) > fits(group):
+            warnings[setting] = (
+                f"{setting}: groups of {len(group)} runs (--runs-per-process) may not fit in memory: {fits(group)} fit "
+                "by the package's estimate; lower --runs-per-process if the sweep runs out of memory"
+            )
+    return list(warnings.values())
 
 
 def resolve_device(device: str) -> th.device:
@@ -131,8 +156,10 @@ def check_batched(configs: Sequence[RunConfig], device: str | None = None) -> No
 
     if device is not None and configs:
         check_device(device)
-    for group in plan_groups(configs):
-        config = group[0]
+    firsts: dict[str, RunConfig] = {}
+    for config in configs:
+        firsts.setdefault(group_key(config), config)  # one model of each setting and scheme is checked
+    for config in firsts.values():
         if config.env != DEFAULT_ENV or config.vec_env != "batched":
             cause = (
                 f"it trains on {config.env} (vec_env {config.vec_env!r}), but a run group steps simple_spread's batched "
