@@ -457,8 +457,8 @@ def ray_session(address: str | None, num_cpus: int | None, verbose: int) -> Iter
     """
     try:
         import ray
-    except ImportError as error:
-        raise ImportError(
+    except ImportError as error:  # ModuleNotFoundError: an ImportError the commands report in one line
+        raise ModuleNotFoundError(
             f"The Ray backend needs Ray, which is not installed: {extra_install_command('distributed')} (or pip install "
             "'ray[default]')."
         ) from error
