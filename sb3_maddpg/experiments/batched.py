@@ -150,64 +150,80 @@ def _train_runs(
 
     :return: Each run's checkpoints, ``(env steps, model file)`` in order, and train time.
     """
-    from sb3_maddpg.run_group import GroupCallback, RunGroup
+    from sb3_maddpg.run_group import RunGroup
 
     directories = [run_directory(results_dir, config) for config in configs]
     state_path = group_state_path(results_dir, configs)
-    discarded: list[str] = []
-    resumed = load_state(state_path, configs, results_dir, discarded.append)
-    old_rows: list[list[dict[str, Any]]] = [[] for _ in configs]
-    if resumed is None:
-        remove_stale_states(results_dir, configs)
-        for config, directory in zip(configs, directories):
-            start_run_directory(config, directory)
-            for line in discarded:  # why, in the run's new train.log (and once on stdout)
-                log_line(f"{config.run_id}: {line}", str(directory / LOG_FILE), echo=False)
-        if discarded and verbose >= 1:
-            print(f"{configs[0].experiment}/{configs[0].scheme}: {discarded[0]}", flush=True)
-    else:
-        steps = int(resumed["group"]["num_timesteps"])
-        old_rows = [read_progress_rows(directory / PROGRESS_FILE, steps) for directory in directories]
-    models = [build_model(config, device="cpu") for config in configs]  # on the CPU: they are saved and evaluated
-    for model, directory, rows in zip(models, directories, old_rows):
-        model.set_logger(configure(str(directory), ["csv"]))
-        for row in rows:  # a resumed run's progress.csv keeps its rows up to the state
-            for key, value in row.items():
-                model.logger.record(key, value)
-            model.logger.dump(int(row.get("time/total_timesteps", 0)))
+    resumed = _start_or_resume(configs, directories, results_dir, state_path, verbose)
+    steps = None if resumed is None else int(resumed["group"]["num_timesteps"])
+    # On the CPU: they are saved and evaluated; a resumed run's progress.csv keeps its rows up to the state.
+    models = [_model_logging_to(config, directory, steps) for config, directory in zip(configs, directories)]
     resolved = resolve_device(device)
     group = RunGroup(models, device=resolved)
     if resumed is not None:
         group.load_state_dict(resumed["group"])
     recorder = GroupRecorder(configs, models, group, results_dir, state_path, echo=verbose >= 1)
-
-    class Hooks(GroupCallback):
-        def on_step(self, group: RunGroup) -> None:
-            recorder.on_step(group)
-
-        def on_round_end(self, group: RunGroup) -> None:
-            recorder.on_round_end(group)
-
     try:
         if resumed is None:
+            line = f"in a run group of {len(configs)} on {resolved}"
             for config, directory in zip(configs, directories):
-                log_line(
-                    f"{training_line(config)}, in a run group of {len(configs)} on {resolved}",
-                    str(directory / LOG_FILE),
-                    False,
-                )
+                log_line(f"{training_line(config)}, {line}", str(directory / LOG_FILE), False)
         recorder.start(resumed)
-        group.learn(max(0, recorder.total - group.num_timesteps), callback=Hooks())
+        group.learn(max(0, recorder.total - group.num_timesteps), callback=recorder)
         train_time = recorder.train_time
     finally:
         recorder.close()
     # Each run's record, then the state goes: a crash while the runs are evaluated evaluates them again, whatever
     # group the next attempt puts them in.
-    trained = [(list(checkpoint.saved), train_time) for checkpoint in recorder.checkpoints]
+    trained = [(saved, train_time) for saved in recorder.saved]
     for config, directory, (saved, _) in zip(configs, directories, trained):
         write_trained(directory, config, saved, train_time)
     state_path.unlink(missing_ok=True)
     return trained
+
+
+def _start_or_resume(
+    configs: Sequence[RunConfig],
+    directories: Sequence[Path],
+    results_dir: str | os.PathLike[str],
+    state_path: Path,
+    verbose: int,
+) -> dict[str, Any] | None:
+    """
+    :return: The group's saved state to resume from (:func:`load_state`), or ``None`` when there is none to use: then
+        its runs' directories and earlier groups' states are started afresh, each run's new ``train.log`` saying why a
+        state was not used (and stdout, once).
+    """
+    discarded: list[str] = []
+    resumed = load_state(state_path, configs, results_dir, discarded.append)
+    if resumed is not None:
+        return resumed
+    remove_stale_states(results_dir, configs)
+    for config, directory in zip(configs, directories):
+        start_run_directory(config, directory)
+        for line in discarded:
+            log_line(f"{config.run_id}: {line}", str(directory / LOG_FILE), echo=False)
+    if discarded and verbose >= 1:
+        print(f"{configs[0].experiment}/{configs[0].scheme}: {discarded[0]}", flush=True)
+    return None
+
+
+def _model_logging_to(config: RunConfig, directory: Path, steps: int | None) -> Any:
+    """
+    :param config: A run of the group.
+    :param directory: Its directory.
+    :param steps: The env steps it resumes at (``None``: a start from scratch).
+    :return: Its model on the CPU, logging to its ``progress.csv`` through SB3's logger, which first writes the file's
+        rows up to ``steps`` again (SB3's CSV output starts the file afresh).
+    """
+    rows = read_progress_rows(directory / PROGRESS_FILE, steps) if steps is not None else []  # before SB3 empties it
+    model = build_model(config, device="cpu")
+    model.set_logger(configure(str(directory), ["csv"]))
+    for row in rows:
+        for key, value in row.items():
+            model.logger.record(key, value)
+        model.logger.dump(int(row.get("time/total_timesteps", 0)))
+    return model
 
 
 def run_batched(

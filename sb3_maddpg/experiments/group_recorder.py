@@ -15,6 +15,7 @@ from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.group_state import save_state, seed_ranges
 from sb3_maddpg.experiments.results import CHECKPOINT_DIR, LOG_FILE, run_directory
 from sb3_maddpg.experiments.runner import CheckpointAtSteps, curve_callback, log_interval, make_eval_env
+from sb3_maddpg.run_group import GroupCallback
 
 STATE_FRACTION = 0.1
 """Besides each checkpoint, a group's state is saved every this fraction of the budget (checkpoints are in the last
@@ -64,9 +65,10 @@ class GroupProgress(ProgressLogCallback):
             print(line, flush=True)
 
 
-class GroupRecorder:
+class GroupRecorder(GroupCallback):
     """
-    What a group writes while it trains (a :class:`~sb3_maddpg.run_group.GroupCallback`): each run's checkpoints
+    What a group writes while it trains (the :class:`~sb3_maddpg.run_group.GroupCallback` of its ``learn``), through
+    SB3's logger and callbacks' public API only: each run's checkpoints
     (:class:`~sb3_maddpg.experiments.runner.CheckpointAtSteps`), learning curve (the runner's
     :class:`~sb3_maddpg.analysis.evaluation.TeamEvalCallback`), ``progress.csv`` rows (about as many as the runner's),
     the group's progress lines, and its state at each save point.
@@ -99,6 +101,7 @@ class GroupRecorder:
         self.checkpoints = [
             CheckpointAtSteps(c.checkpoint_steps(), d / CHECKPOINT_DIR) for c, d in zip(configs, self.directories)
         ]
+        self.saved_before: list[list[tuple[int, Path]]] = [[] for _ in configs]  # by earlier attempts
         self.curve_envs = [make_eval_env(config, config.curve_eval_episodes) for config in configs]
         curves = [curve_callback(c, env, self.worlds, d) for c, env, d in zip(configs, self.curve_envs, self.directories)]
         self.curves = [curve for curve in curves if curve is not None]
@@ -122,6 +125,11 @@ class GroupRecorder:
         self.started = time.perf_counter()
 
     @property
+    def saved(self) -> list[list[tuple[int, Path]]]:
+        """Each run's checkpoints, ``(env steps, model file)`` in order, over every attempt."""
+        return [before + checkpoint.saved for before, checkpoint in zip(self.saved_before, self.checkpoints)]
+
+    @property
     def train_time(self) -> float:
         """Seconds the group has trained, over every attempt."""
         return self.elapsed_before + time.perf_counter() - self.started
@@ -139,17 +147,32 @@ class GroupRecorder:
             self.elapsed_before = float(resumed["elapsed"])
             self.rounds_logged = int(resumed["rounds_logged"])
             self.saved_at = group.num_timesteps
-            for checkpoint, run in zip(self.checkpoints, resumed["runs"]):
-                checkpoint.pending = list(run["pending"])
-                checkpoint.saved = [(steps, Path(file)) for steps, file in run["saved"]]
-            for curve, run in zip(self.curves, resumed["runs"]):
-                curve.history = list(run["curve"])
-                curve.n_calls = group.num_timesteps // self.worlds
+            self._resume_callbacks(resumed["runs"], group.num_timesteps // self.worlds)
         self.progress.steps.num_timesteps = group.n_runs * group.num_timesteps
         for callback in (*self.curves, self.progress):
             callback.on_training_start({}, {})  # the curves' first evaluation, at step 0 only
         if resumed is not None:
             self.progress.log(f"{self.progress.run_id}: resumed at {group.num_timesteps:,} steps per run")
+
+    def _resume_callbacks(self, runs: Sequence[dict[str, Any]], calls: int) -> None:
+        """
+        Go on with each run's callbacks where the saved state left them, through their public API.
+
+        :param runs: Each run's saved record (:meth:`save`).
+        :param calls: The callbacks' calls so far (one per step of the run's worlds).
+        """
+        self.saved_before = [[(steps, Path(file)) for steps, file in run["saved"]] for run in runs]
+        self.checkpoints = [
+            CheckpointAtSteps(run["pending"], directory / CHECKPOINT_DIR) for run, directory in zip(runs, self.directories)
+        ]
+        for checkpoint, model in zip(self.checkpoints, self.models):
+            checkpoint.init_callback(model)
+        for curve, run in zip(self.curves, runs):
+            curve.history.extend(run["curve"])  # its public record, which its CSV file rewrites in full
+            # Its schedule (an evaluation at every eval_freq-th call) goes on from the state's step: calls up to the
+            # same place modulo eval_freq, none of which evaluates.
+            for _ in range(calls % curve.eval_freq):
+                curve.on_step()
 
     def on_step(self, group: Any) -> None:
         """After each step of every run's worlds: checkpoints, curve points, ``progress.csv`` rows, progress lines."""
@@ -160,7 +183,7 @@ class GroupRecorder:
                 group.write_back(run, model)  # the weights of now, as SB3 saves them mid-round
             checkpoint.on_step()
         for run, curve in enumerate(self.curves):
-            if (curve.n_calls + 1) % curve.eval_freq == 0:
+            if (steps // self.worlds) % curve.eval_freq == 0:  # this call evaluates: the run's weights of now
                 group.write_back(run, self.models[run])
             curve.on_step()
         rounds = len(group.worlds.episodes)
@@ -206,12 +229,8 @@ class GroupRecorder:
         """Write the group's state file (overwriting the last)."""
         self.saved_at = group.num_timesteps
         runs = [
-            {
-                "pending": list(checkpoint.pending),
-                "saved": [(steps, str(path)) for steps, path in checkpoint.saved],
-                "curve": [],
-            }
-            for checkpoint in self.checkpoints
+            {"pending": list(checkpoint.pending), "saved": [(steps, str(path)) for steps, path in saved], "curve": []}
+            for checkpoint, saved in zip(self.checkpoints, self.saved)
         ]
         for run, curve in zip(runs, self.curves):
             run["curve"] = list(curve.history)
