@@ -161,19 +161,13 @@ def run_sweep(
     :raise ResultsDirectoryLocked: When another sweep is running in ``results_dir``.
     :raise BatchedRunRefused: When the batched backend cannot train a run (nothing has trained then).
     """
-    if on_ray:
-        if backend != "batched":
-            raise ValueError(
-                f"on_ray runs the batched backend's groups as Ray tasks, but the backend is {backend!r}: use "
-                "backend='batched' with on_ray=True, or backend='ray' for one task per run."
-            )
-        backend = "batched-ray"
     results_path = Path(results_dir).resolve()
     names = [experiment.name for experiment in experiments]
     if len(set(names)) != len(names):
         raise ValueError(f"Experiment names must be unique, got {names}.")
     run_verbose = 1 if verbose >= 2 else 0
-    chosen = make_backend(Execution(backend, workers, threads, ray_address, device, runs_per_process, run_verbose))
+    execution = Execution(_backend_name(backend, on_ray), workers, threads, ray_address, device, runs_per_process, run_verbose)
+    chosen = make_backend(execution)
     with lock_results(results_path):
         todo, skipped = plan_sweep(experiments, results_path)
         chosen.check(todo)  # before anything is written
@@ -181,13 +175,25 @@ def run_sweep(
             write_experiment(results_path, experiment.name, experiment.to_dict())
         plan = chosen.plan(todo, str(results_path))
         progress = SweepProgress(len(todo) + skipped, skipped, plan.parallel, str(results_path / SWEEP_LOG), verbose >= 1)
-        progress.log(
+        for line in (
             f"sweep of {progress.total} runs ({', '.join(names)}) on {chosen.name} {plan.where}: {skipped} finished "
-            f"before, {len(todo)} to run"
-        )
-        for line in plan.notes:
+            f"before, {len(todo)} to run",
+            *plan.notes,
+        ):
             progress.log(line)
         return execute_plan(chosen, plan, progress)
+
+
+def _backend_name(backend: str, on_ray: bool) -> str:
+    """:return: The name in :data:`~sb3_maddpg.experiments.backends.BACKENDS` of ``run_sweep``'s ``backend, on_ray``."""
+    if not on_ray:
+        return backend
+    if backend != "batched":
+        raise ValueError(
+            f"on_ray runs the batched backend's groups as Ray tasks, but the backend is {backend!r}: use "
+            "backend='batched' with on_ray=True, or backend='ray' for one task per run."
+        )
+    return "batched-ray"
 
 
 def execute_plan(backend: Backend, plan: SweepPlan, progress: SweepProgress) -> SweepResult:
