@@ -168,7 +168,23 @@ def make_backend(execution: Execution) -> Backend:
     return backend
 
 
-class LocalBackend:
+class RunsBackend:
+    """
+    What the backends that execute each run alone share: any run is executed (by the runner), one unit per run.
+
+    :param execution: Where and how the runs execute.
+    """
+
+    name = "runs"
+
+    def __init__(self, execution: Execution) -> None:
+        self.execution = execution
+
+    def check(self, runs: Sequence[RunConfig]) -> None:
+        """:param runs: The runs to do (the runner executes any)."""
+
+
+class LocalBackend(RunsBackend):
     """
     Runs in this process (one worker) or a local process pool (:func:`run_local`).
 
@@ -176,12 +192,6 @@ class LocalBackend:
     """
 
     name = "local"
-
-    def __init__(self, execution: Execution) -> None:
-        self.execution = execution
-
-    def check(self, runs: Sequence[RunConfig]) -> None:
-        """:param runs: The runs to do (a local pool executes any)."""
 
     def plan(self, runs: Sequence[RunConfig], results_dir: str) -> SweepPlan:
         """
@@ -206,7 +216,7 @@ class LocalBackend:
         )
 
 
-class RayBackend(LocalBackend):
+class RayBackend(RunsBackend):
     """
     Runs as Ray tasks, one per run (:func:`run_ray`).
 
