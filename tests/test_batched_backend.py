@@ -328,3 +328,27 @@ def test_groups_are_one_setting_and_scheme() -> None:
     assert len(plan_groups(runs)) == 2
     assert seed_ranges([5, 0, 1, 2, 9, 10]) == "0-2+5+9-10"
     assert parse_seed_ranges("0-2+5+9-10") == {0, 1, 2, 5, 9, 10}
+
+
+def test_a_sweep_plans_once_and_hands_the_plan_to_its_backend(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """plan_sweep, plan_groups and memory_bound run once per sweep; the backend trains the groups it planned."""
+    from sb3_maddpg.experiments import batched, sweep
+
+    calls: dict[str, int] = {}
+
+    def counted(module: Any, name: str) -> None:
+        original = getattr(module, name)
+
+        def count(*args: Any, **kwargs: Any) -> Any:
+            calls[name] = calls.get(name, 0) + 1
+            return original(*args, **kwargs)
+
+        monkeypatch.setattr(module, name, count)
+
+    for module, name in ((sweep, "plan_sweep"), (batched, "plan_groups"), (batched, "memory_bound")):
+        counted(module, name)
+    trained: list[list[int]] = []
+    monkeypatch.setattr(batched, "train_groups", lambda groups, *args: trained.extend([c.seed for c in g] for g in groups))
+    run_sweep([tiny(seeds=(0, 1, 2))], tmp_path, backend="batched", verbose=0, device="cpu")
+    assert calls == {"plan_sweep": 1, "plan_groups": 1, "memory_bound": 1}
+    assert trained == [[0, 1, 2]]
