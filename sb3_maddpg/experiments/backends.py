@@ -1,4 +1,5 @@
-"""Where runs execute: in this process, in a local process pool, or on a Ray cluster.
+"""Where runs execute: in this process, in a local process pool, or on a Ray cluster; one :class:`Backend` interface
+for every way a sweep runs its runs, chosen by name from :data:`BACKENDS`.
 
 Faults: a worker that dies (SIGKILL, the out-of-memory killer) loses only the runs it and the workers beside
 it were running; they are reported as failed (local pool) or retried (Ray) and the sweep goes on. A sweep that
@@ -6,6 +7,7 @@ is killed takes its pool workers with it; Ctrl-C stops the workers and leaves th
 so that the same command runs them again.
 """
 
+import importlib
 import multiprocessing
 import os
 import signal
@@ -17,20 +19,241 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ALL_COMPLETED, FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 from multiprocessing import get_context
-from typing import Any
+from typing import Any, Protocol
 
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.results import write_result_files
 from sb3_maddpg.experiments.runner import execute_run
 
-BACKENDS = ("local", "ray", "batched")
-"""Where runs execute: a local process pool, Ray tasks, or run groups in this process
-(:mod:`~sb3_maddpg.experiments.batched`)."""
-
 OnResult = Callable[[RunConfig, dict[str, Any] | None, str | None], None]
 """Called as each run ends: ``(config, result, None)`` on success, ``(config, None, traceback)`` on failure."""
+
+
+@dataclass(frozen=True)
+class Execution:
+    """
+    Where and how a sweep's runs execute (:func:`~sb3_maddpg.experiments.sweep.run_sweep`'s parameters of the same
+    names).
+
+    :param backend: The backend's name in :data:`BACKENDS`.
+    :param workers: Parallel processes (local), or the CPUs of a local Ray instance (0: all).
+    :param threads: Torch threads per run (or per run group).
+    :param ray_address: The Ray cluster's address; ``None`` starts a local instance.
+    :param device: The run groups' device (``"auto"``: CUDA when there is a GPU).
+    :param runs_per_process: The most runs per group (``None``: all of a setting and scheme, or as many as fit).
+    :param verbose: 1 to print each run's (or group's) progress.
+    """
+
+    backend: str = "local"
+    workers: int = 1
+    threads: int = 1
+    ray_address: str | None = None
+    device: str = "auto"
+    runs_per_process: int | None = None
+    verbose: int = 1
+
+    @property
+    def ray_cpus(self) -> int | None:
+        """The CPUs of a local Ray instance (``None``: all of this machine's)."""
+        return self.workers if self.workers > 0 else None
+
+
+@dataclass
+class SweepPlan:
+    """
+    What a sweep hands its backend, planned once: the runs to do in the units that execute together.
+
+    :param results_dir: The sweep's results directory.
+    :param units: Each unit's runs: a run alone, or a run group (whose runs end together).
+    :param parallel: Runs executing at once (for the time-left estimate; a Ray backend sets it again once Ray is up).
+    :param where: How the sweep log says where the runs execute (e.g. ``"with 2 worker(s) x 1 thread(s)"``).
+    :param notes: Lines for the sweep log, said once it is open (e.g. a setting's seeds split to fit the memory).
+    """
+
+    results_dir: str
+    units: list[list[RunConfig]]
+    parallel: int
+    where: str
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def runs(self) -> list[RunConfig]:
+        """Every run to do, in the sweep's order."""
+        return [config for unit in self.units for config in unit]
+
+
+class SweepLog(Protocol):
+    """What a backend tells the sweep as it runs (:class:`~sb3_maddpg.experiments.sweep.SweepProgress`)."""
+
+    parallel: int
+
+    def log(self, line: str) -> None:
+        """:param line: A line for stdout and the sweep log."""
+
+
+class Backend(Protocol):
+    """
+    One way to execute a sweep's runs. The sweep calls, in order: :meth:`check` (before anything is written),
+    :meth:`plan` (once), then :meth:`run`.
+    """
+
+    name: str
+    """Its name in :data:`BACKENDS` and in the sweep log."""
+
+    def check(self, runs: Sequence[RunConfig]) -> None:
+        """
+        :param runs: The runs to do.
+        :raise ValueError: For runs or settings this backend cannot execute (before anything is written).
+        """
+
+    def plan(self, runs: Sequence[RunConfig], results_dir: str) -> SweepPlan:
+        """
+        :param runs: The runs to do (checked).
+        :param results_dir: The sweep's results directory.
+        :return: The plan to :meth:`run`.
+        """
+
+    def run(self, plan: SweepPlan, on_result: OnResult, progress: SweepLog) -> None:
+        """
+        Execute the plan's runs, each reported as it ends.
+
+        :param plan: What :meth:`plan` returned.
+        :param on_result: Called as each run ends.
+        :param progress: The sweep's log (a line when a worker dies, how many runs execute at once).
+        """
+
+
+@dataclass(frozen=True)
+class BackendEntry:
+    """
+    A backend in :data:`BACKENDS`.
+
+    :param target: ``"module:Class"``, imported when the backend is made (a class taking an :class:`Execution`).
+    :param help: What it is, for ``sb3-maddpg run --help``.
+    """
+
+    target: str
+    help: str
+
+
+BACKENDS: dict[str, BackendEntry] = {
+    "local": BackendEntry("sb3_maddpg.experiments.backends:LocalBackend", "a local process pool (--workers)"),
+    "ray": BackendEntry("sb3_maddpg.experiments.backends:RayBackend", "one Ray task per run"),
+    "batched": BackendEntry(
+        "sb3_maddpg.experiments.batched:GroupBackend",
+        "a setting and scheme's seeds trained together in this process (run groups, fixed schemes on the batched "
+        "simple_spread env; see --device, --runs-per-process)",
+    ),
+    "batched-ray": BackendEntry(
+        "sb3_maddpg.experiments.batched:GroupRayBackend",
+        "run groups as Ray tasks, one each (a GPU each with --device cuda, else --threads CPUs); also --backend batched --ray",
+    ),
+}
+"""The backends by name: the one registry that sweeps and ``sb3-maddpg run --backend`` read."""
+
+
+def make_backend(execution: Execution) -> Backend:
+    """
+    :param execution: Where and how the runs execute; its ``backend`` names one of :data:`BACKENDS`.
+    :return: That backend.
+    :raise ValueError: For a name not in :data:`BACKENDS`.
+    """
+    if execution.backend not in BACKENDS:
+        raise ValueError(f"Unknown backend {execution.backend!r}; use one of {tuple(BACKENDS)}.")
+    module, _, name = BACKENDS[execution.backend].target.partition(":")
+    backend: Backend = getattr(importlib.import_module(module), name)(execution)
+    return backend
+
+
+class RunsBackend:
+    """
+    What the backends that execute each run alone share: any run is executed (by the runner), one unit per run.
+
+    :param execution: Where and how the runs execute.
+    """
+
+    name = "runs"
+
+    def __init__(self, execution: Execution) -> None:
+        self.execution = execution
+
+    def check(self, runs: Sequence[RunConfig]) -> None:
+        """:param runs: The runs to do (the runner executes any)."""
+
+
+class LocalBackend(RunsBackend):
+    """
+    Runs in this process (one worker) or a local process pool (:func:`run_local`).
+
+    :param execution: Where and how the runs execute.
+    """
+
+    name = "local"
+
+    def plan(self, runs: Sequence[RunConfig], results_dir: str) -> SweepPlan:
+        """
+        :param runs: The runs to do.
+        :param results_dir: The sweep's results directory.
+        :return: One unit per run, ``workers`` at once.
+        """
+        workers, threads = self.execution.workers, self.execution.threads
+        return SweepPlan(results_dir, [[run] for run in runs], workers, f"with {workers} worker(s) x {threads} thread(s)")
+
+    def run(self, plan: SweepPlan, on_result: OnResult, progress: SweepLog) -> None:
+        """See :meth:`Backend.run`."""
+        execution = self.execution
+        run_local(
+            plan.runs,
+            plan.results_dir,
+            on_result,
+            workers=execution.workers,
+            threads=execution.threads,
+            verbose=execution.verbose,
+            log=progress.log,
+        )
+
+
+class RayBackend(RunsBackend):
+    """
+    Runs as Ray tasks, one per run (:func:`run_ray`).
+
+    :param execution: Where and how the runs execute.
+    """
+
+    name = "ray"
+
+    def plan(self, runs: Sequence[RunConfig], results_dir: str) -> SweepPlan:
+        """
+        :param runs: The runs to do.
+        :param results_dir: The sweep's results directory.
+        :return: One unit per run; the runs at once are known once Ray is up (``workers=0``: all CPUs).
+        """
+        workers, threads = self.execution.workers, self.execution.threads
+        parallel = max(1, workers) // max(1, threads)
+        return SweepPlan(results_dir, [[run] for run in runs], parallel, f"with {workers} worker(s) x {threads} thread(s)")
+
+    def run(self, plan: SweepPlan, on_result: OnResult, progress: SweepLog) -> None:
+        """See :meth:`Backend.run`."""
+        execution = self.execution
+
+        def on_parallel(slots: int) -> None:
+            progress.parallel = slots
+            progress.log(f"Ray: {slots} run(s) at once ({execution.threads} CPU(s) each)")
+
+        run_ray(
+            plan.runs,
+            plan.results_dir,
+            on_result,
+            address=execution.ray_address,
+            threads=execution.threads,
+            num_cpus=execution.ray_cpus,
+            verbose=execution.verbose,
+            on_parallel=on_parallel,
+        )
+
 
 LOST_RUN = "lost: the worker process running it died"
 RAY_MAX_RETRIES = 3
@@ -228,9 +451,7 @@ def run_ray(
     with ray_session(address, num_cpus, verbose) as ray:
         if on_parallel is not None:
             on_parallel(ray_parallel_runs(ray.cluster_resources(), threads))
-        remote = ray.remote(**ray_task_options(threads))(_ray_task)
-        tasks = {remote.remote(config, results_dir, threads, verbose): [config] for config in configs}
-        collect_ray_tasks(ray, tasks, results_dir, on_result)
+        submit_ray_tasks(ray, [[config] for config in configs], results_dir, execute_runs, "cpu", threads, verbose, on_result)
 
 
 @contextmanager
@@ -246,8 +467,8 @@ def ray_session(address: str | None, num_cpus: int | None, verbose: int) -> Iter
     """
     try:
         import ray
-    except ImportError as error:
-        raise ImportError(
+    except ImportError as error:  # ModuleNotFoundError: an ImportError the commands report in one line
+        raise ModuleNotFoundError(
             f"The Ray backend needs Ray, which is not installed: {extra_install_command('distributed')} (or pip install "
             "'ray[default]')."
         ) from error
@@ -347,6 +568,56 @@ def ray_parallel_runs(resources: dict[str, float], threads: int) -> int:
     return ray_parallel_tasks(resources, ray_task_options(threads))
 
 
-def _ray_task(config: RunConfig, results_dir: str, threads: int, verbose: int) -> list[dict[str, Any]]:
+def execute_runs(
+    configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int
+) -> list[dict[str, Any]]:
+    """
+    A Ray task's work for runs alone (:func:`submit_ray_tasks`): each run executed by the runner, one after another.
+
+    :param configs: The runs.
+    :param results_dir: The sweep's results directory.
+    :param device: Unused: each run trains where its config says (the signature of a task's work).
+    :param threads: Torch threads.
+    :param verbose: 1 to print each run's progress.
+    :return: Each run's result.
+    """
+    return [execute_run(config, results_dir, threads=threads, verbose=verbose) for config in configs]
+
+
+TaskWork = Callable[[Sequence[RunConfig], str, str, int, int], list[dict[str, Any]]]
+"""What one Ray task does with its runs: ``(configs, results_dir, device, threads, verbose) -> results``."""
+
+
+def submit_ray_tasks(
+    ray: Any,
+    units: Sequence[Sequence[RunConfig]],
+    results_dir: str,
+    work: TaskWork,
+    device: str,
+    threads: int,
+    verbose: int,
+    on_result: OnResult,
+) -> None:
+    """
+    Submit one Ray task per unit (a run, or a run group), each doing ``work`` on ``threads`` CPUs (and one GPU on a
+    CUDA device), and report its runs as it ends (:func:`collect_ray_tasks`).
+
+    :param ray: The ``ray`` module (connected, see :func:`ray_session`).
+    :param units: Each task's runs.
+    :param results_dir: The sweep's results directory.
+    :param work: What a task does with its runs.
+    :param device: Where the tasks train (for their resources, :func:`ray_task_options`).
+    :param threads: Torch threads (and Ray CPUs) per task.
+    :param verbose: 1 to print the tasks' progress (Ray forwards the workers' output).
+    :param on_result: Called for each run.
+    """
+    remote = ray.remote(**ray_task_options(threads, device))(_ray_task)
+    tasks = {remote.remote(list(unit), results_dir, device, threads, verbose, work): list(unit) for unit in units}
+    collect_ray_tasks(ray, tasks, results_dir, on_result)
+
+
+def _ray_task(
+    configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int, work: TaskWork
+) -> list[dict[str, Any]]:
     set_worker_threads(threads)
-    return [execute_run(config, results_dir, threads=threads, verbose=verbose)]
+    return work(configs, results_dir, device, threads, verbose)

@@ -15,6 +15,7 @@ from typing import Any, NoReturn
 from sb3_maddpg.analysis.evaluation import side_return_key
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
+from sb3_maddpg.experiments.backends import BACKENDS
 from sb3_maddpg.experiments.config import (
     DEFAULT_ENV,
     DEFAULT_N_ENVS,
@@ -146,6 +147,37 @@ def _add_task_arguments(group: Any, default: str) -> None:
     )
 
 
+def _add_team_arguments(group: Any) -> None:
+    """
+    ``--n-agents`` and ``--neighbors``, as ``run`` and ``tune`` take them (:func:`_with_team` reads them).
+
+    :param group: The parser or argument group to add them to.
+    """
+    group.add_argument("--n-agents", type=_count(1), help="simple_spread's agents (and landmarks)")
+    group.add_argument("--neighbors", type=_neighbors, help="nearest other agents observed: an integer, or 'all'")
+
+
+def _with_team(experiment: ExperimentConfig, changes: dict[str, Any], args: argparse.Namespace) -> ExperimentConfig:
+    """
+    :param experiment: A loaded ``--config``.
+    :param changes: The other options' changes to it (``n_agents`` among them), for ``ExperimentConfig.replace``.
+    :param args: Parsed ``run`` or ``tune`` arguments (:func:`_add_team_arguments`).
+    :return: The experiment changed, ``--neighbors`` included; a ``ValueError`` first when ``--n-agents`` or
+        ``--neighbors`` is given for another task than simple_spread (whose team is its own).
+    """
+    task = args.env or experiment.env
+    given = [SETTING_FLAGS[dest] for dest in ("n_agents", "neighbors") if getattr(args, dest) is not None]
+    if task != DEFAULT_ENV and given:
+        raise ValueError(
+            f"{given[0]} sets simple_spread's team, but the task is {task}, whose team is its own: change it through "
+            "--env-kwargs (e.g. simple_tag's '{\"num_adversaries\": 4}'), or leave out " + " and ".join(given) + "."
+        )
+    experiment = experiment.replace(**changes)
+    if args.neighbors is not None:
+        experiment = dataclasses.replace(experiment, num_agent_neighbors=None if args.neighbors == "all" else args.neighbors)
+    return experiment
+
+
 def build_parser() -> argparse.ArgumentParser:
     """:return: The argument parser of the ``sb3-maddpg`` command."""
     parser = _OneLineErrors(
@@ -185,8 +217,7 @@ def _add_run_overrides(group: Any) -> None:
     group.add_argument("--schemes", type=_str_list, help="comma-separated schemes, e.g. full,selected")
     group.add_argument("--seeds", type=_count(1), help="number of seeds (0..N-1)")
     group.add_argument("--seed-list", type=_int_list, help="comma-separated seeds (instead of --seeds)")
-    group.add_argument("--n-agents", type=_count(1), help="simple_spread's agents (and landmarks)")
-    group.add_argument("--neighbors", type=_neighbors, help="nearest other agents observed: an integer, or 'all'")
+    _add_team_arguments(group)
     group.add_argument(
         "--episodes",
         type=_count(1),
@@ -233,10 +264,9 @@ def _add_run_execution(execution: Any) -> None:
     """:param execution: ``run``'s argument group of where and how the runs execute."""
     execution.add_argument(
         "--backend",
-        choices=("local", "ray", "batched"),
+        choices=tuple(BACKENDS),
         default="local",
-        help="local process pool, Ray, or batched: a setting and scheme's seeds trained together in one process (run "
-        "groups, fixed schemes on the batched simple_spread env; see --device, --runs-per-process, --ray)",
+        help="; ".join(f"{name}: {entry.help}" for name, entry in BACKENDS.items()) + " (default: %(default)s)",
     )
     execution.add_argument(
         "--device", default="auto", help="batched: where the run groups train, cpu or cuda (default auto: cuda if there)"
@@ -283,8 +313,7 @@ def _add_tune_parser(commands: Any) -> None:
         "--config", default="exp1", help="the setting: a preset or an experiment JSON file (default: %(default)s)"
     )
     _add_task_arguments(setting, "default: the setting's")
-    setting.add_argument("--n-agents", type=_count(1), help="simple_spread's agents (and landmarks)")
-    setting.add_argument("--neighbors", type=_neighbors, help="nearest other agents observed: an integer, or 'all'")
+    _add_team_arguments(setting)
     setting.add_argument("--scheme", help="the critic_sharing scheme (default: the setting's first)")
     _add_tune_study(tune.add_argument_group("the study"))
 
@@ -385,17 +414,7 @@ def _override_experiment(experiment: ExperimentConfig, config: str, args: argpar
     :param args: Parsed ``run`` arguments.
     :return: The experiment with ``args``' overrides (see :func:`experiments_from_args`).
     """
-    changes = _run_overrides(experiment, args)
-    task = args.env or experiment.env
-    given = [SETTING_FLAGS[dest] for dest in ("n_agents", "neighbors") if getattr(args, dest) is not None]
-    if task != DEFAULT_ENV and given:
-        raise ValueError(
-            f"{given[0]} sets simple_spread's team, but the task is {task}, whose team is its own: change it through "
-            "--env-kwargs (e.g. simple_tag's '{\"num_adversaries\": 4}'), or leave out " + " and ".join(given) + "."
-        )
-    changed = experiment.replace(**changes)
-    if args.neighbors is not None:
-        changed = dataclasses.replace(changed, num_agent_neighbors=None if args.neighbors == "all" else args.neighbors)
+    changed = _with_team(experiment, _run_overrides(experiment, args), args)
     flags = [flag for dest, flag in SETTING_FLAGS.items() if getattr(args, dest) is not None]
     if not flags:
         return changed
@@ -547,25 +566,9 @@ def _tune_experiment(args: argparse.Namespace) -> ExperimentConfig:
     :param args: Parsed ``tune`` arguments.
     :return: The setting the trials train in: ``--config`` with the task, team and scheme options over it.
     """
-    experiment = load_experiment(args.config)
-    task = args.env or experiment.env
-    given = [
-        flag for dest, flag in (("n_agents", "--n-agents"), ("neighbors", "--neighbors")) if getattr(args, dest) is not None
-    ]
-    if task != DEFAULT_ENV and given:
-        raise ValueError(
-            f"{given[0]} sets simple_spread's team, but the task is {task}, whose team is its own: change it through "
-            "--env-kwargs, or leave out " + " and ".join(given) + "."
-        )
-    experiment = experiment.replace(
-        env=args.env,
-        env_kwargs=args.env_kwargs,
-        score_agents=args.score_agents,
-        n_agents=args.n_agents,
-        schemes=(args.scheme,) if args.scheme else None,
-    )
-    if args.neighbors is not None:
-        experiment = dataclasses.replace(experiment, num_agent_neighbors=None if args.neighbors == "all" else args.neighbors)
+    scheme = (args.scheme,) if args.scheme else None
+    changes = {"env": args.env, "env_kwargs": args.env_kwargs, "score_agents": args.score_agents, "n_agents": args.n_agents}
+    experiment = _with_team(load_experiment(args.config), {**changes, "schemes": scheme}, args)
     _check_experiments([experiment])
     return experiment
 
@@ -647,12 +650,12 @@ def tune_command(args: argparse.Namespace) -> int:
 
 def _check_execution(args: argparse.Namespace) -> None:
     """:param args: Parsed ``run`` arguments, whose execution options are refused (a ``ValueError``) if they clash."""
-    if args.ray and args.backend != "batched":
+    if args.ray and args.backend not in ("batched", "batched-ray"):
         raise ValueError(
             f"--ray runs the batched backend's run groups as Ray tasks, but the backend is {args.backend}: use --backend "
             "batched --ray, or --backend ray for one Ray task per run."
         )
-    if args.ray_address and args.backend == "batched" and not args.ray:
+    if args.ray_address and args.backend == "batched" and not args.ray:  # batched-ray is on Ray
         raise ValueError(
             "--ray-address is Ray's, but --backend batched without --ray trains in this process: add --ray to run the "
             "groups as Ray tasks there."
@@ -705,7 +708,7 @@ def run_command(args: argparse.Namespace) -> int:
             verbose=1 if args.quiet else 2,
             device=args.device,
             runs_per_process=args.runs_per_process,
-            on_ray=args.ray,
+            on_ray=args.ray and args.backend == "batched",
         )
     except BatchedRunRefused as error:  # said before anything trained
         print(f"sb3-maddpg run: {error}", file=sys.stderr)

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from sb3_maddpg.common.progress import format_seconds, log_line
-from sb3_maddpg.experiments.backends import BACKENDS, LOST_RUN, run_local, run_ray
+from sb3_maddpg.experiments.backends import LOST_RUN, Backend, Execution, OnResult, SweepPlan, make_backend
 from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
 from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, lock_results, write_experiment
 from sb3_maddpg.experiments.runner import never_updated_line, score_line
@@ -141,177 +141,75 @@ def run_sweep(
     One sweep at a time holds a results directory (:func:`~sb3_maddpg.experiments.results.lock_results`). A run
     that fails, or is lost with a worker process that dies, is reported in the result and the sweep goes on;
     Ctrl-C stops the sweep, logs how far it got and raises :class:`SweepInterrupted` (a ``KeyboardInterrupt``).
-    Either way the unfinished runs are left for the next sweep.
+    Either way the unfinished runs are left for the next sweep. The sweep plans once (which runs are left, then the
+    backend's units of them) and hands the plan to its backend (:class:`~sb3_maddpg.experiments.backends.Backend`).
 
     :param experiments: The experiments.
     :param results_dir: The results directory (one sub-directory per experiment, scheme and seed).
-    :param backend: ``"local"`` (a process pool), ``"ray"``, or ``"batched"`` (run groups in this process, see
-        :mod:`~sb3_maddpg.experiments.batched`; the runs it cannot train are refused before anything trains).
+    :param backend: A name in :data:`~sb3_maddpg.experiments.backends.BACKENDS`: ``"local"`` (a process pool),
+        ``"ray"``, ``"batched"`` (run groups in this process, see :mod:`~sb3_maddpg.experiments.batched`; the runs it
+        cannot train are refused before anything trains) or ``"batched-ray"`` (run groups as Ray tasks).
     :param workers: Parallel processes (local), or the CPUs of a local Ray instance (0: all).
     :param threads: Torch threads per run.
     :param ray_address: The Ray cluster's address; ``None`` starts a local instance.
     :param verbose: 0 quiet, 1 the sweep's progress (a line per finished run), 2 also each run's progress.
-    :param device: The batched backend's device (``"auto"``: CUDA when there is a GPU).
-    :param runs_per_process: The batched backend's most runs per group (``None``: all of a setting and scheme).
-    :param on_ray: The batched backend's groups as Ray tasks, one per group (a GPU each on a CUDA device; at
-        ``ray_address``, or on a local instance of ``workers`` CPUs), instead of one after another in this process.
+    :param device: The batched backends' device (``"auto"``: CUDA when there is a GPU).
+    :param runs_per_process: The batched backends' most runs per group (``None``: all of a setting and scheme).
+    :param on_ray: ``backend="batched"`` with this is ``"batched-ray"``: each group a Ray task (a GPU each on a CUDA
+        device; at ``ray_address``, or on a local instance of ``workers`` CPUs).
     :return: What the sweep did.
     :raise ResultsDirectoryLocked: When another sweep is running in ``results_dir``.
     :raise BatchedRunRefused: When the batched backend cannot train a run (nothing has trained then).
     """
-    if backend not in BACKENDS:
-        raise ValueError(f"Unknown backend {backend!r}; use one of {BACKENDS}.")
-    if on_ray and backend != "batched":
-        raise ValueError(
-            f"on_ray runs the batched backend's groups as Ray tasks, but the backend is {backend!r}: use "
-            "backend='batched' with on_ray=True, or backend='ray' for one task per run."
-        )
     results_path = Path(results_dir).resolve()
     names = [experiment.name for experiment in experiments]
     if len(set(names)) != len(names):
         raise ValueError(f"Experiment names must be unique, got {names}.")
-    execution = Execution(backend, workers, threads, ray_address, device, runs_per_process, on_ray)
-    if backend == "batched":
-        from sb3_maddpg.experiments.batched import check_batched, plan_groups
-
-        plan_groups([], runs_per_process)  # its argument checks, before anything runs
-        check_batched(plan_sweep(experiments, results_path)[0], device=None if on_ray else device)  # Ray: its own check
-    with lock_results(results_path):
-        return _run_locked_sweep(experiments, results_path, execution, verbose)
-
-
-@dataclass(frozen=True)
-class Execution:
-    """Where and how a sweep's runs execute (:func:`run_sweep`'s parameters of the same names)."""
-
-    backend: str
-    workers: int
-    threads: int
-    ray_address: str | None
-    device: str
-    runs_per_process: int | None
-    on_ray: bool = False
-
-
-def _run_locked_sweep(
-    experiments: Sequence[ExperimentConfig], results_path: Path, execution: Execution, verbose: int
-) -> SweepResult:
-    """:func:`run_sweep` once it holds the results directory (same parameters)."""
-    backend, workers, threads, ray_address = execution.backend, execution.workers, execution.threads, execution.ray_address
-    for experiment in experiments:
-        write_experiment(results_path, experiment.name, experiment.to_dict())
-
-    todo, skipped = plan_sweep(experiments, results_path)
-    result = SweepResult(total=len(todo) + skipped, skipped=skipped)
-    # Ray's slots are known once it is up (workers=0 means all CPUs): run_ray reports them through on_parallel.
-    parallel = workers if backend == "local" else max(1, workers) // max(1, threads)
-    where = f"with {workers} worker(s) x {threads} thread(s)"
-    most_runs = None
-    group_lines: list[str] = []  # a setting's seeds split to fit the memory: said once the sweep log is open
-    if backend == "batched":
-        from sb3_maddpg.experiments.batched import memory_bound, plan_groups
-
-        if execution.runs_per_process is None and not execution.on_ray:
-            most_runs = memory_bound(execution.device, log=group_lines.append)
-        groups = plan_groups(todo, execution.runs_per_process, most_runs)
-        if execution.runs_per_process is not None and not execution.on_ray:
-            fits = memory_bound(execution.device)
-            warned: set[str] = set()
-            for group in groups:  # the first (largest) group of each setting and scheme says it
-                setting = f"{group[0].experiment}/{group[0].scheme}"
-                if setting not in warned and len(group) > fits(group):
-                    warned.add(setting)
-                    group_lines.append(
-                        f"{setting}: groups of {len(group)} runs (--runs-per-process) may not fit in memory: "
-                        f"{fits(group)} fit by the package's estimate; lower --runs-per-process if the sweep runs out "
-                        "of memory"
-                    )
-        parallel = max((len(group) for group in groups), default=1)  # a group's runs finish together
-        where = f"in {len(groups)} run group(s) of up to {parallel} run(s) on {execution.device}"
-        if execution.on_ray:
-            where += ", a Ray task each"
-    group_size = parallel
-    progress = SweepProgress(result.total, skipped, parallel, str(results_path / SWEEP_LOG), echo=verbose >= 1)
-    names = ", ".join(experiment.name for experiment in experiments)
-    progress.log(f"sweep of {result.total} runs ({names}) on {backend} {where}: {skipped} finished before, {len(todo)} to run")
-    for line in group_lines:
-        progress.log(line)
-
-    def on_result(config: RunConfig, summary: dict[str, Any] | None, error: str | None) -> None:
-        if summary is not None:
-            summary = {key: value for key, value in summary.items() if key != "files"}
-            result.completed.append(summary)
-            score = summary["score"]
-            progress.update(
-                config.run_id,
-                f"done in {format_seconds(summary['wall_time_s'])} ({summary['train_steps_per_s']:,.0f} steps/s, "
-                f"{score_line(score)})"
-                + (
-                    f"; {never_updated_line(config.model_kwargs.get('learning_starts'))}"
-                    if summary.get("n_updates") == 0
-                    else ""
-                ),
-                duration=summary["wall_time_s"],
-            )
-        else:
-            result.failed[config.run_id] = error or ""
-            progress.update(config.run_id, f"FAILED:\n{error}")
-
-    def on_parallel(slots: int) -> None:
-        progress.parallel = slots
-        progress.log(f"Ray: {slots} run(s) at once ({threads} CPU(s) each)")
-
-    def on_parallel_groups(slots: int, device: str) -> None:
-        progress.parallel = slots * group_size  # a group's runs finish together
-        each = "a GPU" if device == "cuda" else f"{threads} CPU(s)"
-        progress.log(f"Ray: {slots} run group(s) at once ({each} each) on {device}; a group's runs are reported as it ends")
-
-    started = time.perf_counter()
     run_verbose = 1 if verbose >= 2 else 0
+    execution = Execution(_backend_name(backend, on_ray), workers, threads, ray_address, device, runs_per_process, run_verbose)
+    chosen = make_backend(execution)
+    with lock_results(results_path):
+        todo, skipped = plan_sweep(experiments, results_path)
+        chosen.check(todo)  # before anything is written
+        for experiment in experiments:
+            write_experiment(results_path, experiment.name, experiment.to_dict())
+        plan = chosen.plan(todo, str(results_path))
+        progress = SweepProgress(len(todo) + skipped, skipped, plan.parallel, str(results_path / SWEEP_LOG), verbose >= 1)
+        for line in (
+            f"sweep of {progress.total} runs ({', '.join(names)}) on {chosen.name} {plan.where}: {skipped} finished "
+            f"before, {len(todo)} to run",
+            *plan.notes,
+        ):
+            progress.log(line)
+        return execute_plan(chosen, plan, progress)
+
+
+def _backend_name(backend: str, on_ray: bool) -> str:
+    """:return: The name in :data:`~sb3_maddpg.experiments.backends.BACKENDS` of ``run_sweep``'s ``backend, on_ray``."""
+    if not on_ray:
+        return backend
+    if backend != "batched":
+        raise ValueError(
+            f"on_ray runs the batched backend's groups as Ray tasks, but the backend is {backend!r}: use "
+            "backend='batched' with on_ray=True, or backend='ray' for one task per run."
+        )
+    return "batched-ray"
+
+
+def execute_plan(backend: Backend, plan: SweepPlan, progress: SweepProgress) -> SweepResult:
+    """
+    Run a sweep's plan on its backend, each run's end logged, and the sweep's end.
+
+    :param backend: The backend that made the plan.
+    :param plan: The runs to do.
+    :param progress: The sweep's log (its total and the runs finished before).
+    :return: What the sweep did.
+    :raise SweepInterrupted: On Ctrl-C.
+    """
+    result = SweepResult(total=progress.total, skipped=progress.done)
+    started = time.perf_counter()
     try:
-        if backend == "local":
-            run_local(
-                todo, str(results_path), on_result, workers=workers, threads=threads, verbose=run_verbose, log=progress.log
-            )
-        elif backend == "batched" and execution.on_ray:
-            from sb3_maddpg.experiments.batched import run_batched_ray
-
-            run_batched_ray(
-                todo,
-                str(results_path),
-                on_result,
-                device=execution.device,
-                runs_per_process=execution.runs_per_process,
-                threads=threads,
-                address=ray_address,
-                num_cpus=workers if workers > 0 else None,
-                verbose=run_verbose,
-                on_parallel=on_parallel_groups,
-            )
-        elif backend == "batched":
-            from sb3_maddpg.experiments.batched import run_batched
-
-            run_batched(
-                todo,
-                str(results_path),
-                on_result,
-                device=execution.device,
-                runs_per_process=execution.runs_per_process,
-                threads=threads,
-                verbose=run_verbose,
-                most_runs=most_runs,
-            )
-        else:
-            run_ray(
-                todo,
-                str(results_path),
-                on_result,
-                address=ray_address,
-                threads=threads,
-                num_cpus=workers if workers > 0 else None,
-                verbose=run_verbose,
-                on_parallel=on_parallel,
-            )
+        backend.run(plan, result_logger(result, progress), progress)
     except KeyboardInterrupt:
         progress.log(
             f"sweep interrupted: {result.finished} of {result.total} run(s) finished ({len(result.completed)} by this "
@@ -319,15 +217,56 @@ def _run_locked_sweep(
         )
         raise SweepInterrupted(result) from None
     result.wall_time_s = time.perf_counter() - started
+    progress.log(finished_line(result))
+    return result
+
+
+def result_logger(result: SweepResult, progress: SweepProgress) -> OnResult:
+    """
+    :param result: What the sweep did, so far.
+    :param progress: The sweep's log.
+    :return: The backend's ``on_result``: each run's end added to ``result`` and logged.
+    """
+
+    def on_result(config: RunConfig, summary: dict[str, Any] | None, error: str | None) -> None:
+        if summary is None:
+            result.failed[config.run_id] = error or ""
+            progress.update(config.run_id, f"FAILED:\n{error}")
+            return
+        summary = {key: value for key, value in summary.items() if key != "files"}
+        result.completed.append(summary)
+        never_updated = summary.get("n_updates") == 0
+        progress.update(
+            config.run_id,
+            f"done in {format_seconds(summary['wall_time_s'])} ({summary['train_steps_per_s']:,.0f} steps/s, "
+            f"{score_line(summary['score'])})"
+            + (f"; {never_updated_line(config.model_kwargs.get('learning_starts'))}" if never_updated else ""),
+            duration=summary["wall_time_s"],
+        )
+
+    return on_result
+
+
+def finished_line(result: SweepResult) -> str:
+    """:return: The sweep log's last line: what the sweep did, in how long."""
+    throughput = ""
     if result.completed:
         steps_per_s = sum(s["train_steps_per_s"] for s in result.completed) / len(result.completed)
         throughput = f", mean per-run throughput {steps_per_s:,.0f} env steps/s"
-    else:
-        throughput = ""
-    progress.log(
+    return (
         f"sweep finished: {len(result.completed)} run(s) in {format_seconds(result.wall_time_s)} "
-        f"({result.wall_time_s:.0f} s wall){throughput}, {skipped} skipped, {len(result.failed)} failed"
+        f"({result.wall_time_s:.0f} s wall){throughput}, {result.skipped} skipped, {len(result.failed)} failed"
         + (f" ({len(result.lost)} lost with a worker process that died)" if result.lost else "")
         + ("; run the same command again to retry the failed runs" if result.failed else "")
     )
-    return result
+
+
+__all__ = [
+    "Execution",  # moved to backends (0.2 imported it from here)
+    "SweepInterrupted",
+    "SweepProgress",
+    "SweepResult",
+    "execute_plan",
+    "plan_sweep",
+    "run_sweep",
+]

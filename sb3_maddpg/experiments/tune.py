@@ -9,7 +9,6 @@ evaluations. Stale trials of a killed worker are
 retried (Optuna's heartbeat), and the study stops at ``n_trials`` finished trials, however many workers share it.
 """
 
-import copy
 import dataclasses
 import json
 import math
@@ -24,10 +23,10 @@ import numpy as np
 from sb3_maddpg.analysis.evaluation import TeamEvalCallback
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.common.torch_threads import use_torch_threads
-from sb3_maddpg.experiments.backends import worker_pool
-from sb3_maddpg.experiments.config import DEFAULT_ENV, ExperimentConfig, RunConfig, load_algorithm, merge_model_kwargs
+from sb3_maddpg.experiments.backends import ray_session, worker_pool
+from sb3_maddpg.experiments.config import DEFAULT_ENV, ExperimentConfig, RunConfig, merge_model_kwargs
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
-from sb3_maddpg.experiments.runner import make_eval_env, make_train_env
+from sb3_maddpg.experiments.runner import build_model, make_eval_env
 from sb3_maddpg.experiments.tasks import task_metrics
 
 HEARTBEAT_SECONDS = 60
@@ -346,9 +345,8 @@ def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | N
         from sb3_maddpg.experiments.normalised_table import setting_references
 
         references = setting_references(settings.experiment.to_dict())
-    env = make_train_env(config)
-    algorithm: Any = load_algorithm(config.algorithm)
-    model = algorithm("MlpPolicy", env, critic_sharing=config.scheme, seed=config.seed, **copy.deepcopy(config.model_kwargs))
+    model = build_model(config)  # as a sweep's run builds it
+    env = model.get_env()
     callback = TrialEvalCallback(
         trial,
         settings.objective,
@@ -533,15 +531,10 @@ def run_study(
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}.")
     if backend == "ray":
-        try:
-            import ray
-        except ModuleNotFoundError as error:
-            raise ModuleNotFoundError(
-                f"--backend ray needs Ray, which is not installed: {extra_install_command('distributed')}."
-            ) from error
-        ray.init(address=address, ignore_reinit_error=True, include_dashboard=False, log_to_driver=True)
-        remote = ray.remote(num_cpus=threads or 1)(_worker)
-        ray.get([remote.remote(settings, threads, worker) for worker in range(workers)])
+        # As a sweep reaches Ray: a local instance's workers at normal priority, and shut down with the study.
+        with ray_session(address, None, verbose=1) as ray:
+            remote = ray.remote(num_cpus=threads or 1)(_worker)
+            ray.get([remote.remote(settings, threads, worker) for worker in range(workers)])
     elif workers == 1:
         optimize(settings, threads)
     else:

@@ -13,7 +13,7 @@ import torch
 
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.analysis.evaluation import evaluate_team
-from sb3_maddpg.experiments import SMOKE, ExperimentConfig, make_report, run_sweep, runner
+from sb3_maddpg.experiments import SMOKE, ExperimentConfig, group_recorder, group_state, make_report, run_sweep, runner
 from sb3_maddpg.experiments.batched import (
     BatchedRunRefused,
     check_batched,
@@ -60,6 +60,21 @@ def keys(value: Any, prefix: str = "") -> set[str]:
     if not isinstance(value, dict):
         return set()
     return {f"{prefix}{key}" for key in value} | {k for key, v in value.items() for k in keys(v, f"{prefix}{key}/")}
+
+
+class Killed(Exception):
+    """A process killed in a test."""
+
+
+def kill_after_save(monkeypatch: pytest.MonkeyPatch, steps: int) -> None:
+    """Make a group's process "killed" right after it saves its state at ``steps`` env steps or later."""
+
+    def save_then_kill(path: Path, state: dict[str, Any]) -> None:
+        group_state.save_state(path, state)
+        if state["group"]["num_timesteps"] >= steps:
+            raise Killed
+
+    monkeypatch.setattr(group_recorder, "save_state", save_then_kill)
 
 
 @pytest.fixture(scope="module")
@@ -128,21 +143,16 @@ def test_never_updated_runs_evaluate_identically_on_batched_and_local(warm_up_re
     assert np.mean(finals["batched"]) == pytest.approx(np.mean(finals["local"]), rel=0.15)
 
 
-def test_an_interrupted_group_resumes_from_its_last_checkpoint(tmp_path: Path) -> None:
+def test_an_interrupted_group_resumes_from_its_last_checkpoint(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     experiment = tiny(seeds=(0, 1))
     configs = experiment.runs()
     whole = train_group(configs, tmp_path / "whole", device="cpu", verbose=0)
 
-    class Killed(Exception):
-        pass
-
-    def kill_after_first_checkpoint(steps: int) -> None:
-        if steps >= configs[0].checkpoint_steps()[0]:
-            raise Killed
-
     results = tmp_path / "resumed"
+    kill_after_save(monkeypatch, configs[0].checkpoint_steps()[0])
     with pytest.raises(Killed):
-        train_group(configs, results, device="cpu", verbose=0, on_save=kill_after_first_checkpoint)
+        train_group(configs, results, device="cpu", verbose=0)
+    monkeypatch.undo()
     state = group_state_path(results, configs)
     assert state.exists() and state.name == "group_seeds_0-1.pt"
     first = results / configs[0].run_id / "checkpoints" / f"model_{configs[0].checkpoint_steps()[0]}_steps.zip"
@@ -215,37 +225,30 @@ def test_a_crash_while_the_runs_are_evaluated_evaluates_them_again_without_train
 
 
 def test_a_state_not_used_says_why_and_stale_temporary_files_are_removed(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     configs = tiny(seeds=(0, 1)).runs()
     first_checkpoint = configs[0].checkpoint_steps()[0]
 
-    class Killed(Exception):
-        pass
-
-    def kill_at(steps: int) -> Any:
-        def hook(saved_at: int) -> None:
-            if saved_at >= steps:
-                raise Killed
-
-        return hook
-
     def restart_says(why: str) -> None:
         capsys.readouterr()
+        kill_after_save(monkeypatch, 0)
         with pytest.raises(Killed):
-            train_group(configs, tmp_path, device="cpu", verbose=1, on_save=kill_at(0))
+            train_group(configs, tmp_path, device="cpu", verbose=1)
         out = capsys.readouterr().out
         assert f"tiny/full: {why}" in out and "so the group starts afresh" in out, out
         for config in configs:  # and in each run's new train.log
             assert f"{config.run_id}: {why}" in (tmp_path / config.run_id / "train.log").read_text()
 
     state = group_state_path(tmp_path, configs)
+    kill_after_save(monkeypatch, 0)
     with pytest.raises(Killed):
-        train_group(configs, tmp_path, device="cpu", verbose=0, on_save=kill_at(0))
+        train_group(configs, tmp_path, device="cpu", verbose=0)
     state.write_bytes(b"not a state")
     restart_says("group_seeds_0-1.pt cannot be read (UnpicklingError: truncated")
+    kill_after_save(monkeypatch, first_checkpoint)
     with pytest.raises(Killed):
-        train_group(configs, tmp_path, device="cpu", verbose=0, on_save=kill_at(first_checkpoint))
+        train_group(configs, tmp_path, device="cpu", verbose=0)
     for path in (tmp_path / configs[0].run_id / "checkpoints").iterdir():
         path.unlink()
     restart_says("group_seeds_0-1.pt names checkpoints of tiny/full/seed_000 that are missing")
@@ -325,3 +328,27 @@ def test_groups_are_one_setting_and_scheme() -> None:
     assert len(plan_groups(runs)) == 2
     assert seed_ranges([5, 0, 1, 2, 9, 10]) == "0-2+5+9-10"
     assert parse_seed_ranges("0-2+5+9-10") == {0, 1, 2, 5, 9, 10}
+
+
+def test_a_sweep_plans_once_and_hands_the_plan_to_its_backend(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """plan_sweep, plan_groups and memory_bound run once per sweep; the backend trains the groups it planned."""
+    from sb3_maddpg.experiments import batched, sweep
+
+    calls: dict[str, int] = {}
+
+    def counted(module: Any, name: str) -> None:
+        original = getattr(module, name)
+
+        def count(*args: Any, **kwargs: Any) -> Any:
+            calls[name] = calls.get(name, 0) + 1
+            return original(*args, **kwargs)
+
+        monkeypatch.setattr(module, name, count)
+
+    for module, name in ((sweep, "plan_sweep"), (batched, "plan_groups"), (batched, "memory_bound")):
+        counted(module, name)
+    trained: list[list[int]] = []
+    monkeypatch.setattr(batched, "train_groups", lambda groups, *args: trained.extend([c.seed for c in g] for g in groups))
+    run_sweep([tiny(seeds=(0, 1, 2))], tmp_path, backend="batched", verbose=0, device="cpu")
+    assert calls == {"plan_sweep": 1, "plan_groups": 1, "memory_bound": 1}
+    assert trained == [[0, 1, 2]]

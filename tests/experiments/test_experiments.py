@@ -15,6 +15,7 @@ from scipy.stats import mannwhitneyu
 
 from sb3_maddpg.analysis.normalised_score import reference_scores
 from sb3_maddpg.experiments import EXP1, EXP1_TUNED, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
+from sb3_maddpg.experiments.backends import BACKENDS, Execution, make_backend
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL, PAPER_NAMES, algorithm_argument, setting_label
 from sb3_maddpg.experiments.marl_eval import MARL_EVAL_FILE
@@ -303,6 +304,21 @@ def test_ray_backend_runs_the_smoke_sweep(tmp_path: Path, local_results: Path) -
     assert ray_scores.keys() == local_scores.keys()
     for run_id, score in ray_scores.items():
         assert score == pytest.approx(local_scores[run_id]), run_id
+
+
+def test_one_registry_names_the_backends_that_run_takes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``run --backend`` offers the names of :data:`BACKENDS`, each of which makes a backend that plans the runs it is
+    given; a name not there is refused with the names."""
+    assert main(["run", "--backend", "none"]) == 2
+    offered = capsys.readouterr().err.split("choose from ")[1].split(")")[0]
+    assert offered == ", ".join(repr(name) for name in BACKENDS)
+    runs = dataclasses.replace(SMOKE, schemes=("full",)).runs()
+    for name in BACKENDS:
+        plan = make_backend(Execution(name, runs_per_process=1)).plan(runs, str(tmp_path))
+        assert plan.runs == runs and all(len(unit) == 1 for unit in plan.units), name
+    assert "a Ray task each" in make_backend(Execution("batched-ray")).plan(runs, str(tmp_path)).where
+    with pytest.raises(ValueError, match="Unknown backend 'none'; use one of"):
+        make_backend(Execution("none"))
 
 
 def test_report_writes_table_and_plots(local_results: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+import types
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -404,3 +405,28 @@ def test_an_objective_the_evaluations_do_not_score_stops_the_study_clearly() -> 
     model = MADDPG("MlpPolicy", env, learning_starts=50, batch_size=16, policy_kwargs={"net_arch": [8]})
     with pytest.raises(ValueError, match=r"trial 0's min_dist_sum is nan at step 50: the"):
         model.learn(1_000, callback=callback)
+
+
+def test_a_study_on_ray_reaches_ray_as_a_sweep_does(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--backend ray`` goes through the sweeps' ``ray_session``: a local instance's workers at normal priority (not
+    Ray's niceness 15), shut down after the study; one task per worker, ``threads`` CPUs each."""
+    from sb3_maddpg.experiments import tune
+
+    calls: dict[str, Any] = {"tasks": []}
+
+    def remote(**options: Any) -> Any:
+        return lambda work: types.SimpleNamespace(remote=lambda *args: calls["tasks"].append((options, args[1:])))
+
+    fake = types.SimpleNamespace(
+        is_initialized=lambda: False,
+        init=lambda **kwargs: calls.update(init=kwargs),
+        shutdown=lambda: calls.update(shutdown=True),
+        remote=remote,
+        get=lambda refs: None,
+    )
+    monkeypatch.setitem(sys.modules, "ray", fake)
+    monkeypatch.setattr(tune, "load_study", lambda settings, worker=0: "the study")
+    assert run_study(None, workers=2, backend="ray", threads=3) == "the study"  # type: ignore[arg-type]
+    assert calls["init"]["_system_config"] == {"worker_niceness": 0} and calls["init"]["address"] is None
+    assert calls.get("shutdown")
+    assert calls["tasks"] == [({"num_cpus": 3}, (3, 0)), ({"num_cpus": 3}, (3, 1))]
