@@ -1,12 +1,16 @@
 # Developer targets; CI runs .ci/run, which calls the same commands.
 PYTHON ?= python
 
-.PHONY: install test lint format type doc examples check
+.PHONY: install test test-all lint format type doc examples check
 
 install:
 	$(PYTHON) -m pip install torch==2.13.0 -e ".[dev]"
 
+# The quick lane while developing (the tests marked slow left out); CI runs the full suite (test-all).
 test:
+	$(PYTHON) -m pytest -q -m "not slow"
+
+test-all:
 	$(PYTHON) -m pytest -q
 
 lint:
@@ -23,4 +27,4 @@ type:
 doc:
 	$(PYTHON) -m sphinx -W --keep-going -b html docs docs/_build/html
 
-check: lint type test doc
+check: lint type test-all doc

@@ -55,6 +55,7 @@ def test_snippet_pages_are_found_and_budgets_are_cut() -> None:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("page", PAGES, ids=lambda page: str(page.relative_to(DOCS)))
 def test_page_snippets_run(page: Path, tmp_path: Path) -> None:
     code = with_small_budgets("\n\n".join(python_blocks(page)))

@@ -25,6 +25,7 @@ def test_examples_found() -> None:
     assert {"quickstart.py", "compare_schemes.py", "render_team.py"} <= set(EXAMPLES)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("example", EXAMPLES)
 def test_example_fast_mode(example: str) -> None:
     result = _run([str(ROOT / "examples" / example), "--fast"], timeout=300)

@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 README = (ROOT / "README.md").read_text()
 SNIPPETS = re.findall(r"```python\n(.*?)```", README, flags=re.DOTALL)
@@ -32,6 +34,7 @@ def test_readme_snippets_need_only_the_base_install() -> None:
         assert "progress_bar=True" not in snippet
 
 
+@pytest.mark.slow
 def test_readme_snippets_run(tmp_path: Path) -> None:
     for snippet in SNIPPETS:
         # The same code at a test's budget: a run past learning_starts, an evaluation of 4 episodes.

@@ -47,6 +47,7 @@ def observations(model: MADDPG, n: int = 32) -> np.ndarray:
     return np.random.default_rng(1).normal(size=(n, model.observation_space.shape[0])).astype(np.float32)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("team", sorted(TEAMS))
 def test_each_exported_actor_acts_as_the_model_from_its_own_observation(team: str, tmp_path: Path) -> None:
     model = trained(team)
@@ -82,6 +83,7 @@ def test_torchscript_export_matches_too(tmp_path: Path) -> None:
         np.testing.assert_allclose(action, joint[:, layout.action_slices[i]], atol=1e-5)
 
 
+@pytest.mark.slow
 def test_the_manifest_describes_each_agent(tmp_path: Path) -> None:
     model = trained("mixed")
     export_actors(model, tmp_path)
@@ -104,6 +106,7 @@ def test_the_manifest_describes_each_agent(tmp_path: Path) -> None:
     assert chooser["action"] == {"type": "discrete", "n": 3} and chooser["observation_slice"] == [1, 2]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("team", ["homogeneous", "mixed"])
 def test_one_onnx_file_copied_alone_runs_as_the_torch_actor(team: str, tmp_path: Path) -> None:
     """Issue 34: the weights travel inside each file; a file copied alone to an empty folder gives the actor's actions."""
@@ -126,6 +129,7 @@ def test_one_onnx_file_copied_alone_runs_as_the_torch_actor(team: str, tmp_path:
         np.testing.assert_allclose(action, expected, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_the_onnx_export_is_quiet(tmp_path: Path) -> None:
     """Issue 34: no warning, and no log line of torch's exporter (e.g. 'torchvision is not installed'), for any agent."""
     model = MADDPG("MlpPolicy", make_simple_spread(n_agents=2), seed=0, **FAST)
@@ -147,6 +151,7 @@ def test_the_onnx_export_is_quiet(tmp_path: Path) -> None:
     assert logging.getLogger(EXPORTER_LOGGER).filters == []  # the filter is gone once the export is done
 
 
+@pytest.mark.slow
 def test_onnx_actor_takes_batches_of_1_5_100_and_learn_runs_after_export(tmp_path: Path) -> None:
     model = trained("homogeneous")
     files = export_actors(model, tmp_path)
@@ -162,6 +167,7 @@ def test_an_unknown_format_says_which_there_are(tmp_path: Path) -> None:
         export_actors(trained("homogeneous"), tmp_path, format="tflite")
 
 
+@pytest.mark.slow
 def test_an_exported_team_run_agent_by_agent_in_mpe2_scores_as_evaluate_team(tmp_path: Path) -> None:
     """Decentralised execution: each agent's ONNX file on its own mpe2 observation, no package code in the loop."""
     from mpe2 import simple_spread_v3

@@ -162,6 +162,7 @@ def test_ctrl_c_outside_training_says_so() -> None:
     assert interrupted_line() == "Stopped by Ctrl-C."
 
 
+@pytest.mark.slow
 def test_the_main_job_ends_on_ctrl_c_with_one_line() -> None:
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy", "PYTHONUNBUFFERED": "1"}
     env.pop("SB3_MADDPG_FAST", None)

@@ -13,6 +13,7 @@ def make_model(n_envs: int, **kwargs: object) -> MADDPG:
     return MADDPG("MlpPolicy", SimpleSpreadVecEnv(n_envs, n_agents=3), **{**SMALL, **kwargs})  # type: ignore[arg-type]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n_envs", [1, 3, 16, 100, 256])
 def test_one_gradient_step_per_100_transitions_for_any_n_envs(n_envs: int) -> None:
     model = make_model(n_envs, learning_starts=500)

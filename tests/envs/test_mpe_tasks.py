@@ -99,6 +99,7 @@ def test_declared_metrics_in_info_at_reset_and_every_step(task: str) -> None:
         assert all(isinstance(info[key], float) and math.isfinite(info[key]) for key in declared)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("continuous_actions", [True, False], ids=["continuous", "discrete"])
 @pytest.mark.parametrize("task", NINE)
 def test_maddpg_updates_and_predicts_valid_actions_on_each_mpe_task(task: str, continuous_actions: bool) -> None:

@@ -135,6 +135,7 @@ def copy_state(parallel_envs: list[Any], ours: SimpleSpreadVecEnv) -> None:
         ours.worlds.landmark_pos[index] = [landmark.state.p_pos for landmark in world.landmarks]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("n_agents", "num_agent_neighbors"), [(3, None), (4, 2), (6, None), (6, 1)])
 def test_each_step_from_mpe2s_state_matches(n_agents: int, num_agent_neighbors: int | None) -> None:
     """

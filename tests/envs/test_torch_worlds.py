@@ -115,6 +115,7 @@ def run_both(
     return largest, obs_largest, contacts
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("resync", [True, False], ids=["one step", "25 steps"])
 @pytest.mark.parametrize("n_agents", range(2, 9))
 def test_steps_equal_the_numpy_worlds(n_agents: int, resync: bool) -> None:

@@ -45,6 +45,7 @@ def both(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return results
 
 
+@pytest.mark.slow
 def test_a_group_on_ray_writes_what_it_writes_in_this_process(both: dict[str, Path]) -> None:
     batched, ray = both["batched"], both["ray"]
     for config in WARM_UP_ONLY.runs():

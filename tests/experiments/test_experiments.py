@@ -277,6 +277,7 @@ def local_results(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return results
 
 
+@pytest.mark.slow
 def test_local_backend_runs_the_smoke_sweep(local_results: Path) -> None:
     summaries = load_summaries(local_results)
     assert len(summaries) == 10
@@ -292,6 +293,7 @@ def test_local_backend_runs_the_smoke_sweep(local_results: Path) -> None:
     assert "sweep finished: 10 run(s)" in (local_results / "sweep.log").read_text()
 
 
+@pytest.mark.slow
 def test_ray_backend_runs_the_smoke_sweep(tmp_path: Path, local_results: Path) -> None:
     pytest.importorskip("ray", reason="the Ray backend test needs ray (installed in CI through the dev extra)")
     result = run_sweep([SMOKE], tmp_path, backend="ray", workers=2, verbose=0)
@@ -437,6 +439,7 @@ COMMITTED_REPORTS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("results", "report"), COMMITTED_REPORTS, ids=lambda path: path.parent.name)
 def test_report_regenerates_the_committed_results(results: Path, report: Path, tmp_path: Path) -> None:
     committed_tables = sorted(report.glob("table_*.md"))

@@ -193,6 +193,7 @@ def tag_results(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return results
 
 
+@pytest.mark.slow
 def test_a_competitive_runs_summary_scores_each_side_and_is_strict_json(tag_results: Path) -> None:
     path = tag_results / "smoke" / "full" / "seed_000" / SUMMARY_FILE
     summary = strict_loads(path.read_text())

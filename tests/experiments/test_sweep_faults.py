@@ -199,6 +199,7 @@ def test_run_files_are_written_whole_and_done_last(tmp_path: Path, monkeypatch: 
 # Killed workers, killed sweeps, two sweeps at once (local process pool)
 
 
+@pytest.mark.slow
 def test_a_killed_local_worker_loses_only_the_runs_in_progress(tmp_path: Path) -> None:
     killed, beside, results = tmp_path / "killed", tmp_path / "beside", tmp_path / "results"
     killed.touch()
@@ -227,6 +228,7 @@ def test_a_killed_local_worker_loses_only_the_runs_in_progress(tmp_path: Path) -
     check_resume(results, exp, lambda: run_sweep([exp], results, verbose=0))
 
 
+@pytest.mark.slow
 def test_a_killed_local_sweep_resumes_and_a_second_sweep_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -264,6 +266,7 @@ def sweep_log(results: Path) -> str:
     return path.read_text() if path.exists() else ""
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_the_cli_cleanly_and_the_same_command_resumes(tmp_path: Path) -> None:
     trigger, results = tmp_path / "stall", tmp_path / "results"
     trigger.touch()
@@ -295,6 +298,7 @@ def test_ctrl_c_stops_the_cli_cleanly_and_the_same_command_resumes(tmp_path: Pat
 # Ray
 
 
+@pytest.mark.slow
 def test_ray_sweep_retries_a_killed_worker_and_resumes_after_a_killed_sweep(tmp_path: Path) -> None:
     pytest.importorskip("ray", reason="the Ray backend test needs ray (installed in CI through the dev extra)")
     retried, stalled, results = tmp_path / "retried", tmp_path / "stalled", tmp_path / "results"

@@ -64,6 +64,7 @@ def test_the_sampler_gives_arguments_maddpg_takes() -> None:
         assert model.transitions_per_update == kwargs["transitions_per_update"] and model.gamma == kwargs["gamma"]
 
 
+@pytest.mark.slow
 def test_a_tiny_study_runs_and_gives_a_preset_run_takes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     preset = tmp_path / "best.json"
     argv = ["tune", "--config", "smoke", "--scheme", "full", "--trials", "2", "--steps", "800", "--evaluations", "2"]
@@ -113,6 +114,7 @@ def test_the_callback_stops_training_when_the_pruner_says_so() -> None:
     assert [step for step, _ in reports] == [50, 100] and reports[0][1] == callback.history[0]["min_dist_sum"]
 
 
+@pytest.mark.slow
 def test_a_killed_study_resumes_and_retries_the_killed_trial(tmp_path: Path) -> None:
     db = tmp_path / "tune.db"
     argv = [sys.executable, "-m", "sb3_maddpg.experiments", "tune", "--config", "smoke", "--scheme", "full"]
@@ -184,6 +186,7 @@ def test_the_default_pruner_spares_the_warmup_evaluations(tmp_path: Path, warmup
     assert prunes == [False] * warmup + [True] * (4 - warmup)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("stop", ["SIGTERM", "SIGKILL", "Ctrl-C"])
 def test_a_stopped_study_takes_its_workers_with_it(tmp_path: Path, stop: str) -> None:
     # Two workers in trials that would run for minutes: killing the study's process must stop them too, or they go
@@ -307,6 +310,7 @@ def open_the_study_at_once(storage: str, barrier: Any) -> int:
     return len(study.trials)
 
 
+@pytest.mark.slow
 def test_workers_that_open_a_new_study_together_all_get_it(tmp_path: Path) -> None:
     # --workers N opens one new SQLite file from N processes at once; each creates the tables, and without the
     # retry every one but the first fails with "table ... already exists" (the CI failure of 2026-12-01).
@@ -358,6 +362,7 @@ def test_the_objectives_are_the_tasks_metrics_in_their_directions() -> None:
     assert task_objectives(TINY.replace(env="sb3_maddpg/SimpleSpread-v3")) == {"return_mean": "maximize"}
 
 
+@pytest.mark.slow
 def test_tune_on_another_task_optimises_that_tasks_metric(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     storage, preset = f"sqlite:///{tmp_path / 'tune.db'}", tmp_path / "best.json"
     argv = ["tune", "--config", "smoke", "--env", "simple_tag", "--scheme", "full", "--trials", "2", "--steps", "800"]

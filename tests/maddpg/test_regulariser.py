@@ -239,6 +239,7 @@ def learn_fast(actor_reg_coef: float, seed: int) -> tuple[float, float]:
     return (actions.abs() > 0.99).float().mean().item(), pre.abs().median().item()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 def test_regulariser_keeps_actors_out_of_saturation(seed: int) -> None:
     # Measured (seeds 0-4): without it every component saturates, |pre| ~ 60-190; at 1e-3 the penalty holds

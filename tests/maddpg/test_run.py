@@ -83,6 +83,7 @@ def test_scheme_aliases(alias):
     assert type(upper.critic.extractors[0]) is expected
 
 
+@pytest.mark.slow
 def test_subproc_vec_env():
     # Workers build the env by id in a fresh interpreter: the "module:" prefix makes gymnasium import sb3_maddpg
     # (which registers the id) there first.

@@ -59,6 +59,7 @@ def test_the_warm_up_step_makes_no_sync_either() -> None:
     assert step.problems() == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("algorithm", "scheme"), [(MADDPG, "full"), (MADDPG, "selected"), (MATD3, "full")])
 def test_launches_do_not_grow_with_the_number_of_runs(algorithm: type[MADDPG], scheme: str) -> None:
     """8 runs launch what 2 launch. (1 run launches a few fewer: reshaping a run dimension of size 1 is a view where
