@@ -7,7 +7,8 @@ import dataclasses
 import json
 import math
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, TypeVar
+from functools import cached_property
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
 
 from sb3_maddpg.compat import renamed_in_0_3
 from sb3_maddpg.experiments.defaults import (
@@ -20,6 +21,9 @@ from sb3_maddpg.experiments.defaults import (
 )
 from sb3_maddpg.experiments.descriptions import describe_setting
 from sb3_maddpg.experiments.task_envs import check_env_name, task_team_size
+
+if TYPE_CHECKING:
+    from sb3_maddpg.experiments.tasks import RunTask
 
 SettingT = TypeVar("SettingT", bound="Setting")
 
@@ -184,6 +188,20 @@ class RunConfig(Setting):
             )
         if self.eval_episodes < 1 or self.curve_eval_episodes < 1 or self.curve_points < 0:
             raise ValueError("eval_episodes and curve_eval_episodes must be positive and curve_points non-negative.")
+
+    @cached_property
+    def task(self) -> "RunTask":
+        """The run's task, derived from the config once, on first use (:class:`~sb3_maddpg.experiments.tasks.RunTask`:
+        its envs, metrics and their directions, sides, evaluation schedule and description): what the runner, the
+        run groups and tuning read, instead of deriving each from the env's name."""
+        # Imported here: the task module imports SB3 and the envs, which reading a config (reports, --help) needs not.
+        from sb3_maddpg.experiments.tasks import RunTask
+
+        return RunTask.of(self)
+
+    def __getstate__(self) -> dict[str, Any]:
+        # A config sent to a worker travels as its fields alone: the worker derives its own task once.
+        return {key: value for key, value in self.__dict__.items() if key != "task"}
 
     @property
     def total_timesteps(self) -> int:
