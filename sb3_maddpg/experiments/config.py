@@ -1,6 +1,6 @@
 """Experiment and run configurations: the paper's two experiments, a CI smoke test, and loading a setting by name or
-file. The configuration types are :mod:`~sb3_maddpg.experiments.setting`'s, the words that describe a setting
-:mod:`~sb3_maddpg.experiments.descriptions`'; this module names them too, as it always has."""
+file. The configuration types (and the words that describe a setting) are :mod:`~sb3_maddpg.experiments.setting`'s; this
+module names them too, as it always has."""
 
 import dataclasses
 import importlib
@@ -17,13 +17,13 @@ from sb3_maddpg.experiments.defaults import (
     SCHEMES,
     VEC_ENVS,
 )
-from sb3_maddpg.experiments.descriptions import describe_setting, setting_label
 from sb3_maddpg.experiments.setting import (
     NOTE_KEEPING_FIELDS,
     SCHEDULE_FLOORS,
     ExperimentConfig,
     RunConfig,
     Setting,
+    describe_setting,
     merge_model_kwargs,
     scaled_schedule,
 )
@@ -117,6 +117,29 @@ def ordered_schemes(schemes: Iterable[str]) -> list[str]:
     """
     present = set(schemes)
     return [scheme for scheme in SCHEMES if scheme in present] + sorted(present - set(SCHEMES))
+
+
+def setting_label(name: str, experiment: dict[str, Any] | None) -> str:
+    """
+    :param name: The experiment name.
+    :param experiment: Its stored config (``ExperimentConfig.to_dict()``), if any.
+    :return: A short label, e.g. ``"exp1 (N=5, full obs., 100,000 ep.)"``; an algorithm other than MADDPG is named
+        first (``"n3_matd3 (MATD3, N=3, ...)"``), since the scheme columns keep the paper's MADDPG names.
+    """
+    if not experiment:
+        return name
+    algorithm = experiment.get("algorithm", DEFAULT_ALGORITHM)
+    prefix = "" if algorithm == DEFAULT_ALGORITHM else f"{algorithm.rpartition(':')[2]}, "
+    if experiment.get("env", DEFAULT_ENV) != DEFAULT_ENV:
+        return f"{name} ({prefix}{experiment['env']}, {experiment['episodes']:,} ep.)"
+    neighbors = experiment.get("num_agent_neighbors")
+    if neighbors is None:
+        observability = "full obs."
+    elif neighbors >= experiment["n_agents"] - 1:  # every other agent, in order of distance
+        observability = "full obs. nearest first"
+    else:
+        observability = f"{neighbors} nearest obs."
+    return f"{name} ({prefix}N={experiment['n_agents']}, {observability}, {experiment['episodes']:,} ep.)"
 
 
 TUNE_OBJECTIVES = {"min_dist_sum": "minimize", "normalised": "maximize", "return_mean": "maximize"}

@@ -37,6 +37,7 @@ from sb3_maddpg.experiments.results import (
     run_directory,
     write_json_atomic,
 )
+from sb3_maddpg.experiments.tasks import run_task
 
 
 def make_env(config: RunConfig, n_envs: int | None = None) -> VecEnv:
@@ -45,7 +46,7 @@ def make_env(config: RunConfig, n_envs: int | None = None) -> VecEnv:
     :param n_envs: Worlds (default: the run's ``n_envs``).
     :return: The run's task as a new VecEnv (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_env`).
     """
-    return config.task.make_env(n_envs)
+    return run_task(config).make_env(n_envs)
 
 
 def make_train_env(config: RunConfig) -> VecEnv:
@@ -53,7 +54,7 @@ def make_train_env(config: RunConfig) -> VecEnv:
     :param config: The run.
     :return: Its training env (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_train_env`).
     """
-    return config.task.make_train_env()
+    return run_task(config).make_train_env()
 
 
 def make_eval_env(config: RunConfig, n_episodes: int) -> VecEnv:
@@ -62,7 +63,7 @@ def make_eval_env(config: RunConfig, n_episodes: int) -> VecEnv:
     :param n_episodes: Episodes per evaluation.
     :return: An evaluation env (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_eval_env`).
     """
-    return config.task.make_eval_env(n_episodes)
+    return run_task(config).make_eval_env(n_episodes)
 
 
 def statistics_path(model_path: str | os.PathLike[str]) -> Path:
@@ -147,11 +148,12 @@ def final_behaviour(config: RunConfig, model: Any, eval_env: VecEnv) -> dict[str
     :return: What the team does at its episodes' end (:func:`~sb3_maddpg.analysis.behaviour.team_behaviour`, over
         ``eval_episodes`` episodes), for simple_spread runs that observe every landmark; else ``None``.
     """
-    if not config.task.scores_behaviour:
+    task = run_task(config)
+    if not task.scores_behaviour:
         return None
     if isinstance(eval_env, VecNormalize):  # the behaviour reads positions from raw observations
         model, eval_env = NormalizedObservationPolicy(model, eval_env), eval_env.venv
-    return team_behaviour(model, eval_env, n_episodes=config.eval_episodes, seed=config.task.eval_seed)
+    return team_behaviour(model, eval_env, n_episodes=config.eval_episodes, seed=task.eval_seed)
 
 
 def execute_run(
@@ -189,7 +191,7 @@ def execute_run(
         th.set_num_threads(threads)
 
     started = time.perf_counter()
-    task = config.task  # derived once, here, for the whole run
+    task = run_task(config)  # derived once, here, for the whole run
     curve_env = task.make_eval_env(config.curve_eval_episodes)
     model = build_model(config)
     model.set_logger(configure(str(directory), ["csv"]))
@@ -233,7 +235,7 @@ def build_model(config: RunConfig, **kwargs: Any) -> Any:
     # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.
     return algorithm(
         "MlpPolicy",
-        config.task.make_train_env(),
+        run_task(config).make_train_env(),
         critic_sharing=config.scheme,
         seed=config.seed,
         **{**kwargs, **copy.deepcopy(config.model_kwargs)},
@@ -248,7 +250,7 @@ def curve_callback(config: RunConfig, curve_env: VecEnv, n_envs: int, directory:
     :param directory: Its directory.
     :return: The callback that writes its learning curve, or ``None`` when it has none (``curve_points=0``).
     """
-    task = config.task
+    task = run_task(config)
     if task.curve_interval == 0:
         return None
     return TeamEvalCallback(
@@ -267,7 +269,7 @@ def curve_callback(config: RunConfig, curve_env: VecEnv, n_envs: int, directory:
 def training_line(config: RunConfig) -> str:
     """:return: A run's first progress line: its budget and its task."""
     budget = f"{config.total_timesteps:,} steps ({config.episodes:,} episodes)"
-    return f"{config.run_id}: training {budget} on {config.task.description}"
+    return f"{config.run_id}: training {budget} on {run_task(config).description}"
 
 
 def log_interval(config: RunConfig) -> int:
@@ -321,7 +323,7 @@ def evaluate_checkpoints(config: RunConfig, saved: list[tuple[int, Path]]) -> tu
         the last checkpoint tells (empty without checkpoints): its ``n_updates``, ``learning_starts`` and, where the
         task scores it, its ``behaviour``.
     """
-    task = config.task
+    task = run_task(config)
     algorithm: Any = load_algorithm(config.algorithm)
     eval_env = task.make_eval_env(config.eval_episodes)
     rows = []
@@ -372,7 +374,7 @@ def run_summary(
         "scheme": config.scheme,
         "method": PAPER_NAMES.get(config.scheme, config.scheme),
         "seed": config.seed,
-        "score": {key: sum(row[key] for row in rows) / len(rows) for key in config.task.keys},
+        "score": {key: sum(row[key] for row in rows) / len(rows) for key in run_task(config).keys},
         "n_checkpoints": len(rows),
         "total_timesteps": config.total_timesteps,
         "train_time_s": round(train_time, 2),

@@ -1,14 +1,14 @@
 """The configuration types: :class:`Setting` (a task, a budget and an evaluation protocol, defined once), an
-experiment (a setting with its schemes and seeds) and a run (a setting with one scheme and one seed), and the one
-way both are read back from JSON."""
+experiment (a setting with its schemes and seeds) and a run (a setting with one scheme and one seed), the one way both
+are read back from JSON, and a setting's values in words (:func:`describe_setting`) and for another budget
+(:func:`scaled_schedule`)."""
 
 import copy
 import dataclasses
 import json
 import math
 from dataclasses import dataclass, field
-from functools import cached_property
-from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 from sb3_maddpg.compat import renamed_in_0_3
 from sb3_maddpg.experiments.defaults import (
@@ -19,11 +19,7 @@ from sb3_maddpg.experiments.defaults import (
     SCHEMES,
     VEC_ENVS,
 )
-from sb3_maddpg.experiments.descriptions import describe_setting
 from sb3_maddpg.experiments.task_envs import check_env_name, task_team_size
-
-if TYPE_CHECKING:
-    from sb3_maddpg.experiments.tasks import RunTask
 
 SettingT = TypeVar("SettingT", bound="Setting")
 
@@ -189,19 +185,10 @@ class RunConfig(Setting):
         if self.eval_episodes < 1 or self.curve_eval_episodes < 1 or self.curve_points < 0:
             raise ValueError("eval_episodes and curve_eval_episodes must be positive and curve_points non-negative.")
 
-    @cached_property
-    def task(self) -> "RunTask":
-        """The run's task, derived from the config once, on first use (:class:`~sb3_maddpg.experiments.tasks.RunTask`:
-        its envs, metrics and their directions, sides, evaluation schedule and description): what the runner, the
-        run groups and tuning read, instead of deriving each from the env's name."""
-        # Imported here: the task module imports SB3 and the envs, which reading a config (reports, --help) needs not.
-        from sb3_maddpg.experiments.tasks import RunTask
-
-        return RunTask.of(self)
-
     def __getstate__(self) -> dict[str, Any]:
-        # A config sent to a worker travels as its fields alone: the worker derives its own task once.
-        return {key: value for key, value in self.__dict__.items() if key != "task"}
+        # A config sent to a worker travels as its fields alone: what was derived from them and kept beside them (its
+        # task: sb3_maddpg.experiments.tasks.run_task) is derived again there, once.
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
 
     @property
     def total_timesteps(self) -> int:
@@ -394,3 +381,49 @@ def scaled_schedule(experiment: Setting, episodes: int) -> dict[str, int]:
         schedule[name] = max(min(floor, schedule[name]), math.ceil(schedule[name] * factor - 1e-9))
     schedule["n_checkpoints"] = min(schedule["n_checkpoints"], max(1, math.floor(episodes * experiment.checkpoint_fraction)))
     return schedule
+
+
+def _plural(count: int, noun: str) -> str:
+    return f"{count:,} {noun}" + ("" if count == 1 else "s")
+
+
+def describe_setting(experiment: Setting) -> str:
+    """
+    The setting's values in words, derived from its fields, so that a changed field changes them.
+
+    :param experiment: An experiment.
+    :return: Its task (and the task's keyword arguments), its algorithm when not MADDPG, its team size, for
+        simple_spread its observability, its budget and its evaluation schedule, e.g. ``"simple_spread, N=5, full
+        observability, 100,000 episodes (2,500,000 steps), 20 checkpoints x 100 episodes over the last 20%, 50 curve
+        points x 20 episodes"``.
+    """
+    task = experiment.env
+    if experiment.env_kwargs:
+        task += " (" + ", ".join(f"{key}={value}" for key, value in experiment.env_kwargs.items()) + ")"
+    parts = [task]
+    if experiment.algorithm != DEFAULT_ALGORITHM:
+        parts.append(experiment.algorithm.rpartition(":")[2])
+    if experiment.env == DEFAULT_ENV:
+        neighbors = experiment.num_agent_neighbors
+        parts.append(f"N={experiment.n_agents}")
+        if neighbors is None:
+            parts.append("full observability")
+        elif neighbors >= experiment.n_agents - 1:
+            parts.append("full observability nearest first")
+        else:
+            parts.append(f"{_plural(neighbors, 'nearest agent')} observed")
+    else:
+        parts.append(_plural(experiment.n_agents, "agent"))
+    steps = experiment.episodes * experiment.episode_length
+    parts.append(f"{_plural(experiment.episodes, 'episode')} ({steps:,} steps)")
+    parts.append(
+        f"{_plural(experiment.n_checkpoints, 'checkpoint')} x {_plural(experiment.eval_episodes, 'episode')} over the "
+        f"last {experiment.checkpoint_fraction:.0%}"
+    )
+    if experiment.curve_points:
+        parts.append(
+            f"{_plural(experiment.curve_points, 'curve point')} x {_plural(experiment.curve_eval_episodes, 'episode')}"
+        )
+    else:
+        parts.append("no learning curve")
+    return ", ".join(parts)

@@ -1,8 +1,7 @@
-"""The task a run trains on, derived once from its config (:class:`RunTask`, :attr:`RunConfig.task
-<sb3_maddpg.experiments.setting.RunConfig.task>`): its envs (simple_spread batched or on mpe2, another MPE task, a
-PettingZoo factory or a gymnasium id, as VecEnvs), the metrics it is scored by and their directions, its sides, its
-evaluation schedule and its description. The module's functions of a config are that object's values, by their old
-names."""
+"""The task a run trains on, derived once from its config (:func:`run_task`, :class:`RunTask`): its envs
+(simple_spread batched or on mpe2, another MPE task, a PettingZoo factory or a gymnasium id, as VecEnvs), the metrics
+it is scored by and their directions, its sides, its evaluation schedule and its description. The module's functions
+of a config are that object's values, by their old names."""
 
 import dataclasses
 from collections.abc import Callable
@@ -23,7 +22,7 @@ if TYPE_CHECKING:
 @dataclasses.dataclass(frozen=True)
 class RunTask:
     """
-    A run's task, derived once from its config (read it as ``config.task``): everything about the task that a run's
+    A run's task, derived once from its config (read it as ``run_task(config)``): everything about the task that a run's
     training, evaluation and progress lines need, so that no module derives it again from the env's name.
 
     :param config: The run.
@@ -55,7 +54,7 @@ class RunTask:
     def of(cls, config: "RunConfig") -> "RunTask":
         """
         :param config: A run.
-        :return: Its task (prefer ``config.task``, derived once per config).
+        :return: Its task, derived now (:func:`run_task` derives it once per config and keeps it).
         """
         from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASK_SIDES
 
@@ -127,6 +126,23 @@ class RunTask:
         return env
 
 
+TASK_ATTRIBUTE = "_task"
+"""Where :func:`run_task` keeps a config's task: beside its fields, not one of them (not compared, stored or sent)."""
+
+
+def run_task(config: "RunConfig") -> RunTask:
+    """
+    :param config: A run.
+    :return: Its task, derived on the first call and kept on the config, so that a run derives it once: the config is
+        frozen, so its task cannot go stale.
+    """
+    task = config.__dict__.get(TASK_ATTRIBUTE)
+    if task is None:
+        task = RunTask.of(config)
+        config.__dict__[TASK_ATTRIBUTE] = task  # not through setattr: the dataclass is frozen, its fields stay so
+    return task
+
+
 def _describe(config: "RunConfig") -> str:
     """:return: The task in a few words, for progress lines."""
     normalized = ", observations normalised" if config.normalize_observations else ""
@@ -136,28 +152,28 @@ def _describe(config: "RunConfig") -> str:
 
 
 def env_factory(config: "RunConfig") -> Callable[[], gym.Env]:
-    """:return: ``config.task.env_factory()`` (:meth:`RunTask.env_factory`)."""
-    return config.task.env_factory()
+    """:return: ``run_task(config).env_factory()`` (:meth:`RunTask.env_factory`)."""
+    return run_task(config).env_factory()
 
 
 def make_task_vec_env(config: "RunConfig", n_envs: int) -> VecEnv:
-    """:return: ``config.task.make_env(n_envs)`` (:meth:`RunTask.make_env`)."""
-    return config.task.make_env(n_envs)
+    """:return: ``run_task(config).make_env(n_envs)`` (:meth:`RunTask.make_env`)."""
+    return run_task(config).make_env(n_envs)
 
 
 def task_metrics(config: "RunConfig") -> tuple[DeclaredMetric, ...]:
-    """:return: ``config.task.metrics`` (:class:`RunTask`)."""
-    return config.task.metrics
+    """:return: ``run_task(config).metrics`` (:class:`RunTask`)."""
+    return run_task(config).metrics
 
 
 def task_sides(config: "RunConfig") -> dict[str, tuple[str, ...]]:
-    """:return: ``config.task.sides`` (:class:`RunTask`)."""
-    return config.task.sides
+    """:return: ``run_task(config).sides`` (:class:`RunTask`)."""
+    return run_task(config).sides
 
 
 def describe(config: "RunConfig") -> str:
-    """:return: ``config.task.description`` (:class:`RunTask`)."""
-    return config.task.description
+    """:return: ``run_task(config).description`` (:class:`RunTask`)."""
+    return run_task(config).description
 
 
 def metric_info(metric: str, env: str = DEFAULT_ENV) -> Metric:
