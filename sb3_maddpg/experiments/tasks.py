@@ -77,8 +77,10 @@ class RunTask:
         )
 
     def env_factory(self) -> Callable[[], gym.Env]:
-        """:return: A function that builds one env of a task other than simple_spread
-        (:func:`~sb3_maddpg.experiments.task_envs.task_env_factory`)."""
+        """
+        :return: A function that builds one env of a task other than simple_spread
+            (:func:`~sb3_maddpg.experiments.task_envs.task_env_factory`).
+        """
         return task_env_factory(self.config.env, self.config.env_kwargs, self.config.episode_length)
 
     def make_env(self, n_envs: int | None = None) -> VecEnv:
