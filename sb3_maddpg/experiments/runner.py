@@ -12,19 +12,18 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.logger import configure
-from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from sb3_maddpg.analysis.behaviour import team_behaviour
 from sb3_maddpg.analysis.evaluation import (
     TeamEvalCallback,
-    eval_keys,
     evaluate_team,
     side_return_label,
     side_returns,
     write_rows,
 )
 from sb3_maddpg.common.progress import ProgressLogCallback, format_seconds
-from sb3_maddpg.experiments.config import DEFAULT_ENV, PAPER_NAMES, RunConfig, load_algorithm
+from sb3_maddpg.experiments.config import PAPER_NAMES, RunConfig, load_algorithm
 from sb3_maddpg.experiments.results import (
     CHECKPOINT_DIR,
     CHECKPOINT_EVALS_FILE,
@@ -38,43 +37,33 @@ from sb3_maddpg.experiments.results import (
     run_directory,
     write_json_atomic,
 )
-from sb3_maddpg.experiments.tasks import describe, make_task_vec_env, task_metrics, task_sides
+from sb3_maddpg.experiments.tasks import run_task
 
 
 def make_env(config: RunConfig, n_envs: int | None = None) -> VecEnv:
     """
     :param config: The run.
     :param n_envs: Worlds (default: the run's ``n_envs``).
-    :return: The run's task as a VecEnv (simple_spread batched or over mpe2 as the config says; a new one on each call).
+    :return: The run's task as a new VecEnv (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_env`).
     """
-    return make_task_vec_env(config, config.n_envs if n_envs is None else n_envs)
+    return run_task(config).make_env(n_envs)
 
 
 def make_train_env(config: RunConfig) -> VecEnv:
     """
     :param config: The run.
-    :return: Its training env: the task, monitored, and with ``normalize_observations`` in a ``VecNormalize`` that
-        normalises observations only (the critics learn from the raw per-agent rewards).
+    :return: Its training env (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_train_env`).
     """
-    env: VecEnv = VecMonitor(make_env(config))
-    if config.normalize_observations:
-        env = VecNormalize(env, norm_obs=True, norm_reward=False)
-    return env
+    return run_task(config).make_train_env()
 
 
 def make_eval_env(config: RunConfig, n_episodes: int) -> VecEnv:
     """
     :param config: The run.
     :param n_episodes: Episodes per evaluation.
-    :return: An evaluation env: on the batched env, one world per episode, so an evaluation takes one episode's steps;
-        with ``normalize_observations``, in a ``VecNormalize`` that does not update its statistics (they are the
-        training env's, copied at each evaluation, or a checkpoint's: :func:`load_observation_statistics`).
+    :return: An evaluation env (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_eval_env`).
     """
-    batched = config.env == DEFAULT_ENV and config.vec_env == "batched"
-    env = make_env(config, n_episodes if batched else 1)
-    if config.normalize_observations:
-        env = VecNormalize(env, training=False, norm_obs=True, norm_reward=False)
-    return env
+    return run_task(config).make_eval_env(n_episodes)
 
 
 def statistics_path(model_path: str | os.PathLike[str]) -> Path:
@@ -159,12 +148,12 @@ def final_behaviour(config: RunConfig, model: Any, eval_env: VecEnv) -> dict[str
     :return: What the team does at its episodes' end (:func:`~sb3_maddpg.analysis.behaviour.team_behaviour`, over
         ``eval_episodes`` episodes), for simple_spread runs that observe every landmark; else ``None``.
     """
-    neighbors = config.env_kwargs.get("num_landmark_neighbors")
-    if config.env != DEFAULT_ENV or (neighbors is not None and neighbors < config.n_agents):
+    task = run_task(config)
+    if not task.scores_behaviour:
         return None
     if isinstance(eval_env, VecNormalize):  # the behaviour reads positions from raw observations
         model, eval_env = NormalizedObservationPolicy(model, eval_env), eval_env.venv
-    return team_behaviour(model, eval_env, n_episodes=config.eval_episodes, seed=config.eval_seed)
+    return team_behaviour(model, eval_env, n_episodes=config.eval_episodes, seed=task.eval_seed)
 
 
 def execute_run(
@@ -202,12 +191,13 @@ def execute_run(
         th.set_num_threads(threads)
 
     started = time.perf_counter()
-    curve_env = make_eval_env(config, config.curve_eval_episodes)
+    task = run_task(config)  # derived once, here, for the whole run
+    curve_env = task.make_eval_env(config.curve_eval_episodes)
     model = build_model(config)
     model.set_logger(configure(str(directory), ["csv"]))
 
     progress = ProgressLogCallback(config.run_id, config.total_timesteps, str(directory / LOG_FILE), echo=verbose >= 1)
-    checkpoints = CheckpointAtSteps(config.checkpoint_steps(), directory / CHECKPOINT_DIR)
+    checkpoints = CheckpointAtSteps(list(task.checkpoint_steps), directory / CHECKPOINT_DIR)
     callbacks: list[BaseCallback] = [checkpoints, progress]
     curve = curve_callback(config, curve_env, model.get_env().num_envs, directory)  # type: ignore[union-attr]
     if curve is not None:
@@ -245,7 +235,7 @@ def build_model(config: RunConfig, **kwargs: Any) -> Any:
     # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.
     return algorithm(
         "MlpPolicy",
-        make_train_env(config),
+        run_task(config).make_train_env(),
         critic_sharing=config.scheme,
         seed=config.seed,
         **{**kwargs, **copy.deepcopy(config.model_kwargs)},
@@ -260,24 +250,26 @@ def curve_callback(config: RunConfig, curve_env: VecEnv, n_envs: int, directory:
     :param directory: Its directory.
     :return: The callback that writes its learning curve, or ``None`` when it has none (``curve_points=0``).
     """
-    if config.curve_points == 0:
+    task = run_task(config)
+    if task.curve_interval == 0:
         return None
     return TeamEvalCallback(
         curve_env,
-        eval_freq=max(1, config.curve_interval // n_envs),
+        eval_freq=max(1, task.curve_interval // n_envs),
         n_eval_episodes=config.curve_eval_episodes,
-        seed=config.eval_seed,
+        seed=task.eval_seed,
         log_path=str(directory / CURVE_FILE),
         eval_at_start=True,
-        task_metrics=task_metrics(config),
+        task_metrics=task.metrics,
         score_agents=config.score_agents,
-        sides=task_sides(config),
+        sides=task.sides,
     )
 
 
 def training_line(config: RunConfig) -> str:
     """:return: A run's first progress line: its budget and its task."""
-    return f"{config.run_id}: training {config.total_timesteps:,} steps ({config.episodes:,} episodes) on {describe(config)}"
+    budget = f"{config.total_timesteps:,} steps ({config.episodes:,} episodes)"
+    return f"{config.run_id}: training {budget} on {run_task(config).description}"
 
 
 def log_interval(config: RunConfig) -> int:
@@ -305,13 +297,36 @@ def finish_run(
     :param log: Where its last progress line goes.
     :return: The summary, plus ``"files"`` (see :func:`execute_run`).
     """
-    algorithm: Any = load_algorithm(config.algorithm)
     eval_started = time.perf_counter()
-    eval_env = make_eval_env(config, config.eval_episodes)
+    rows, last = evaluate_checkpoints(config, saved)
+    write_rows(str(directory / CHECKPOINT_EVALS_FILE), rows)
+    eval_time = time.perf_counter() - eval_started
+    if not config.keep_checkpoints:
+        shutil.rmtree(directory / CHECKPOINT_DIR, ignore_errors=True)
+
+    summary = run_summary(config, rows, last, train_time, eval_time, time.perf_counter() - started)
+    write_json_atomic(directory / SUMMARY_FILE, summary)
+    log(
+        f"{config.run_id}: done in {format_seconds(summary['wall_time_s'])} "
+        f"({summary['train_steps_per_s']:,.0f} steps/s), score: {score_line(summary['score'])}"
+        + (f"; {never_updated_line(last.get('learning_starts'))}" if last.get("n_updates") == 0 else "")
+    )
+    mark_done(directory)
+    return collect_result(directory)
+
+
+def evaluate_checkpoints(config: RunConfig, saved: list[tuple[int, Path]]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """
+    :param config: The run.
+    :param saved: Its checkpoints, ``(env steps, model file)`` in order.
+    :return: One row per checkpoint (its steps, episodes and the task's scores: ``checkpoint_evals.csv``), and what
+        the last checkpoint tells (empty without checkpoints): its ``n_updates``, ``learning_starts`` and, where the
+        task scores it, its ``behaviour``.
+    """
+    task = run_task(config)
+    algorithm: Any = load_algorithm(config.algorithm)
+    eval_env = task.make_eval_env(config.eval_episodes)
     rows = []
-    metrics = task_metrics(config)  # the task's metrics, once for every checkpoint
-    sides = task_sides(config)
-    keys = eval_keys(metrics, config.score_agents, tuple(sides))
     for steps, path in saved:
         checkpoint = algorithm.load(path, device="cpu")
         if config.normalize_observations:
@@ -320,49 +335,58 @@ def finish_run(
             checkpoint,
             eval_env,
             n_episodes=config.eval_episodes,
-            seed=config.eval_seed,
-            task_metrics=metrics,
+            seed=task.eval_seed,
+            task_metrics=task.metrics,
             score_agents=config.score_agents,
-            sides=sides,
+            sides=task.sides,
         )
-        rows.append({"timesteps": steps, "episodes": steps // config.episode_length, **{k: result[k] for k in keys}})
-    write_rows(str(directory / CHECKPOINT_EVALS_FILE), rows)
-    behaviour = final_behaviour(config, checkpoint, eval_env) if saved else None
-    # The last checkpoint's gradient updates (a run group writes its count back into each model it saves).
-    n_updates = int(checkpoint._n_updates) if saved else None
-    learning_starts = int(getattr(checkpoint, "learning_starts", 0)) if saved else 0
-    eval_time = time.perf_counter() - eval_started
+        rows.append({"timesteps": steps, "episodes": steps // config.episode_length, **{k: result[k] for k in task.keys}})
+    last: dict[str, Any] = {}
+    if saved:
+        # The last checkpoint's gradient updates (a run group writes its count back into each model it saves).
+        last = {"n_updates": int(checkpoint._n_updates), "learning_starts": int(getattr(checkpoint, "learning_starts", 0))}
+        last["behaviour"] = final_behaviour(config, checkpoint, eval_env)
     eval_env.close()
-    if not config.keep_checkpoints:
-        shutil.rmtree(directory / CHECKPOINT_DIR, ignore_errors=True)
+    return rows, last
 
-    score = {key: sum(row[key] for row in rows) / len(rows) for key in keys}
+
+def run_summary(
+    config: RunConfig,
+    rows: list[dict[str, Any]],
+    last: dict[str, Any],
+    train_time: float,
+    eval_time: float,
+    wall_time: float,
+) -> dict[str, Any]:
+    """
+    :param config: The run.
+    :param rows: Its checkpoints' evaluations (:func:`evaluate_checkpoints`).
+    :param last: What its last checkpoint tells (:func:`evaluate_checkpoints`).
+    :param train_time: Its training's wall time, seconds.
+    :param eval_time: Its evaluation's wall time, seconds.
+    :param wall_time: Its whole wall time, seconds.
+    :return: Its ``summary.json``: the score (each of the task's scores' mean over the checkpoints), timings, and the
+        last checkpoint's ``n_updates`` and ``behaviour`` where known.
+    """
     summary: dict[str, Any] = {
         "run_id": config.run_id,
         "experiment": config.experiment,
         "scheme": config.scheme,
         "method": PAPER_NAMES.get(config.scheme, config.scheme),
         "seed": config.seed,
-        "score": score,
+        "score": {key: sum(row[key] for row in rows) / len(rows) for key in run_task(config).keys},
         "n_checkpoints": len(rows),
         "total_timesteps": config.total_timesteps,
         "train_time_s": round(train_time, 2),
         "eval_time_s": round(eval_time, 2),
-        "wall_time_s": round(time.perf_counter() - started, 2),
+        "wall_time_s": round(wall_time, 2),
         "train_steps_per_s": round(config.total_timesteps / train_time, 1),
     }
-    if n_updates is not None:
-        summary["n_updates"] = n_updates
-    if behaviour is not None:
-        summary["behaviour"] = behaviour
-    write_json_atomic(directory / SUMMARY_FILE, summary)
-    log(
-        f"{config.run_id}: done in {format_seconds(summary['wall_time_s'])} "
-        f"({summary['train_steps_per_s']:,.0f} steps/s), score: {score_line(score)}"
-        + (f"; {never_updated_line(learning_starts)}" if n_updates == 0 else "")
-    )
-    mark_done(directory)
-    return collect_result(directory)
+    if "n_updates" in last:
+        summary["n_updates"] = last["n_updates"]
+    if last.get("behaviour") is not None:
+        summary["behaviour"] = last["behaviour"]
+    return summary
 
 
 def score_line(score: dict[str, float]) -> str:

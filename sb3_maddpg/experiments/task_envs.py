@@ -7,6 +7,8 @@ from typing import Any
 
 import gymnasium as gym
 
+from sb3_maddpg.experiments.defaults import EPISODE_LENGTH
+
 
 def task_env_factory(name: str, env_kwargs: Mapping[str, Any], episode_length: int) -> Callable[[], gym.Env]:
     """
@@ -37,3 +39,37 @@ def task_env_factory(name: str, env_kwargs: Mapping[str, Any], episode_length: i
         f"Unknown env {name!r}: use 'simple_spread', an MPE task ({', '.join(MPE_TASKS)}), a PettingZoo factory as "
         "'module:function', or a registered gymnasium id (import the package that registers it)."
     )
+
+
+def check_env_name(env: Any) -> None:
+    """
+    :param env: A config's ``env``.
+    :raise ValueError: If it names no task (not a non-empty string).
+    """
+    if not isinstance(env, str) or not env.strip():
+        raise ValueError(
+            f"env must name a task: 'simple_spread', another MPE task, 'module:function' or a gymnasium id, got {env!r}."
+        )
+
+
+def task_team_size(env: str, env_kwargs: dict[str, Any] | None = None) -> int:
+    """
+    :param env: A task other than simple_spread (see :class:`~sb3_maddpg.experiments.config.Setting`'s ``env``).
+    :param env_kwargs: Its constructor's keyword arguments.
+    :return: Its team size, read from one env of the task (its ``agent_layout``).
+    """
+    check_env_name(env)
+    try:
+        task = task_env_factory(env, dict(env_kwargs or {}), EPISODE_LENGTH)()
+    except TypeError as error:  # an argument the task does not take (make_mpe_env names it and the task's own)
+        raise ValueError(f"env_kwargs {env_kwargs} do not fit {env!r}: {error}") from None
+    try:
+        layout = getattr(task.unwrapped, "agent_layout", None)
+    finally:
+        task.close()
+    if layout is None:
+        raise ValueError(
+            f"env={env!r} has no agent_layout, so MADDPG cannot tell its agents apart: give an MPE task, a PettingZoo "
+            "parallel env factory as 'module:function', or a gymnasium id whose env has an agent_layout."
+        )
+    return int(layout.n_agents)

@@ -1,64 +1,181 @@
-"""The task a run trains on: simple_spread (batched or on mpe2), another MPE task, a PettingZoo factory or a gymnasium
-id, as a VecEnv, with the task metrics it is scored by."""
+"""The task a run trains on, derived once from its config (:func:`run_task`, :class:`RunTask`): its envs
+(simple_spread batched or on mpe2, another MPE task, a PettingZoo factory or a gymnasium id, as VecEnvs), the metrics
+it is scored by and their directions, its sides, its evaluation schedule and its description. The module's functions
+of a config are that object's values, by their old names."""
 
+import dataclasses
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import gymnasium as gym
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor, VecNormalize
 
-from sb3_maddpg.analysis.evaluation import SIDE_RETURN_PREFIX, DeclaredMetric, side_return_label
-from sb3_maddpg.experiments.config import DEFAULT_ENV, RunConfig
+from sb3_maddpg.analysis.evaluation import SIDE_RETURN_PREFIX, DeclaredMetric, eval_keys, side_return_label
+from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.stats import METRICS, Metric
 from sb3_maddpg.experiments.task_envs import task_env_factory
 
-
-def env_factory(config: RunConfig) -> Callable[[], gym.Env]:
-    """
-    :param config: A run on a task other than simple_spread.
-    :return: A function that builds one env of the task (:func:`~sb3_maddpg.experiments.task_envs.task_env_factory`).
-    """
-    return task_env_factory(config.env, config.env_kwargs, config.episode_length)
+if TYPE_CHECKING:
+    from sb3_maddpg.experiments.setting import RunConfig
 
 
-def make_task_vec_env(config: RunConfig, n_envs: int) -> VecEnv:
+@dataclasses.dataclass(frozen=True)
+class RunTask:
     """
+    A run's task, derived once from its config (read it as ``run_task(config)``): everything about the task that a run's
+    training, evaluation and progress lines need, so that no module derives it again from the env's name.
+
     :param config: The run.
-    :param n_envs: Envs stepped together.
-    :return: The run's task as a VecEnv: simple_spread as the config's ``vec_env`` says, any other in a ``DummyVecEnv``.
+    :param metrics: The task metrics its evaluations score besides simple_spread's (an MPE task's own; none otherwise).
+    :param sides: The sides its evaluations score each return of (:data:`~sb3_maddpg.envs.MPE_TASK_SIDES`, for a
+        competitive MPE task), so that no return adds opponents' rewards; empty for a cooperative task or any other.
+    :param keys: The scores each evaluation gives (:func:`~sb3_maddpg.analysis.evaluation.eval_keys`), in order.
+    :param higher_is_better: Each score's direction in this task (:func:`metric_info`).
+    :param checkpoint_steps: The env steps at which checkpoints are saved.
+    :param curve_interval: The env steps between learning-curve evaluations (0: no curve).
+    :param eval_seed: The seed of every evaluation.
+    :param scores_behaviour: Whether the last checkpoint's behaviour is scored
+        (:func:`~sb3_maddpg.analysis.behaviour.team_behaviour`: simple_spread with every landmark observed).
+    :param description: The task in a few words, for progress lines.
     """
-    if config.env == DEFAULT_ENV:
+
+    config: "RunConfig"
+    metrics: tuple[DeclaredMetric, ...]
+    sides: dict[str, tuple[str, ...]]
+    keys: tuple[str, ...]
+    higher_is_better: dict[str, bool]
+    checkpoint_steps: tuple[int, ...]
+    curve_interval: int
+    eval_seed: int
+    scores_behaviour: bool
+    description: str
+
+    @classmethod
+    def of(cls, config: "RunConfig") -> "RunTask":
+        """
+        :param config: A run.
+        :return: Its task, derived now (:func:`run_task` derives it once per config and keeps it).
+        """
+        from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASK_SIDES
+
+        simple_spread = config.env == DEFAULT_ENV
+        metrics = () if simple_spread else tuple(MPE_TASK_METRICS.get(config.env, ()))
+        sides = dict(MPE_TASK_SIDES.get(config.env, {}))
+        keys = eval_keys(metrics, config.score_agents, tuple(sides))
+        landmarks_seen = config.env_kwargs.get("num_landmark_neighbors")
+        return cls(
+            config=config,
+            metrics=metrics,
+            sides=sides,
+            keys=keys,
+            higher_is_better={key: metric_info(key, config.env).higher_is_better for key in keys},
+            checkpoint_steps=tuple(config.checkpoint_steps()),
+            curve_interval=config.curve_interval,
+            eval_seed=config.eval_seed,
+            scores_behaviour=simple_spread and (landmarks_seen is None or landmarks_seen >= config.n_agents),
+            description=_describe(config),
+        )
+
+    def env_factory(self) -> Callable[[], gym.Env]:
+        """
+        :return: A function that builds one env of a task other than simple_spread
+            (:func:`~sb3_maddpg.experiments.task_envs.task_env_factory`).
+        """
+        return task_env_factory(self.config.env, self.config.env_kwargs, self.config.episode_length)
+
+    def make_env(self, n_envs: int | None = None) -> VecEnv:
+        """
+        :param n_envs: Envs stepped together (default: the run's ``n_envs``).
+        :return: The task as a new VecEnv: simple_spread as the config's ``vec_env`` says, any other in a ``DummyVecEnv``.
+        """
+        config = self.config
+        n_envs = config.n_envs if n_envs is None else n_envs
+        if config.env != DEFAULT_ENV:
+            return DummyVecEnv([self.env_factory()] * n_envs)
         from sb3_maddpg.envs import make_simple_spread_vec_env
 
         return make_simple_spread_vec_env(
             n_envs,
-            config.vec_env,  # type: ignore[arg-type]  # RunConfig checks it
+            config.vec_env,  # type: ignore[arg-type]  # the config checks it
             n_agents=config.n_agents,
             num_agent_neighbors=config.num_agent_neighbors,
             max_cycles=config.episode_length,
             **config.env_kwargs,  # e.g. continuous_actions=False
         )
-    return DummyVecEnv([env_factory(config)] * n_envs)
+
+    def make_train_env(self) -> VecEnv:
+        """
+        :return: The run's training env: the task, monitored, and with ``normalize_observations`` in a ``VecNormalize``
+            that normalises observations only (the critics learn from the raw per-agent rewards).
+        """
+        env: VecEnv = VecMonitor(self.make_env())
+        if self.config.normalize_observations:
+            env = VecNormalize(env, norm_obs=True, norm_reward=False)
+        return env
+
+    def make_eval_env(self, n_episodes: int) -> VecEnv:
+        """
+        :param n_episodes: Episodes per evaluation.
+        :return: An evaluation env: on the batched env, one world per episode, so an evaluation takes one episode's
+            steps; with ``normalize_observations``, in a ``VecNormalize`` that does not update its statistics (they
+            are the training env's, copied at each evaluation, or a checkpoint's:
+            :func:`~sb3_maddpg.experiments.runner.load_observation_statistics`).
+        """
+        batched = self.config.env == DEFAULT_ENV and self.config.vec_env == "batched"
+        env = self.make_env(n_episodes if batched else 1)
+        if self.config.normalize_observations:
+            env = VecNormalize(env, training=False, norm_obs=True, norm_reward=False)
+        return env
 
 
-def task_metrics(config: RunConfig) -> tuple[DeclaredMetric, ...]:
+TASK_ATTRIBUTE = "_task"
+"""Where :func:`run_task` keeps a config's task: beside its fields, not one of them (not compared, stored or sent)."""
+
+
+def run_task(config: "RunConfig") -> RunTask:
     """
-    :param config: The run.
-    :return: The task metrics its evaluations score besides simple_spread's (an MPE task's own; none otherwise).
+    :param config: A run.
+    :return: Its task, derived on the first call and kept on the config, so that a run derives it once: the config is
+        frozen, so its task cannot go stale.
     """
-    from sb3_maddpg.envs import MPE_TASK_METRICS
+    task = config.__dict__.get(TASK_ATTRIBUTE)
+    if task is None:
+        task = RunTask.of(config)
+        config.__dict__[TASK_ATTRIBUTE] = task  # not through setattr: the dataclass is frozen, its fields stay so
+    return task
 
-    return () if config.env == DEFAULT_ENV else tuple(MPE_TASK_METRICS.get(config.env, ()))
+
+def _describe(config: "RunConfig") -> str:
+    """:return: The task in a few words, for progress lines."""
+    normalized = ", observations normalised" if config.normalize_observations else ""
+    if config.env == DEFAULT_ENV:
+        return f"{config.n_envs} {config.vec_env} simple_spread env(s){normalized}"
+    return f"{config.n_envs} {config.env} env(s){normalized}"
 
 
-def task_sides(config: RunConfig) -> dict[str, tuple[str, ...]]:
-    """
-    :param config: The run.
-    :return: The sides its evaluations score each return of (:data:`~sb3_maddpg.envs.MPE_TASK_SIDES`, for a
-        competitive MPE task), so that no return adds opponents' rewards; empty for a cooperative task or any other.
-    """
-    from sb3_maddpg.envs import MPE_TASK_SIDES
+def env_factory(config: "RunConfig") -> Callable[[], gym.Env]:
+    """:return: ``run_task(config).env_factory()`` (:meth:`RunTask.env_factory`)."""
+    return run_task(config).env_factory()
 
-    return dict(MPE_TASK_SIDES.get(config.env, {}))
+
+def make_task_vec_env(config: "RunConfig", n_envs: int) -> VecEnv:
+    """:return: ``run_task(config).make_env(n_envs)`` (:meth:`RunTask.make_env`)."""
+    return run_task(config).make_env(n_envs)
+
+
+def task_metrics(config: "RunConfig") -> tuple[DeclaredMetric, ...]:
+    """:return: ``run_task(config).metrics`` (:class:`RunTask`)."""
+    return run_task(config).metrics
+
+
+def task_sides(config: "RunConfig") -> dict[str, tuple[str, ...]]:
+    """:return: ``run_task(config).sides`` (:class:`RunTask`)."""
+    return run_task(config).sides
+
+
+def describe(config: "RunConfig") -> str:
+    """:return: ``run_task(config).description`` (:class:`RunTask`)."""
+    return run_task(config).description
 
 
 def metric_info(metric: str, env: str = DEFAULT_ENV) -> Metric:
@@ -87,11 +204,3 @@ def metric_info(metric: str, env: str = DEFAULT_ENV) -> Metric:
         side = metric.removeprefix(SIDE_RETURN_PREFIX).replace("_", " ")
         return Metric(metric, f"{side_return_label(side)} per agent", 1.0, True)
     return METRICS.get(metric, Metric(metric, metric))
-
-
-def describe(config: RunConfig) -> str:
-    """:return: The task in a few words, for progress lines."""
-    normalized = ", observations normalised" if config.normalize_observations else ""
-    if config.env == DEFAULT_ENV:
-        return f"{config.n_envs} {config.vec_env} simple_spread env(s){normalized}"
-    return f"{config.n_envs} {config.env} env(s){normalized}"

@@ -1,0 +1,50 @@
+"""A run's task is derived once from its config (``run_task(config)``, a :class:`RunTask` kept on the config): a
+run reads its envs, metrics, directions, sides, evaluation schedule and description from that one object."""
+
+import pickle
+from pathlib import Path
+
+import pytest
+
+from sb3_maddpg.experiments.config import SMOKE
+from sb3_maddpg.experiments.runner import execute_run
+from sb3_maddpg.experiments.tasks import RunTask, run_task
+
+
+def test_a_run_derives_its_task_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    config = SMOKE.replace(schemes=("full",), seeds=(0,), episodes=10, n_checkpoints=2).runs()[0]
+    derived = []
+    derive = RunTask.of
+
+    def counted(config: object) -> RunTask:
+        derived.append(config)
+        return derive(config)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(RunTask, "of", staticmethod(counted))
+    summary = execute_run(config, tmp_path, verbose=0)
+    assert summary["n_checkpoints"] == 2
+    assert derived == [config]
+
+
+def test_the_task_is_kept_on_the_config_and_a_copy_sent_away_derives_its_own() -> None:
+    config = SMOKE.runs()[0]
+    task = run_task(config)
+    assert run_task(config) is task and task.config is config
+    assert task.checkpoint_steps == tuple(config.checkpoint_steps())
+    assert (task.curve_interval, task.eval_seed) == (config.curve_interval, config.eval_seed)
+    sent = pickle.loads(pickle.dumps(config))
+    assert set(sent.__dict__) == set(config.to_dict())  # the fields travel, not what derives from them
+    assert sent == config and run_task(sent) is not task and run_task(sent).keys == task.keys
+
+
+def test_the_task_holds_its_metrics_their_directions_and_sides() -> None:
+    spread = run_task(SMOKE.runs()[0])
+    assert spread.metrics == () and spread.sides == {} and spread.scores_behaviour
+    assert spread.higher_is_better["success_rate"] and not spread.higher_is_better["min_dist_sum"]
+    assert "simple_spread" in spread.description
+    tag = run_task(SMOKE.replace(env="simple_tag", schemes=("full",)).runs()[0])
+    assert [metric.key for metric in tag.metrics] == ["collisions"] and tag.higher_is_better["collisions"]  # catches
+    assert set(tag.sides) == {"adversaries", "good agents"} and not tag.scores_behaviour
+    assert "return_mean" not in tag.keys and "simple_tag" in tag.description
+    partial = run_task(SMOKE.replace(env_kwargs={"num_landmark_neighbors": 1}).runs()[0])
+    assert not partial.scores_behaviour  # the behaviour reads every landmark from the observations
