@@ -12,7 +12,7 @@ import pytest
 from sb3_maddpg.compat import renamed_in_0_3
 from sb3_maddpg.experiments.config import EXPERIMENTS, ExperimentConfig, RunConfig, Setting
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STORED = sorted(ROOT.glob("benchmarks/*/results/**/config.json")) + sorted(
     ROOT.glob("benchmarks/*/results/**/experiment.json")
 )
