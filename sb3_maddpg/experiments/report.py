@@ -17,7 +17,7 @@ from sb3_maddpg.experiments.marl_eval import MARL_EVAL_FILE, write_marl_eval
 from sb3_maddpg.experiments.normalised_table import format_normalised_markdown
 from sb3_maddpg.experiments.results import load_experiments, load_summaries, never_updated_warning, run_updates
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, aggregate
-from sb3_maddpg.experiments.tasks import metric_info
+from sb3_maddpg.experiments.tasks import declared_metrics, declared_sides, metric_info
 
 
 def _number(value: float, digits: int = 2) -> str:
@@ -283,14 +283,12 @@ def default_metrics(score: dict[str, float], env: str = DEFAULT_ENV) -> list[str
         (the team return in a cooperative one; never a sum over opponents), then ``group_return`` when the runs score
         one, those the run has. Else, or when the run has none of them: ``["return_mean"]``.
     """
-    from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASK_SIDES
-
     if env == DEFAULT_ENV:
         candidates: list[str] = list(DEFAULT_REPORT_METRICS)
     else:
-        declared = [metric.key for metric in MPE_TASK_METRICS.get(env, ())]
+        declared = [metric.key for metric in declared_metrics(env)]
         sides = [side_return_key(side) for side in side_returns(score)]
-        returns = sides or ([] if env in MPE_TASK_SIDES else ["return_mean"])
+        returns = sides or ([] if declared_sides(env) else ["return_mean"])
         candidates = [*declared, *returns, "group_return"]
     present = [metric for metric in candidates if not math.isnan(score.get(metric, math.nan))]
     return present or ["return_mean"]

@@ -16,7 +16,31 @@ from sb3_maddpg.experiments.stats import METRICS, Metric
 from sb3_maddpg.experiments.task_envs import task_env_factory
 
 if TYPE_CHECKING:
+    from sb3_maddpg.envs import TaskMetric
     from sb3_maddpg.experiments.setting import RunConfig
+
+
+def declared_metrics(env: str) -> tuple["TaskMetric", ...]:
+    """
+    The one place the experiments read a task's metrics from its name.
+
+    :param env: A task (an experiment's ``env``).
+    :return: The metrics an MPE task declares besides simple_spread's (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`); none
+        for simple_spread, whose scores every evaluation gives, or for a task that declares none.
+    """
+    from sb3_maddpg.envs import MPE_TASK_METRICS
+
+    return () if env == DEFAULT_ENV else tuple(MPE_TASK_METRICS.get(env, ()))
+
+
+def declared_sides(env: str) -> dict[str, tuple[str, ...]]:
+    """
+    :param env: A task (an experiment's ``env``).
+    :return: The sides of a competitive MPE task (:data:`~sb3_maddpg.envs.MPE_TASK_SIDES`); empty for any other.
+    """
+    from sb3_maddpg.envs import MPE_TASK_SIDES
+
+    return {side: tuple(agents) for side, agents in MPE_TASK_SIDES.get(env, {}).items()}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,11 +80,9 @@ class RunTask:
         :param config: A run.
         :return: Its task, derived now (:func:`run_task` derives it once per config and keeps it).
         """
-        from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASK_SIDES
-
         simple_spread = config.env == DEFAULT_ENV
-        metrics = () if simple_spread else tuple(MPE_TASK_METRICS.get(config.env, ()))
-        sides = dict(MPE_TASK_SIDES.get(config.env, {}))
+        metrics = declared_metrics(config.env)
+        sides = declared_sides(config.env)
         keys = eval_keys(metrics, config.score_agents, tuple(sides))
         landmarks_seen = config.env_kwargs.get("num_landmark_neighbors")
         return cls(
@@ -191,10 +213,8 @@ def metric_info(metric: str, env: str = DEFAULT_ENV) -> Metric:
     :param env: The task (an experiment's ``env``).
     :return: The metric as the report shows it.
     """
-    from sb3_maddpg.envs import MPE_TASK_METRICS
-
     if env != DEFAULT_ENV:
-        for declared in MPE_TASK_METRICS.get(env, ()):
+        for declared in declared_metrics(env):
             if declared.key == metric:
                 per_episode = " per episode" if declared.per_episode == "sum" else ""
                 whose = "" if declared.team == "team" else f" ({declared.team})"

@@ -27,7 +27,7 @@ from sb3_maddpg.experiments.backends import ray_session, worker_pool
 from sb3_maddpg.experiments.config import DEFAULT_ENV, ExperimentConfig, RunConfig, merge_model_kwargs
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
 from sb3_maddpg.experiments.runner import build_model, make_eval_env
-from sb3_maddpg.experiments.tasks import task_metrics
+from sb3_maddpg.experiments.tasks import declared_metrics, task_metrics
 
 HEARTBEAT_SECONDS = 60
 """How often a running trial tells the study it is alive; a trial silent for twice as long is failed and retried."""
@@ -90,9 +90,7 @@ def task_objectives(experiment: ExperimentConfig) -> dict[str, str]:
     if experiment.env == DEFAULT_ENV:
         objectives = dict(OBJECTIVES)
     else:
-        from sb3_maddpg.envs import MPE_TASK_METRICS
-
-        metrics = MPE_TASK_METRICS.get(experiment.env, ())
+        metrics = declared_metrics(experiment.env)
         objectives = {metric.key: "minimize" if metric.better == "lower" else "maximize" for metric in metrics}
         if all(metric.team == "team" for metric in metrics):
             objectives["return_mean"] = "maximize"
