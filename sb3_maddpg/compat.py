@@ -204,6 +204,8 @@ class MovedModule(types.ModuleType):
         self._targets = tuple(targets)
 
     def __getattr__(self, attribute: str) -> Any:
+        if attribute == "__all__":  # what `from <old path> import *` binds: the new modules' public names
+            return [name for name in self.__dir__() if not name.startswith("_")]
         if attribute.startswith("__"):
             raise AttributeError(attribute)
         for target in self._targets:
@@ -211,6 +213,24 @@ class MovedModule(types.ModuleType):
             if hasattr(module, attribute):
                 return getattr(module, attribute)
         raise AttributeError(f"module {self.__name__!r} (moved to {' and '.join(self._targets)}) has no {attribute!r}")
+
+    def __setattr__(self, attribute: str, value: Any) -> None:
+        # mock.patch("<old path>.name") must patch the module that the package reads the name from
+        if attribute.startswith("_"):
+            super().__setattr__(attribute, value)
+        else:
+            setattr(self._home(attribute), attribute, value)
+
+    def __delattr__(self, attribute: str) -> None:
+        if attribute.startswith("_"):
+            super().__delattr__(attribute)
+        else:
+            delattr(self._home(attribute), attribute)
+
+    def _home(self, attribute: str) -> types.ModuleType:
+        """:return: The new module that holds ``attribute`` (the first target when none does)."""
+        modules = [importlib.import_module(target) for target in self._targets]
+        return next((module for module in modules if hasattr(module, attribute)), modules[0])
 
     def __dir__(self) -> list[str]:
         return sorted({name for target in self._targets for name in dir(importlib.import_module(target))})

@@ -17,6 +17,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, unwrap_vec_nor
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.noise import add_noise, noise_copy_for_envs
 from sb3_maddpg.common.torch_threads import in_package_threads
+from sb3_maddpg.common.user_code import user_stacklevel
 
 TASK_METRICS = ("success", "coverage", "collisions", "min_dist_sum")
 """The task metrics read from ``info`` (see :class:`~sb3_maddpg.envs.SimpleSpreadMetrics`)."""
@@ -362,7 +363,8 @@ def _warn_missing_metrics(tally: EpisodeTally) -> None:
         )
     if missing:
         warnings.warn(
-            f"evaluate_team: the env's info has no task metrics for {missing}, so they are nan: {hint}.", stacklevel=3
+            f"evaluate_team: the env's info has no task metrics for {missing}, so they are nan: {hint}.",
+            stacklevel=user_stacklevel(),
         )
 
 

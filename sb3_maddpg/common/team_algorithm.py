@@ -392,7 +392,8 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param truncate_last_traj: SB3's argument (used by ``HerReplayBuffer`` only).
         """
         current = self.replay_buffer
-        super().load_replay_buffer(path, truncate_last_traj)
+        with moved_paths_quiet():  # a buffer saved by 0.2 names its classes by 0.2's paths
+            super().load_replay_buffer(path, truncate_last_traj)
         try:
             refuse_buffer_of_another_team(self.replay_buffer, self.agent_layout, self.selection_size, self.n_envs)
         except (TypeError, ValueError):

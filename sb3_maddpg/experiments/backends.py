@@ -478,14 +478,14 @@ def ray_session(address: str | None, num_cpus: int | None, verbose: int) -> Iter
         # Ray starts its workers at niceness 15 by default: on a machine that also runs anything else, a
         # local instance's workers then crawl (20x slower measured on a busy 2-core machine). A local
         # instance exists for these runs, so its workers get normal priority; a cluster keeps its own settings.
-        system_config = {"worker_niceness": 0} if address is None else None
+        local = address is None and not os.environ.get("RAY_ADDRESS")  # RAY_ADDRESS: Ray connects to that cluster
         ray.init(
             address=address,
-            num_cpus=num_cpus if address is None else None,
+            num_cpus=num_cpus if local else None,
             include_dashboard=False,
             log_to_driver=verbose >= 1,
             configure_logging=False,
-            _system_config=system_config,
+            _system_config={"worker_niceness": 0} if local else None,
         )
     try:
         yield ray

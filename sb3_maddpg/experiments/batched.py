@@ -9,7 +9,9 @@ file per group (:func:`~sb3_maddpg.experiments.group_state.group_state_path`), w
 Which runs train together is :mod:`~sb3_maddpg.experiments.group_plan`'s job, the group's files
 :mod:`~sb3_maddpg.experiments.group_state`'s, what it writes while it trains
 :mod:`~sb3_maddpg.experiments.group_recorder`'s; this module trains a group and runs a sweep's groups. The groups
-train one after another in the sweep's process (:func:`run_batched`), or as Ray tasks, one per group (:func:`run_batched_ray`).
+train one after another in the sweep's process (:class:`GroupBackend`), or as Ray tasks, one per group
+(:class:`GroupRayBackend`); :func:`run_batched` and :func:`run_batched_ray` do the same for a list of runs outside
+a sweep (the functions of 0.2).
 """
 
 import dataclasses

@@ -188,7 +188,7 @@ def _backend_name(backend: str, on_ray: bool) -> str:
     """:return: The name in :data:`~sb3_maddpg.experiments.backends.BACKENDS` of ``run_sweep``'s ``backend, on_ray``."""
     if not on_ray:
         return backend
-    if backend != "batched":
+    if backend not in ("batched", "batched-ray"):
         raise ValueError(
             f"on_ray runs the batched backend's groups as Ray tasks, but the backend is {backend!r}: use "
             "backend='batched' with on_ray=True, or backend='ray' for one task per run."

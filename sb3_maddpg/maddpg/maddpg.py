@@ -51,7 +51,7 @@ class MADDPG(TeamOffPolicyAlgorithm):
     :param critic_sharing: What critic i sees: ``"independent"`` (IDDPG), ``"full"`` (MADDPG),
         ``"observations"`` (MADDPG-fo), ``"actions"`` (MADDPG-fa), ``"selected"`` (MADDPG-soa), the paper's
         short names ``"iddpg"``, ``"maddpg"``, ``"fo"``, ``"fa"``, ``"soa"``, beyond the paper ``"attention"`` and
-        ``"learned_selection"`` (:mod:`sb3_maddpg.attention`), or a :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor`
+        ``"learned_selection"`` (:mod:`sb3_maddpg.sharing.learned`), or a :class:`~sb3_maddpg.sharing.CriticFeaturesExtractor`
         subclass; or a mapping from each agent id to its own critic's scheme, e.g. ``{"adversary_0": "full",
         "agent_0": "independent", "agent_1": "independent"}``.
     :param selector: For schemes that use a selection, the rule that selects: a :class:`~sb3_maddpg.common.selection.Selector`,

@@ -113,8 +113,9 @@ def test_evaluate_team_scores_success_and_coverage_at_each_radius() -> None:
 def test_evaluate_team_without_metrics_gives_nan_and_says_so() -> None:
     with pytest.warns(
         UserWarning, match=r"no task metrics for \['success', 'coverage', 'collisions', 'min_dist_sum', 'landmark_distances'\]"
-    ):
+    ) as caught:
         result = evaluate_team(ConstantModel(np.zeros(2, np.float32)), ScriptedEnv(with_metrics=False), n_episodes=2)
+    assert {w.filename for w in caught if "no task metrics" in str(w.message)} == {__file__}  # the caller's line
     for key in ("success_rate", "coverage", "collisions", "min_dist_sum", *RADIUS_KEYS):
         assert math.isnan(result[key])
     assert result["return_mean"] == pytest.approx((3 * 1 + 5 * 2) / 2)

@@ -64,3 +64,11 @@ def test_configs_written_now_keep_their_keys_and_order() -> None:
     shared = {f.name for f in dataclasses.fields(Setting)}
     assert set(run) - shared == {"experiment", "scheme", "seed"}
     assert set(experiment) - shared == {"name", "schemes", "seeds", "description", "scheme_model_kwargs"}
+
+
+@pytest.mark.parametrize("config_type", [RunConfig, ExperimentConfig])
+def test_every_field_is_stored(config_type: type[Setting]) -> None:
+    """A field added to a config but not to its ``STORED_KEYS`` would be dropped from every file written."""
+    stored = config_type.STORED_KEYS
+    assert sorted(stored) == sorted(field.name for field in dataclasses.fields(config_type))
+    assert len(set(stored)) == len(stored)
