@@ -27,16 +27,7 @@ import torch as th
 from stable_baselines3.common.logger import configure
 
 from sb3_maddpg.common.progress import log_line
-from sb3_maddpg.experiments.backends import (
-    Execution,
-    OnResult,
-    SweepLog,
-    SweepPlan,
-    ray_parallel_tasks,
-    ray_session,
-    ray_task_options,
-    submit_ray_tasks,
-)
+from sb3_maddpg.experiments.backends import Execution, SweepLog, SweepPlan
 from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.group_plan import (
     BATCHED_HINT,
@@ -64,6 +55,8 @@ from sb3_maddpg.experiments.group_state import (
     seed_ranges,
     write_trained,
 )
+from sb3_maddpg.experiments.local_pool import OnResult
+from sb3_maddpg.experiments.ray_tasks import ray_parallel_tasks, ray_session, ray_task_options, submit_ray_tasks
 from sb3_maddpg.experiments.results import CHECKPOINT_DIR, LOG_FILE, PROGRESS_FILE, run_directory
 from sb3_maddpg.experiments.runner import build_model, finish_run, start_run_directory, training_line
 
@@ -329,9 +322,9 @@ def train_groups_on_ray(
     """
     Train groups as Ray tasks, one task per group: on a CUDA device each asks Ray for one GPU (so each GPU of a
     cluster trains one group at a time), else for ``threads`` CPUs. Ray is reached as by
-    :func:`~sb3_maddpg.experiments.backends.run_ray` (``ray_address``, or a local instance), and its tasks are
+    :func:`~sb3_maddpg.experiments.ray_tasks.run_ray` (``ray_address``, or a local instance), and its tasks are
     collected by the same code: a group lost with its worker or node is run again, up to
-    :data:`~sb3_maddpg.experiments.backends.RAY_MAX_RETRIES` times, and resumes from its state file when it sees
+    :data:`~sb3_maddpg.experiments.ray_tasks.RAY_MAX_RETRIES` times, and resumes from its state file when it sees
     it (the results directory shared by the nodes); a group's runs are reported when the group ends.
 
     :param groups: The groups (:func:`plan_groups`).
@@ -368,7 +361,7 @@ def _ray_device(device: str, gpus: float) -> str:
 def _train_group_task(
     configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int
 ) -> list[dict[str, Any]]:
-    """A Ray task's work (:data:`~sb3_maddpg.experiments.backends.TaskWork`): train one group."""
+    """A Ray task's work (:data:`~sb3_maddpg.experiments.ray_tasks.TaskWork`): train one group."""
     return train_group(configs, results_dir, device=device, verbose=verbose)
 
 

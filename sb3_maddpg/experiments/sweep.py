@@ -8,8 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from sb3_maddpg.common.progress import format_seconds, log_line
-from sb3_maddpg.experiments.backends import LOST_RUN, Backend, Execution, OnResult, SweepPlan, make_backend
+from sb3_maddpg.experiments.backends import Backend, Execution, SweepPlan, make_backend
 from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
+from sb3_maddpg.experiments.local_pool import LOST_RUN, OnResult
 from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, lock_results, write_experiment
 from sb3_maddpg.experiments.runner import never_updated_line, score_line
 

@@ -23,9 +23,10 @@ import numpy as np
 from sb3_maddpg.analysis.evaluation import TeamEvalCallback
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.common.torch_threads import use_torch_threads
-from sb3_maddpg.experiments.backends import ray_session, worker_pool
 from sb3_maddpg.experiments.config import DEFAULT_ENV, ExperimentConfig, RunConfig, merge_model_kwargs
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
+from sb3_maddpg.experiments.local_pool import worker_pool
+from sb3_maddpg.experiments.ray_tasks import ray_session
 from sb3_maddpg.experiments.runner import build_model, make_eval_env
 from sb3_maddpg.experiments.tasks import declared_metrics, task_metrics
 

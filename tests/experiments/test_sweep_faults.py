@@ -22,8 +22,9 @@ import pytest
 
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.experiments import SMOKE, ExperimentConfig, run_sweep
-from sb3_maddpg.experiments.backends import LOST_RUN, ray_parallel_runs
 from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.experiments.local_pool import LOST_RUN
+from sb3_maddpg.experiments.ray_tasks import ray_parallel_runs
 from sb3_maddpg.experiments.results import (
     CONFIG_FILE,
     DONE_FILE,
