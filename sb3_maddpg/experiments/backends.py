@@ -175,6 +175,19 @@ class RunsBackend:
     def check(self, runs: Sequence[RunConfig]) -> None:
         """:param runs: The runs to do (the runner executes any)."""
 
+    def parallel(self) -> int:
+        """:return: The runs that execute at once, as far as known before the backend starts."""
+        raise NotImplementedError
+
+    def plan(self, runs: Sequence[RunConfig], results_dir: str) -> SweepPlan:
+        """
+        :param runs: The runs to do.
+        :param results_dir: The sweep's results directory.
+        :return: One unit per run, :meth:`parallel` at once.
+        """
+        how = f"with {self.execution.workers} worker(s) x {self.execution.threads} thread(s)"
+        return SweepPlan(results_dir, [[run] for run in runs], self.parallel(), how)
+
 
 class LocalBackend(RunsBackend):
     """
@@ -185,14 +198,9 @@ class LocalBackend(RunsBackend):
 
     name = "local"
 
-    def plan(self, runs: Sequence[RunConfig], results_dir: str) -> SweepPlan:
-        """
-        :param runs: The runs to do.
-        :param results_dir: The sweep's results directory.
-        :return: One unit per run, ``workers`` at once.
-        """
-        workers, threads = self.execution.workers, self.execution.threads
-        return SweepPlan(results_dir, [[run] for run in runs], workers, f"with {workers} worker(s) x {threads} thread(s)")
+    def parallel(self) -> int:
+        """:return: The pool's workers."""
+        return self.execution.workers
 
     def run(self, plan: SweepPlan, on_result: OnResult, progress: SweepLog) -> None:
         """See :meth:`Backend.run`."""
@@ -217,15 +225,10 @@ class RayBackend(RunsBackend):
 
     name = "ray"
 
-    def plan(self, runs: Sequence[RunConfig], results_dir: str) -> SweepPlan:
-        """
-        :param runs: The runs to do.
-        :param results_dir: The sweep's results directory.
-        :return: One unit per run; the runs at once are known once Ray is up (``workers=0``: all CPUs).
-        """
-        workers, threads = self.execution.workers, self.execution.threads
-        parallel = max(1, workers) // max(1, threads)
-        return SweepPlan(results_dir, [[run] for run in runs], parallel, f"with {workers} worker(s) x {threads} thread(s)")
+    def parallel(self) -> int:
+        """:return: A first guess, ``workers // threads``: the runs at once are known once Ray is up (``workers=0``:
+        all CPUs)."""
+        return max(1, self.execution.workers) // max(1, self.execution.threads)
 
     def run(self, plan: SweepPlan, on_result: OnResult, progress: SweepLog) -> None:
         """See :meth:`Backend.run`."""
