@@ -226,8 +226,10 @@ class RayBackend(RunsBackend):
     name = "ray"
 
     def parallel(self) -> int:
-        """:return: A first guess, ``workers // threads``: the runs at once are known once Ray is up (``workers=0``:
-        all CPUs)."""
+        """
+        :return: A first guess, ``workers // threads``; the runs at once are known once Ray is up
+            (``workers=0``: all CPUs).
+        """
         return max(1, self.execution.workers) // max(1, self.execution.threads)
 
     def run(self, plan: SweepPlan, on_result: OnResult, progress: SweepLog) -> None:
