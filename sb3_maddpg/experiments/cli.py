@@ -380,7 +380,9 @@ def _add_tune_study(study: Any) -> None:
 def _add_report_parser(commands: Any) -> None:
     """:param commands: The ``sb3-maddpg`` subparsers, given ``report``."""
     report = commands.add_parser(
-        "report", help="Table 2 (Markdown, CSV), learning curves and boxplots from a results directory"
+        "report",
+        help="Table 2 (Markdown, CSV), aggregates, the paper's findings asked of the runs, learning curves and "
+        "boxplots from a results directory",
     )
     report.add_argument("results", nargs="?", default=DEFAULT_RESULTS, help=f"results directory (default: {DEFAULT_RESULTS})")
     report.add_argument("--out", help="output directory (default: <results>/report)")

@@ -119,7 +119,7 @@ def ordered_schemes(schemes: Iterable[str]) -> list[str]:
     return [scheme for scheme in SCHEMES if scheme in present] + sorted(present - set(SCHEMES))
 
 
-def setting_label(name: str, experiment: dict[str, Any] | None) -> str:
+def setting_label(name: str, experiment: Mapping[str, Any] | None) -> str:
     """
     :param name: The experiment name.
     :param experiment: Its stored config (``ExperimentConfig.to_dict()``), if any.

@@ -15,6 +15,7 @@ from sb3_maddpg.experiments.aggregates import improvement_interval, iqm_interval
 from sb3_maddpg.experiments.config import BASELINE_SCHEME, DEFAULT_ENV, PAPER_NAMES, ordered_schemes, setting_label
 from sb3_maddpg.experiments.marl_eval import MARL_EVAL_FILE, write_marl_eval
 from sb3_maddpg.experiments.normalised_table import format_normalised_markdown
+from sb3_maddpg.experiments.paper_claims import write_claims_report
 from sb3_maddpg.experiments.results import load_experiments, load_summaries, never_updated_warning, run_updates
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, aggregate
 from sb3_maddpg.experiments.tasks import declared_metrics, declared_sides, metric_info
@@ -357,7 +358,9 @@ def make_report(
     """
     Write, for each metric, ``table_<metric>.md`` and ``table_<metric>.csv`` (Table 2: mean (std), Mann-Whitney U),
     ``aggregates_<metric>.md`` and ``aggregates_<metric>.csv`` (IQM and probability of improvement with 95%
-    bootstrap intervals), ``normalised.md`` for simple_spread settings (min-dist sum and team return between the
+    bootstrap intervals), ``claims_<metric>.md`` and ``claims_<metric>.csv`` for the paper's settings (its Table 2
+    beside these runs' and its findings asked of them, see :mod:`~sb3_maddpg.experiments.paper_claims`),
+    ``normalised.md`` for simple_spread settings (min-dist sum and team return between the
     random team, 0, and the scripted controller, 1), ``marl_eval.json`` (every run in marl-eval's JSON, see
     :mod:`~sb3_maddpg.experiments.marl_eval`) and, with ``plots``, ``learning_curves_<metric>.png`` (IQM over
     runs with a 95% bootstrap band, vs env steps) and ``boxplot_<metric>.png`` (per-run scores, like the paper's
@@ -420,6 +423,7 @@ def make_report(
         )
         write_aggregates_csv(estimates, metric, aggregates_csv)
         written += [markdown_path, csv_path, aggregates_md, aggregates_csv]
+        written += write_claims_report(out, cells, metric, experiments, by_setting, heading)
         if plots:
             from sb3_maddpg.experiments.plots import plot_boxplots, plot_learning_curves
 

@@ -345,6 +345,8 @@ def test_report_writes_table_and_plots(local_results: Path, tmp_path: Path, monk
                 ("table", "csv"),
                 ("aggregates", "md"),
                 ("aggregates", "csv"),
+                ("claims", "md"),  # smoke is simple_spread with full observation: the paper's Exp. 1 claims
+                ("claims", "csv"),
                 ("learning_curves", "png"),
                 ("boxplot", "png"),
             )

@@ -1,0 +1,358 @@
+"""The paper's findings as checkable claims, and their check against a study's runs.
+
+Sakagami and Takadama read their Table 2 as orderings: under full observability (Exp. 1) MADDPG-fa > MADDPG >
+IDDPG > MADDPG-fo and MADDPG-soa > MADDPG; under partial observability (Exp. 2) MADDPG-soa > MADDPG > MADDPG-fo >
+MADDPG-fa ~ IDDPG. :data:`PAPER_CLAIMS` holds each ordering as a pair of schemes with the paper's own evidence (a
+Mann-Whitney U test against MADDPG, or only the means). :func:`check_claims` asks each claim of a setting with the
+same observability, on one metric: the same two-sided Mann-Whitney U test, the probability that a run of the scheme
+claimed better beats a run of the other (95% bootstrap interval), a verdict, and, where the runs do not separate the
+two, how many seeds per scheme would at the measured spread
+(:func:`~sb3_maddpg.experiments.stats.seeds_to_separate`).
+"""
+
+import csv
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from sb3_maddpg.experiments.aggregates import IntervalEstimate, improvement_interval
+from sb3_maddpg.experiments.config import DEFAULT_ENV, PAPER_NAMES, setting_label
+from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, mann_whitney, seeds_to_separate
+
+Observability = Literal["full", "partial"]
+
+ALPHA = 0.05
+"""The significance level of a verdict (two-sided Mann-Whitney U)."""
+
+PAPER_TABLE2: dict[Observability, dict[str, tuple[float, float, str]]] = {
+    "full": {
+        "full": (63.89, 12.28, ""),
+        "independent": (44.58, 13.31, "**"),
+        "observations": (36.89, 21.56, "**"),
+        "actions": (73.63, 9.51, "**"),
+        "selected": (71.58, 17.42, "*"),
+    },
+    "partial": {
+        "full": (70.11, 21.58, ""),
+        "independent": (51.02, 12.38, "**"),
+        "observations": (67.70, 20.78, ""),
+        "actions": (51.88, 18.28, "**"),
+        "selected": (74.99, 17.51, ""),
+    },
+}
+"""The paper's Table 2 by observability (Exp. 1: ``"full"``, Exp. 2: ``"partial"``) and scheme: mean success rate in %
+(every landmark within 0.1 at the last step), its standard deviation over 31 runs, and the marks of the Mann-Whitney U
+test against MADDPG (``*`` p < .05, ``**`` p < .01)."""
+
+
+@dataclass(frozen=True)
+class PaperClaim:
+    """
+    One ordering the paper reads from its Table 2.
+
+    :param observability: ``"full"`` (Exp. 1) or ``"partial"`` (Exp. 2).
+    :param better: The scheme claimed better (for ``"~"``: one of the two).
+    :param worse: The scheme claimed worse (for ``"~"``: the other).
+    :param relation: ``">"``: ``better`` scores better; ``"~"``: the two score alike.
+    :param evidence: What the paper has for it.
+    """
+
+    observability: Observability
+    better: str
+    worse: str
+    relation: Literal[">", "~"]
+    evidence: str
+
+    @property
+    def text(self) -> str:
+        """E.g. ``"MADDPG-fa > MADDPG"``."""
+        return f"{PAPER_NAMES.get(self.better, self.better)} {self.relation} {PAPER_NAMES.get(self.worse, self.worse)}"
+
+
+PAPER_CLAIMS: tuple[PaperClaim, ...] = (
+    PaperClaim("full", "actions", "full", ">", "73.63 vs 63.89, p < .01"),
+    PaperClaim("full", "selected", "full", ">", "71.58 vs 63.89, p < .05"),
+    PaperClaim("full", "full", "independent", ">", "63.89 vs 44.58, p < .01"),
+    PaperClaim("full", "full", "observations", ">", "63.89 vs 36.89, p < .01"),
+    PaperClaim("full", "independent", "observations", ">", "44.58 vs 36.89, means only (not tested)"),
+    PaperClaim("partial", "selected", "full", ">", "74.99 vs 70.11, not significant"),
+    PaperClaim("partial", "full", "observations", ">", "70.11 vs 67.70, not significant"),
+    PaperClaim("partial", "observations", "actions", ">", "67.70 vs 51.88, means only (not tested)"),
+    PaperClaim("partial", "full", "actions", ">", "70.11 vs 51.88, p < .01"),
+    PaperClaim("partial", "full", "independent", ">", "70.11 vs 51.02, p < .01"),
+    PaperClaim("partial", "actions", "independent", "~", "51.88 vs 51.02, means only (not tested)"),
+)
+"""The paper's findings (Section 5.3), each an ordering of two schemes in one setting."""
+
+
+def observability(experiment: Mapping[str, Any] | None) -> Observability | None:
+    """
+    :param experiment: A stored experiment config (``experiment.json``).
+    :return: ``"full"`` when each agent observes every other agent (the paper's Exp. 1), ``"partial"`` when it observes
+        fewer (Exp. 2), ``None`` for another task or an unknown config (no claim of the paper applies).
+    """
+    if not experiment or experiment.get("env", DEFAULT_ENV) != DEFAULT_ENV:
+        return None
+    neighbors = experiment.get("num_agent_neighbors")
+    return "full" if neighbors is None or neighbors >= experiment["n_agents"] - 1 else "partial"
+
+
+@dataclass(frozen=True)
+class ClaimCheck:
+    """
+    One claim asked of one setting's runs.
+
+    :param claim: The paper's claim.
+    :param setting: The experiment whose runs were asked.
+    :param better_scores: The per-run scores of ``claim.better`` (displayed units).
+    :param worse_scores: Those of ``claim.worse``.
+    :param p_value: Two-sided Mann-Whitney U p-value of the two (``nan`` with no runs on a side).
+    :param improvement: P(a run of ``claim.better`` scores better than one of ``claim.worse``), 95% bootstrap interval.
+    :param verdict: ``"holds"``, ``"reverses"``, ``"not separated"``, ``"does not hold"`` (a ``"~"`` claim whose
+        schemes differ) or ``"too few runs"`` (fewer than 2 on a side).
+    :param seeds_needed: For ``"not separated"``: the seeds per scheme that would separate them at the measured spread
+        (None when even 200 would not).
+    """
+
+    claim: PaperClaim
+    setting: str
+    better_scores: tuple[float, ...]
+    worse_scores: tuple[float, ...]
+    p_value: float
+    improvement: IntervalEstimate
+    verdict: str
+    seeds_needed: int | None
+
+    @property
+    def n(self) -> int:
+        """The runs of the side with fewer."""
+        return min(len(self.better_scores), len(self.worse_scores))
+
+
+def _verdict(claim: PaperClaim, p_value: float, improvement: float, n: int) -> str:
+    if n < 2:
+        return "too few runs"
+    if claim.relation == "~":
+        return "does not hold" if p_value < ALPHA else "holds"
+    if p_value >= ALPHA:
+        return "not separated"
+    return "holds" if improvement > 0.5 else "reverses"
+
+
+def check_claims(
+    cells: Sequence[Cell],
+    metric: str,
+    experiments: Mapping[str, Mapping[str, Any]],
+    infos: Mapping[str, Metric] | None = None,
+    claims: Sequence[PaperClaim] = PAPER_CLAIMS,
+) -> list[ClaimCheck]:
+    """
+    Ask each claim of every setting with its observability that has runs of both its schemes.
+
+    :param cells: One metric's Table 2 (:func:`~sb3_maddpg.experiments.stats.aggregate`).
+    :param metric: Its key (for its direction when ``infos`` does not give it).
+    :param experiments: The stored experiment configs, by name (a setting without one is not asked).
+    :param infos: The metric as each setting's task shows it (its direction), by setting; for a setting not in it,
+        :data:`~sb3_maddpg.experiments.stats.METRICS`'s view (higher is better for a metric not there).
+    :param claims: The claims to ask.
+    :return: A check per claim and setting, in the order of ``claims`` then of the settings.
+    """
+    by_key = {(cell.setting, cell.scheme): cell for cell in cells}
+    settings = list(dict.fromkeys(cell.setting for cell in cells))
+    checks = []
+    for claim in claims:
+        for setting in settings:
+            if observability(experiments.get(setting)) != claim.observability:
+                continue
+            better, worse = by_key.get((setting, claim.better)), by_key.get((setting, claim.worse))
+            if better is None or worse is None:
+                continue
+            info = (infos or {}).get(setting) or METRICS.get(metric, Metric(metric, metric))
+            sign = 1.0 if info.higher_is_better else -1.0
+            _, p_value = mann_whitney(better.scores, worse.scores)
+            improvement = improvement_interval([np.multiply(sign, better.scores)], [np.multiply(sign, worse.scores)])
+            verdict = _verdict(claim, p_value, improvement.value, min(better.n, worse.n))
+            needed = seeds_to_separate(better.scores, worse.scores) if verdict == "not separated" else None
+            checks.append(ClaimCheck(claim, setting, better.scores, worse.scores, p_value, improvement, verdict, needed))
+    return checks
+
+
+def _p(p_value: float) -> str:
+    if math.isnan(p_value):
+        return "n/a"
+    return "< .001" if p_value < 0.001 else f"{p_value:.3f}".lstrip("0")
+
+
+def _finding(check: ClaimCheck) -> str:
+    """The verdict in words, with the seeds that would separate the two where the runs do not."""
+    if check.verdict == "does not hold":
+        winner = check.claim.better if check.improvement.value > 0.5 else check.claim.worse
+        return f"does not hold ({PAPER_NAMES.get(winner, winner)} scores better)"
+    if check.verdict != "not separated":
+        return check.verdict
+    if len(set(check.better_scores) | set(check.worse_scores)) == 1:
+        return "not separated (every run scores the same)"
+    leaning = "the claim's way" if check.improvement.value > 0.5 else "the other way"
+    if check.improvement.value == 0.5:
+        leaning = "neither way"
+    needed = "more than 200" if check.seeds_needed is None else f"~{check.seeds_needed}"
+    return f"not separated (leans {leaning}; {needed} seeds per scheme would separate them at this spread)"
+
+
+def format_claims_markdown(
+    checks: Sequence[ClaimCheck],
+    metric_label: str,
+    better: str,
+    experiments: Mapping[str, Mapping[str, Any]] | None = None,
+) -> str:
+    """
+    :param checks: From :func:`check_claims`.
+    :param metric_label: The metric's label (e.g. ``"success rate within 0.3 (%)"``).
+    :param better: Its direction in words (``"higher is better"``).
+    :param experiments: The stored experiment configs (for setting labels).
+    :return: Markdown: a row per claim and setting with the paper's evidence, the runs' means, p, P(better) and the
+        verdict, then how to read it.
+    """
+    lines = [
+        f"### The paper's claims, asked of these runs: {metric_label}",
+        "",
+        "| setting | claim | paper (success %) | runs | means here | p | P(claimed better wins) [95% CI] | verdict |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for check in checks:
+        label = setting_label(check.setting, (experiments or {}).get(check.setting))
+        means = f"{np.mean(check.better_scores):.2f} vs {np.mean(check.worse_scores):.2f}"
+        runs = f"{len(check.better_scores)}, {len(check.worse_scores)}"
+        lines.append(
+            f"| {label} | {check.claim.text} | {check.claim.evidence} | {runs} | {means} | {_p(check.p_value)} | "
+            f"{check.improvement.format(2)} | {_finding(check)} |"
+        )
+    lines += [
+        "",
+        f"Each claim is the paper's reading of its Table 2 (Section 5.3), asked of the setting with the same "
+        f"observability (Exp. 1: every other agent observed; Exp. 2: fewer), on {metric_label} ({better}). Verdict at "
+        f"two-sided Mann-Whitney U p < {ALPHA:g}: *holds* (the claimed order, significantly), *reverses* (the other "
+        "order, significantly), *not separated* (p >= .05; the seeds per scheme that would separate the two with 80% "
+        "power if each scheme's runs were spread as measured: a bootstrap power analysis, rough from few runs); for "
+        "a claim that two schemes score alike (`~`), *holds* when they are not separated. P(claimed better wins): the "
+        "chance that a random run of the first scheme scores better than one of the second (0.5: no difference).",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def format_beside_paper(
+    cells: Sequence[Cell], metric_label: str, experiments: Mapping[str, Mapping[str, Any]] | None = None
+) -> str | None:
+    """
+    The paper's Table 2 beside these runs': for each observability, the paper's row, then each setting's with it.
+
+    :param cells: One metric's Table 2 (:func:`~sb3_maddpg.experiments.stats.aggregate`).
+    :param metric_label: The metric's label.
+    :param experiments: The stored experiment configs (a setting without one is left out).
+    :return: Markdown, or None when no setting is one of the paper's (simple_spread with a known observability).
+    """
+    by_key = {(cell.setting, cell.scheme): cell for cell in cells}
+    settings = list(dict.fromkeys(cell.setting for cell in cells))
+    roles = {setting: observability((experiments or {}).get(setting)) for setting in settings}
+    if not any(roles.values()):
+        return None
+    schemes = list(PAPER_TABLE2["full"])
+    header = ["setting", *(PAPER_NAMES[scheme] for scheme in schemes)]
+    lines = [
+        f"### Beside the paper's Table 2: {metric_label}",
+        "",
+        "| " + " | ".join(header) + " |",
+        "|" + "|".join("---" for _ in header) + "|",
+    ]
+    paper_rows: tuple[tuple[Observability, str], ...] = (
+        ("full", "paper, Exp. 1 (full obs.)"),
+        ("partial", "paper, Exp. 2 (2 nearest obs.)"),
+    )
+    for role, paper_label in paper_rows:
+        mine = [setting for setting in settings if roles[setting] == role]
+        if not mine:
+            continue
+        paper = PAPER_TABLE2[role]
+        row = [f"{mean:.2f} ({std:.2f}){' ' + stars if stars else ''}" for mean, std, stars in paper.values()]
+        lines.append(f"| {paper_label}, success % (31 runs) | " + " | ".join(row) + " |")
+        for setting in mine:
+            here = [by_key.get((setting, scheme)) for scheme in schemes]
+            row = [
+                "" if cell is None else f"{cell.mean:.2f} ({cell.std:.2f}){' ' + cell.stars if cell.stars else ''}"
+                for cell in here
+            ]
+            runs = sorted({cell.n for cell in here if cell is not None})
+            label = setting_label(setting, (experiments or {}).get(setting))
+            lines.append(f"| {label}, {metric_label} ({', '.join(map(str, runs))} runs) | " + " | ".join(row) + " |")
+    lines += [
+        "",
+        "Mean (std) of the per-run scores; `*` p < .05, `**` p < .01: two-sided Mann-Whitney U against MADDPG. The "
+        "paper's rows are its success rate (every landmark within 0.1 at the last step), whatever the metric here.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_claims_csv(checks: Sequence[ClaimCheck], metric: str, path: str | os.PathLike[str]) -> None:
+    """
+    One row per claim and setting: ``setting, observability, better, worse, relation, paper_evidence, metric,
+    n_better, n_worse, mean_better, mean_worse, p_value, improvement, improvement_low, improvement_high, verdict,
+    seeds_needed`` (empty when not estimated).
+
+    :param checks: From :func:`check_claims`.
+    :param metric: The score's key.
+    :param path: The CSV file.
+    """
+    fields = ["setting", "observability", "better", "worse", "relation", "paper_evidence", "metric", "n_better"]
+    fields += ["n_worse", "mean_better", "mean_worse", "p_value", "improvement", "improvement_low", "improvement_high"]
+    fields += ["verdict", "seeds_needed"]
+    with open(path, "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(fields)
+        for check in checks:
+            claim, improvement = check.claim, check.improvement
+            what = [check.setting, claim.observability, claim.better, claim.worse, claim.relation, claim.evidence, metric]
+            means = [repr(float(np.mean(check.better_scores))), repr(float(np.mean(check.worse_scores)))]
+            tests = [repr(check.p_value), repr(improvement.value), repr(improvement.low), repr(improvement.high)]
+            needed = "" if check.seeds_needed is None else check.seeds_needed
+            writer.writerow([*what, len(check.better_scores), len(check.worse_scores), *means, *tests, check.verdict, needed])
+
+
+def write_claims_report(
+    out_dir: str | os.PathLike[str],
+    cells: Sequence[Cell],
+    metric: str,
+    experiments: Mapping[str, Mapping[str, Any]],
+    infos: Mapping[str, Metric] | None = None,
+    heading: str = "",
+) -> list[Path]:
+    """
+    Write ``claims_<metric>.md`` (the paper's Table 2 beside these runs', then each claim's check) and
+    ``claims_<metric>.csv`` (the checks), when a setting is one of the paper's (simple_spread with a known
+    observability) and has runs of both schemes of a claim.
+
+    :param out_dir: The report's directory.
+    :param cells: One metric's Table 2 (:func:`~sb3_maddpg.experiments.stats.aggregate`).
+    :param metric: Its key.
+    :param experiments: The stored experiment configs, by name.
+    :param infos: The metric as each setting's task shows it, by setting (label and direction).
+    :param heading: Text put before the Markdown (e.g. a warning about the runs).
+    :return: The files written (none when no claim could be asked).
+    """
+    # The claims are asked of simple_spread settings only, so one view of the metric serves them all.
+    checks = check_claims(cells, metric, experiments, infos)
+    if not checks:
+        return []
+    info = (infos or {}).get(checks[0].setting) or METRICS.get(metric, Metric(metric, metric))
+    beside = format_beside_paper(cells, info.label, experiments) or ""
+    better = "higher is better" if info.higher_is_better else "lower is better"
+    markdown_path, csv_path = Path(out_dir) / f"claims_{metric}.md", Path(out_dir) / f"claims_{metric}.csv"
+    markdown_path.write_text(heading + beside + "\n" + format_claims_markdown(checks, info.label, better, experiments))
+    write_claims_csv(checks, metric, csv_path)
+    return [markdown_path, csv_path]

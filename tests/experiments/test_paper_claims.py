@@ -1,0 +1,125 @@
+"""The paper's claims asked of runs: which setting each applies to, the test and verdict, the direction, the files."""
+
+import csv
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy.stats import mannwhitneyu
+
+from sb3_maddpg.experiments.paper_claims import (
+    PAPER_CLAIMS,
+    PAPER_TABLE2,
+    PaperClaim,
+    check_claims,
+    format_beside_paper,
+    observability,
+    write_claims_report,
+)
+from sb3_maddpg.experiments.stats import aggregate
+from sb3_maddpg.experiments.tasks import metric_info
+
+FULL = {"env": "simple_spread", "n_agents": 5, "num_agent_neighbors": 4, "episodes": 100}
+PARTIAL = {"env": "simple_spread", "n_agents": 5, "num_agent_neighbors": 2, "episodes": 100}
+HIGH = [0.60, 0.62, 0.65, 0.70, 0.66, 0.61, 0.68, 0.63]
+LOW = [0.30, 0.35, 0.32, 0.40, 0.38, 0.31, 0.36, 0.33]
+MIXED = [0.55, 0.70, 0.40, 0.65, 0.50, 0.60, 0.45, 0.66]  # overlaps HIGH and LOW
+
+
+def cells(scores: dict[str, dict[str, list[float]]], metric: str = "success_rate"):  # type: ignore[no-untyped-def]
+    summaries = [
+        {"experiment": setting, "scheme": scheme, "seed": seed, "score": {metric: value}}
+        for setting, by_scheme in scores.items()
+        for scheme, values in by_scheme.items()
+        for seed, value in enumerate(values)
+    ]
+    return aggregate(summaries, metric)
+
+
+def checks_by_claim(scores: dict[str, dict[str, list[float]]], experiments: dict[str, Any], metric: str = "success_rate"):  # type: ignore[no-untyped-def]
+    infos = {setting: metric_info(metric, "simple_spread") for setting in scores}
+    return {
+        (check.setting, check.claim.text): check for check in check_claims(cells(scores, metric), metric, experiments, infos)
+    }
+
+
+def test_a_setting_is_the_paper_s_exp1_or_exp2_by_what_each_agent_observes() -> None:
+    assert observability({"n_agents": 5, "num_agent_neighbors": None}) == "full"
+    assert observability(FULL) == "full"  # every other agent, nearest first
+    assert observability({"n_agents": 3, "num_agent_neighbors": 2}) == "full"
+    assert observability(PARTIAL) == "partial"
+    assert observability({"env": "simple_tag", "n_agents": 4}) is None  # another task: no claim applies
+    assert observability(None) is None
+    # The claims hold the paper's orderings: Exp. 1 fa > MADDPG > IDDPG > fo and soa > MADDPG; Exp. 2 soa > MADDPG >
+    # fo > fa ~ IDDPG; each pair's paper means are Table 2's.
+    texts = {(claim.observability, claim.text) for claim in PAPER_CLAIMS}
+    assert {("full", "MADDPG-fa > MADDPG"), ("full", "IDDPG > MADDPG-fo"), ("partial", "MADDPG-fa ~ IDDPG")} <= texts
+    for claim in PAPER_CLAIMS:
+        table = PAPER_TABLE2[claim.observability]
+        assert claim.evidence.startswith(f"{table[claim.better][0]:.2f} vs {table[claim.worse][0]:.2f}"), claim
+
+
+def test_verdicts_follow_the_mann_whitney_test_and_the_metric_direction() -> None:
+    scores = {"e1": {"actions": HIGH, "full": LOW, "selected": MIXED, "independent": HIGH, "observations": [0.5]}}
+    checks = checks_by_claim(scores, {"e1": FULL})
+    # The same p-value as scipy's test of the two samples, and the verdict it implies.
+    fa = checks["e1", "MADDPG-fa > MADDPG"]
+    assert fa.p_value == pytest.approx(mannwhitneyu(HIGH, LOW, alternative="two-sided").pvalue)
+    assert fa.verdict == "holds" and fa.improvement.value == 1.0 and fa.seeds_needed is None
+    assert checks["e1", "MADDPG > IDDPG"].verdict == "reverses"  # IDDPG's runs all beat MADDPG's
+    soa = checks["e1", "MADDPG-soa > MADDPG"]
+    assert soa.p_value < 0.05 and soa.verdict == "holds"
+    # One run of fo: nothing to test.
+    assert checks["e1", "MADDPG > MADDPG-fo"].verdict == "too few runs"
+    # Only claims of the setting's observability are asked.
+    assert all(check.claim.observability == "full" for check in checks.values())
+    # A lower-is-better metric: the scheme claimed better must score lower.
+    distances = {"e1": {"actions": LOW, "full": HIGH}}
+    assert checks_by_claim(distances, {"e1": FULL}, "min_dist_sum")["e1", "MADDPG-fa > MADDPG"].verdict == "holds"
+    assert checks_by_claim(scores, {"e1": FULL}, "min_dist_sum")["e1", "MADDPG-fa > MADDPG"].verdict == "reverses"
+
+
+def test_runs_that_do_not_separate_say_how_many_seeds_would() -> None:
+    rng = np.random.default_rng(0)
+    close = {"e2": {"selected": list(0.5 + 0.1 * rng.standard_normal(6)), "full": list(0.48 + 0.1 * rng.standard_normal(6))}}
+    check = checks_by_claim(close, {"e2": PARTIAL})["e2", "MADDPG-soa > MADDPG"]
+    assert check.p_value >= 0.05 and check.verdict == "not separated"
+    assert check.seeds_needed is None or check.seeds_needed > 6  # more than these runs, or out of reach
+    # A claim that two schemes score alike holds when the runs do not separate them, and not when they do.
+    alike = checks_by_claim({"e2": {"actions": MIXED, "independent": MIXED[::-1]}}, {"e2": PARTIAL})
+    assert alike["e2", "MADDPG-fa ~ IDDPG"].verdict == "holds"
+    apart = checks_by_claim({"e2": {"actions": LOW, "independent": HIGH}}, {"e2": PARTIAL})
+    assert apart["e2", "MADDPG-fa ~ IDDPG"].verdict == "does not hold"
+    # A setting without a stored config, or of another task, is not asked.
+    assert checks_by_claim(close, {}) == {}
+    assert checks_by_claim(close, {"e2": {**PARTIAL, "env": "simple_tag"}}) == {}
+
+
+def test_the_report_files_put_the_paper_beside_the_runs_and_list_each_check(tmp_path: Path) -> None:
+    scores = {"e1": {"full": LOW, "actions": HIGH}, "e2": {"full": HIGH, "actions": LOW, "independent": MIXED}}
+    experiments = {"e1": FULL, "e2": PARTIAL}
+    table = cells(scores)
+    infos = {setting: metric_info("success_rate", "simple_spread") for setting in scores}
+    written = write_claims_report(tmp_path, table, "success_rate", experiments, infos, heading="> warning\n\n")
+    assert [path.name for path in written] == ["claims_success_rate.md", "claims_success_rate.csv"]
+    markdown = written[0].read_text()
+    assert markdown.startswith("> warning")
+    assert "| paper, Exp. 1 (full obs.), success % (31 runs) | 63.89 (12.28) |" in markdown
+    assert "| paper, Exp. 2 (2 nearest obs.), success % (31 runs) | 70.11 (21.58) |" in markdown
+    assert "(higher is better)" in markdown and "| holds |" in markdown
+    rows = list(csv.DictReader(written[1].open()))
+    # e1: fa > MADDPG; e2: MADDPG > fa, MADDPG > IDDPG, fa ~ IDDPG.
+    assert [(row["setting"], row["better"], row["worse"]) for row in rows] == [
+        ("e1", "actions", "full"),
+        ("e2", "full", "actions"),
+        ("e2", "full", "independent"),
+        ("e2", "actions", "independent"),
+    ]
+    assert float(rows[0]["mean_better"]) == pytest.approx(100 * np.mean(HIGH))  # rates in %
+    assert rows[0]["verdict"] == "holds" and rows[1]["verdict"] == "holds"
+    # Nothing to ask: no files.
+    assert write_claims_report(tmp_path / "none", table, "success_rate", {}, infos) == []
+    assert format_beside_paper(table, "success", {}) is None
+    custom = (PaperClaim("full", "full", "actions", ">", "mine"),)
+    assert [check.verdict for check in check_claims(table, "success_rate", experiments, infos, custom)] == ["reverses"]
