@@ -423,7 +423,7 @@ def make_report(
         )
         write_aggregates_csv(estimates, metric, aggregates_csv)
         written += [markdown_path, csv_path, aggregates_md, aggregates_csv]
-        written += write_claims_report(out, cells, metric, experiments, by_setting, heading)
+        written += write_claims_report(out, cells, metric, experiments, by_setting, heading, baseline)
         if plots:
             from sb3_maddpg.experiments.plots import plot_boxplots, plot_learning_curves
 

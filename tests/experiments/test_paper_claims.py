@@ -14,7 +14,9 @@ from sb3_maddpg.experiments.paper_claims import (
     PaperClaim,
     check_claims,
     format_beside_paper,
+    format_claims_markdown,
     observability,
+    smallest_p_value,
     write_claims_report,
 )
 from sb3_maddpg.experiments.stats import aggregate
@@ -54,10 +56,19 @@ def test_a_setting_is_the_paper_s_exp1_or_exp2_by_what_each_agent_observes() -> 
     # The claims hold the paper's orderings: Exp. 1 fa > MADDPG > IDDPG > fo and soa > MADDPG; Exp. 2 soa > MADDPG >
     # fo > fa ~ IDDPG; each pair's paper means are Table 2's.
     texts = {(claim.observability, claim.text) for claim in PAPER_CLAIMS}
-    assert {("full", "MADDPG-fa > MADDPG"), ("full", "IDDPG > MADDPG-fo"), ("partial", "MADDPG-fa ~ IDDPG")} <= texts
+    assert {
+        ("full", "MADDPG-fa > MADDPG"),
+        ("full", "IDDPG > MADDPG-fo"),
+        ("partial", "MADDPG-fa ~ IDDPG"),
+        ("partial", "MADDPG-soa > MADDPG-fo"),
+    } <= texts
     for claim in PAPER_CLAIMS:
         table = PAPER_TABLE2[claim.observability]
         assert claim.evidence.startswith(f"{table[claim.better][0]:.2f} vs {table[claim.worse][0]:.2f}"), claim
+        if "full" in (claim.better, claim.worse):  # the paper tested against MADDPG: its marks say how it came out
+            stars = table[claim.worse if claim.better == "full" else claim.better][2]
+            expected = {"**": "p < .01", "*": "p < .05", "": "not significant"}[stars]
+            assert claim.evidence.endswith(expected), claim
 
 
 def test_verdicts_follow_the_mann_whitney_test_and_the_metric_direction() -> None:
@@ -72,6 +83,14 @@ def test_verdicts_follow_the_mann_whitney_test_and_the_metric_direction() -> Non
     assert soa.p_value < 0.05 and soa.verdict == "holds"
     # One run of fo: nothing to test.
     assert checks["e1", "MADDPG > MADDPG-fo"].verdict == "too few runs"
+    # Three runs against three cannot reach p < .05 even when every run of one beats every run of the other; four can.
+    assert smallest_p_value(3, 3) == pytest.approx(0.1) and smallest_p_value(4, 4) == pytest.approx(2 / 70)
+    assert checks_by_claim({"e1": {"actions": HIGH[:3], "full": LOW[:3]}}, {"e1": FULL})[
+        "e1", "MADDPG-fa > MADDPG"
+    ].verdict == ("too few runs")
+    assert checks_by_claim({"e1": {"actions": HIGH[:4], "full": LOW[:4]}}, {"e1": FULL})[
+        "e1", "MADDPG-fa > MADDPG"
+    ].verdict == ("holds")
     # Only claims of the setting's observability are asked.
     assert all(check.claim.observability == "full" for check in checks.values())
     # A lower-is-better metric: the scheme claimed better must score lower.
@@ -85,12 +104,21 @@ def test_runs_that_do_not_separate_say_how_many_seeds_would() -> None:
     close = {"e2": {"selected": list(0.5 + 0.1 * rng.standard_normal(6)), "full": list(0.48 + 0.1 * rng.standard_normal(6))}}
     check = checks_by_claim(close, {"e2": PARTIAL})["e2", "MADDPG-soa > MADDPG"]
     assert check.p_value >= 0.05 and check.verdict == "not separated"
-    assert check.seeds_needed is None or check.seeds_needed > 6  # more than these runs, or out of reach
-    # A claim that two schemes score alike holds when the runs do not separate them, and not when they do.
-    alike = checks_by_claim({"e2": {"actions": MIXED, "independent": MIXED[::-1]}}, {"e2": PARTIAL})
-    assert alike["e2", "MADDPG-fa ~ IDDPG"].verdict == "holds"
-    apart = checks_by_claim({"e2": {"actions": LOW, "independent": HIGH}}, {"e2": PARTIAL})
-    assert apart["e2", "MADDPG-fa ~ IDDPG"].verdict == "does not hold"
+    assert check.seeds_needed is not None and check.seeds_needed > 6  # more than these runs
+    markdown = format_claims_markdown([check], "success rate (%)", "higher is better")
+    leaning = "the claim's way" if check.improvement.value > 0.5 else "the other way"
+    assert f"(leans {leaning}; ~{check.seeds_needed} seeds per scheme" in markdown
+    # A claim that two schemes score alike is not separated when the runs do not separate them (no evidence that they
+    # are alike either), and does not hold when they do, naming the one that scores better in the metric's direction.
+    alike = checks_by_claim({"e2": {"actions": MIXED, "independent": [v + 0.01 for v in MIXED]}}, {"e2": PARTIAL})
+    assert alike["e2", "MADDPG-fa ~ IDDPG"].verdict == "not separated"
+    apart = {"e2": {"actions": LOW, "independent": HIGH}}
+    check = checks_by_claim(apart, {"e2": PARTIAL})["e2", "MADDPG-fa ~ IDDPG"]
+    assert check.verdict == "does not hold"
+    assert "does not hold (IDDPG scores better)" in format_claims_markdown([check], "success", "higher is better")
+    check = checks_by_claim(apart, {"e2": PARTIAL}, "min_dist_sum")["e2", "MADDPG-fa ~ IDDPG"]
+    markdown = format_claims_markdown([check], "sum of min. distances", "lower is better")
+    assert "does not hold (MADDPG-fa scores better)" in markdown and "means here (lower is better)" in markdown
     # A setting without a stored config, or of another task, is not asked.
     assert checks_by_claim(close, {}) == {}
     assert checks_by_claim(close, {"e2": {**PARTIAL, "env": "simple_tag"}}) == {}
@@ -107,7 +135,10 @@ def test_the_report_files_put_the_paper_beside_the_runs_and_list_each_check(tmp_
     assert markdown.startswith("> warning")
     assert "| paper, Exp. 1 (full obs.), success % (31 runs) | 63.89 (12.28) |" in markdown
     assert "| paper, Exp. 2 (2 nearest obs.), success % (31 runs) | 70.11 (21.58) |" in markdown
-    assert "(higher is better)" in markdown and "| holds |" in markdown
+    assert "means here (higher is better)" in markdown and "| holds |" in markdown
+    assert "against MADDPG in the paper's rows, against MADDPG in the others" in markdown
+    other = write_claims_report(tmp_path / "other", table, "success_rate", experiments, infos, baseline="actions")
+    assert "against MADDPG in the paper's rows, against MADDPG-fa in the others" in other[0].read_text()
     rows = list(csv.DictReader(written[1].open()))
     # e1: fa > MADDPG; e2: MADDPG > fa, MADDPG > IDDPG, fa ~ IDDPG.
     assert [(row["setting"], row["better"], row["worse"]) for row in rows] == [
