@@ -82,6 +82,8 @@ class ProgressLogCallback(BaseCallback):
         self._marks: collections.deque[tuple[float, int]] = collections.deque()  # (time, steps) at each line
 
     def _on_training_start(self) -> None:
+        # A continued run (learn(reset_num_timesteps=False)) reports at the next multiple of the interval.
+        self._next = (self.num_timesteps // self.interval + 1) * self.interval
         self._start = self._last_line = time.perf_counter()
         self._marks.clear()
         self._marks.append((self._start, self.num_timesteps))

@@ -37,6 +37,8 @@ class Execution:
     :param device: The run groups' device (``"auto"``: CUDA when there is a GPU).
     :param runs_per_process: The most runs per group (``None``: all of a setting and scheme, or as many as fit).
     :param verbose: 1 to print each run's (or group's) progress.
+    :param snapshots: Runs alone (local, Ray) save a snapshot at each tenth of their budget, which a killed run goes
+        on from (:mod:`~sb3_maddpg.experiments.run_snapshot`); run groups save their own state regardless.
     """
 
     backend: str = "local"
@@ -46,6 +48,7 @@ class Execution:
     device: str = "auto"
     runs_per_process: int | None = None
     verbose: int = 1
+    snapshots: bool = True
 
     @property
     def ray_cpus(self) -> int | None:
@@ -213,6 +216,7 @@ class LocalBackend(RunsBackend):
             threads=execution.threads,
             verbose=execution.verbose,
             log=progress.log,
+            snapshots=execution.snapshots,
         )
 
 
@@ -249,4 +253,5 @@ class RayBackend(RunsBackend):
             num_cpus=execution.ray_cpus,
             verbose=execution.verbose,
             on_parallel=on_parallel,
+            snapshots=execution.snapshots,
         )

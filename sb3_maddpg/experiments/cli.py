@@ -272,6 +272,12 @@ def _add_run_execution(execution: Any) -> None:
         "--device", default="auto", help="batched: where the run groups train, cpu or cuda (default auto: cuda if there)"
     )
     execution.add_argument(
+        "--no-snapshots",
+        action="store_true",
+        help="local and ray: save no snapshot of a run's training state at each tenth of its budget (a killed run then "
+        "starts again from scratch; a snapshot takes about two replay buffers of disk per run in progress)",
+    )
+    execution.add_argument(
         "--runs-per-process",
         type=int,
         default=None,
@@ -711,6 +717,7 @@ def run_command(args: argparse.Namespace) -> int:
             device=args.device,
             runs_per_process=args.runs_per_process,
             on_ray=args.ray and args.backend == "batched",
+            snapshots=not args.no_snapshots,
         )
     except BatchedRunRefused as error:  # said before anything trained
         print(f"sb3-maddpg run: {error}", file=sys.stderr)

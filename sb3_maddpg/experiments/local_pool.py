@@ -94,8 +94,8 @@ def _exit_with_parent(parent_pid: int, interval_s: float = 0.5) -> None:
     os._exit(1)
 
 
-def _execute(config: RunConfig, results_dir: str, threads: int, verbose: int) -> dict[str, Any]:
-    return execute_run(config, results_dir, threads=threads, verbose=verbose)
+def _execute(config: RunConfig, results_dir: str, threads: int, verbose: int, snapshots: bool) -> dict[str, Any]:
+    return execute_run(config, results_dir, threads=threads, verbose=verbose, snapshots=snapshots)
 
 
 def run_local(
@@ -106,6 +106,7 @@ def run_local(
     threads: int = 1,
     verbose: int = 1,
     log: Callable[[str], None] = print,
+    snapshots: bool = True,
 ) -> None:
     """
     Run on this machine: in this process with one worker, else in a pool of ``workers`` processes
@@ -121,13 +122,15 @@ def run_local(
     :param threads: Torch threads per process.
     :param verbose: 1 to print each run's progress.
     :param log: Where a line saying that a worker died goes.
+    :param snapshots: Each run saves a snapshot at each tenth of its budget (see
+        :func:`~sb3_maddpg.experiments.runner.execute_run`), so that a run lost with its worker goes on from it.
     """
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}.")
     if workers == 1:
         for config in configs:
             try:
-                result = _execute(config, results_dir, threads, verbose)
+                result = _execute(config, results_dir, threads, verbose, snapshots)
             except Exception:
                 on_result(config, None, traceback.format_exc())
             else:
@@ -135,7 +138,7 @@ def run_local(
         return
     queue = deque(configs)
     while queue:
-        lost = _run_pool(queue, results_dir, on_result, workers, threads, verbose)
+        lost = _run_pool(queue, results_dir, on_result, workers, threads, verbose, snapshots)
         if lost:
             log(
                 f"a worker process died: {len(lost)} run(s) in progress lost ({', '.join(c.run_id for c in lost)}); "
@@ -146,7 +149,13 @@ def run_local(
 
 
 def _run_pool(
-    queue: deque[RunConfig], results_dir: str, on_result: OnResult, workers: int, threads: int, verbose: int
+    queue: deque[RunConfig],
+    results_dir: str,
+    on_result: OnResult,
+    workers: int,
+    threads: int,
+    verbose: int,
+    snapshots: bool,
 ) -> list[RunConfig]:
     """
     Run the queue's runs in a new process pool, at most ``workers`` submitted at once (so that every submitted
@@ -160,7 +169,7 @@ def _run_pool(
             pool_broke = False
             try:
                 while queue and len(running) < workers:
-                    running[pool.submit(_execute, queue[0], results_dir, threads, verbose)] = queue[0]
+                    running[pool.submit(_execute, queue[0], results_dir, threads, verbose, snapshots)] = queue[0]
                     queue.popleft()
             except BrokenProcessPool:  # it broke between two runs
                 pool_broke = True

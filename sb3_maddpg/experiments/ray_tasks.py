@@ -37,6 +37,7 @@ def run_ray(
     num_cpus: int | None = None,
     verbose: int = 1,
     on_parallel: Callable[[int], None] | None = None,
+    snapshots: bool = True,
 ) -> None:
     """
     Run as Ray tasks, one CPU slot per ``threads``: on the cluster at ``address`` (e.g. ``"auto"`` or
@@ -45,7 +46,8 @@ def run_ray(
     Every node needs this package installed. Each task writes its run directory on its own node and
     returns the small result files, which are written here too, so a cluster needs no shared
     filesystem (model checkpoints stay on the nodes). A task whose worker process or node dies is run again
-    (up to :data:`RAY_MAX_RETRIES` times) from scratch; Ctrl-C cancels the tasks.
+    (up to :data:`RAY_MAX_RETRIES` times), from the run's last snapshot where the retry sees it, else from scratch;
+    Ctrl-C cancels the tasks.
 
     :param configs: The runs.
     :param results_dir: The sweep's results directory (absolute paths are safest on a cluster).
@@ -56,11 +58,14 @@ def run_ray(
     :param verbose: 1 to print each run's progress (Ray forwards the workers' output).
     :param on_parallel: Called once Ray is up with the number of runs that execute at once (the cluster's CPUs
         // ``threads``), e.g. for a time-left estimate.
+    :param snapshots: Each run saves a snapshot at each tenth of its budget, which a retried task goes on from when it
+        sees it (on the node that wrote it, or on shared storage).
     """
     with ray_session(address, num_cpus, verbose) as ray:
         if on_parallel is not None:
             on_parallel(ray_parallel_runs(ray.cluster_resources(), threads))
-        submit_ray_tasks(ray, [[config] for config in configs], results_dir, execute_runs, "cpu", threads, verbose, on_result)
+        work = execute_runs if snapshots else execute_runs_without_snapshots
+        submit_ray_tasks(ray, [[config] for config in configs], results_dir, work, "cpu", threads, verbose, on_result)
 
 
 @contextmanager
@@ -191,6 +196,13 @@ def execute_runs(
     :return: Each run's result.
     """
     return [execute_run(config, results_dir, threads=threads, verbose=verbose) for config in configs]
+
+
+def execute_runs_without_snapshots(
+    configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int
+) -> list[dict[str, Any]]:
+    """:func:`execute_runs` with no snapshots saved (``--no-snapshots``)."""
+    return [execute_run(config, results_dir, threads=threads, verbose=verbose, snapshots=False) for config in configs]
 
 
 TaskWork = Callable[[Sequence[RunConfig], str, str, int, int], list[dict[str, Any]]]

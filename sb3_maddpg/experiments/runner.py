@@ -30,12 +30,24 @@ from sb3_maddpg.experiments.results import (
     CONFIG_FILE,
     CURVE_FILE,
     LOG_FILE,
+    PROGRESS_FILE,
     SUMMARY_FILE,
     collect_result,
     is_finished,
     mark_done,
     run_directory,
     write_json_atomic,
+)
+from sb3_maddpg.experiments.run_snapshot import (
+    NO_SNAPSHOT,
+    RunProgress,
+    SnapshotCallback,
+    load_snapshot,
+    read_progress_rows,
+    remove_snapshot,
+    restore_logger_values,
+    snapshot_steps,
+    write_progress_rows,
 )
 from sb3_maddpg.experiments.tasks import run_task
 
@@ -119,13 +131,18 @@ class CheckpointAtSteps(BaseCallback):
 
     :param steps: The env steps (``model.num_timesteps``) to save at.
     :param save_dir: The directory of the model files.
+    :param saved: The checkpoints an earlier attempt saved, ``(env steps, model file)`` (a resumed run): the steps up
+        to the last of them are not saved again.
     """
 
-    def __init__(self, steps: list[int], save_dir: str | os.PathLike[str]) -> None:
+    def __init__(
+        self, steps: list[int], save_dir: str | os.PathLike[str], saved: list[tuple[int, Path]] | None = None
+    ) -> None:
         super().__init__()
-        self.pending = sorted(set(steps))
+        self.saved: list[tuple[int, Path]] = list(saved or [])
+        reached = max((step for step, _ in self.saved), default=-1)
+        self.pending = sorted(step for step in set(steps) if step > reached)
         self.save_dir = Path(save_dir)
-        self.saved: list[tuple[int, Path]] = []
 
     def _on_step(self) -> bool:
         while self.pending and self.num_timesteps >= self.pending[0]:
@@ -161,30 +178,32 @@ def execute_run(
     results_dir: str | os.PathLike[str],
     threads: int | None = 1,
     verbose: int = 1,
+    snapshots: bool = True,
 ) -> dict[str, Any]:
     """
-    Train one run and evaluate it, writing its directory; a finished run is not repeated, an
-    unfinished one (interrupted) is started again from scratch.
+    Train one run and evaluate it, writing its directory; a finished run is not repeated, an interrupted one goes on
+    from its last snapshot (each tenth of its budget, see :mod:`~sb3_maddpg.experiments.run_snapshot`: the same
+    files as an uninterrupted run), or starts again from scratch when it has none.
 
     The directory holds ``config.json``, ``progress.csv`` (SB3's training log), ``train.log`` (progress
     lines), ``learning_curve.csv`` (team evaluations during training), ``checkpoint_evals.csv`` (one
     evaluation of ``eval_episodes`` episodes per checkpoint), ``summary.json`` (the run's score: each
     metric's mean over the checkpoints, timings and, for simple_spread, ``behaviour``: what the last checkpoint's
     team does at its episodes' end, see :mod:`sb3_maddpg.analysis.behaviour`), ``checkpoints/`` (model files, unless
-    ``keep_checkpoints`` is off) and the ``done`` marker, written last.
+    ``keep_checkpoints`` is off) and the ``done`` marker, written last; ``resume/`` (the snapshot) while it trains.
 
     :param config: The run.
     :param results_dir: The sweep's results directory.
     :param threads: ``torch.set_num_threads`` for this run (``None`` leaves it), so parallel workers don't fight.
     :param verbose: 1 to print progress lines.
+    :param snapshots: Save a snapshot at each tenth of the budget (``False``: a killed run starts again from
+        scratch; a snapshot left by an earlier attempt is still used).
     :return: The summary, plus ``"files"``: the text of the small result files, so that a remote worker's
         results can be written on the machine that collects them (see :func:`write_result_files`).
     """
     directory = run_directory(results_dir, config)
     if is_finished(results_dir, config):
         return collect_result(directory)
-    start_run_directory(config, directory)
-
     if threads is not None:
         import torch as th
 
@@ -192,24 +211,84 @@ def execute_run(
 
     started = time.perf_counter()
     task = run_task(config)  # derived once, here, for the whole run
-    curve_env = task.make_eval_env(config.curve_eval_episodes)
-    model = build_model(config)
+    model, before, pending_logs, why_not = resume_or_start(config, directory)
     model.set_logger(configure(str(directory), ["csv"]))
-
+    restore_logger_values(model, pending_logs)
     progress = ProgressLogCallback(config.run_id, config.total_timesteps, str(directory / LOG_FILE), echo=verbose >= 1)
-    checkpoints = CheckpointAtSteps(list(task.checkpoint_steps), directory / CHECKPOINT_DIR)
+    saved = [(steps, directory / CHECKPOINT_DIR / name) for steps, name in before.checkpoints]
+    checkpoints = CheckpointAtSteps(list(task.checkpoint_steps), directory / CHECKPOINT_DIR, saved)
     callbacks: list[BaseCallback] = [checkpoints, progress]
+    curve_env = task.make_eval_env(config.curve_eval_episodes)
     curve = curve_callback(config, curve_env, model.get_env().num_envs, directory)  # type: ignore[union-attr]
     if curve is not None:
+        resume_curve(curve, model, before.curve)
         callbacks.append(curve)
-    progress.log(training_line(config))
-    model.learn(config.total_timesteps, callback=CallbackList(callbacks), log_interval=log_interval(config))
-    train_time = time.perf_counter() - started
+    if snapshots:
+
+        def so_far() -> RunProgress:
+            rows = before.progress_rows + read_progress_rows(directory / PROGRESS_FILE)
+            curve_rows = list(curve.history) if curve is not None else []
+            run_time = before.train_time_s + time.perf_counter() - started
+            return RunProgress(config.to_dict(), run_time, rows, curve_rows, [(s, p.name) for s, p in checkpoints.saved])
+
+        on_save = lambda steps: progress.log(f"{config.run_id}: snapshot at {steps:,} steps")  # noqa: E731
+        callbacks.append(SnapshotCallback(snapshot_steps(config.total_timesteps), directory, so_far, on_save))
+    if why_not not in ("", NO_SNAPSHOT):
+        progress.log(f"{config.run_id}: starting afresh: {why_not}")
+    progress.log(training_line(config) if model.num_timesteps == 0 else resumed_line(config, model.num_timesteps))
+    model.learn(
+        config.total_timesteps - model.num_timesteps,
+        callback=CallbackList(callbacks),
+        log_interval=log_interval(config),
+        reset_num_timesteps=model.num_timesteps == 0,
+    )
+    train_time = before.train_time_s + time.perf_counter() - started
+    if before.progress_rows:  # this attempt's logger started progress.csv again: the earlier rows go first
+        write_progress_rows(directory / PROGRESS_FILE, before.progress_rows + read_progress_rows(directory / PROGRESS_FILE))
     model.get_env().close()  # type: ignore[union-attr]
     del model
 
     curve_env.close()
-    return finish_run(config, directory, checkpoints.saved, started, train_time, progress.log)
+    return finish_run(config, directory, checkpoints.saved, started - before.train_time_s, train_time, progress.log)
+
+
+def resume_or_start(config: RunConfig, directory: Path) -> tuple[Any, RunProgress, list[dict[str, Any]], str]:
+    """
+    :param config: The run.
+    :param directory: Its directory.
+    :return: The model to train (the snapshot's, or a new one in a directory started afresh), what the run had
+        written by then, the logger's pending values then, and why no snapshot was used (``""`` when one was).
+    """
+    resumed = load_snapshot(directory, config.to_dict(), load_algorithm(config.algorithm), run_task(config).make_train_env)
+    if isinstance(resumed, str):
+        start_run_directory(config, directory)
+        return build_model(config), RunProgress(config.to_dict()), [], resumed
+    model, state = resumed
+    return model, state["progress"], state["logger"], ""
+
+
+def resume_curve(curve: TeamEvalCallback, model: Any, history: list[dict[str, float]]) -> None:
+    """
+    Bring a new learning-curve callback to where a resumed run's was: its evaluations so far, and its calls counted
+    so that the next evaluation falls where it would have (the calls are replayed, never evaluating).
+
+    :param curve: The new callback.
+    :param model: The resumed model.
+    :param history: The evaluations so far.
+    """
+    if model.num_timesteps == 0:
+        return
+    curve.init_callback(model)
+    curve.history.extend(history)  # its public record, which its CSV file is rewritten from at each evaluation
+    if curve.log_path is not None:  # the killed attempt may have written evaluations past the snapshot
+        write_rows(curve.log_path, curve.history)
+    for _ in range((model.num_timesteps // model.get_env().num_envs) % curve.eval_freq):
+        curve.on_step()
+
+
+def resumed_line(config: RunConfig, steps: int) -> str:
+    """:return: A resumed run's first progress line."""
+    return f"{config.run_id}: resumed from its snapshot at {steps:,} of {config.total_timesteps:,} steps"
 
 
 def start_run_directory(config: RunConfig, directory: Path) -> None:
@@ -287,7 +366,7 @@ def finish_run(
 ) -> dict[str, Any]:
     """
     Evaluate a trained run's checkpoints and write the rest of its directory: ``checkpoint_evals.csv``,
-    ``summary.json`` and the ``done`` marker, last.
+    ``summary.json`` and the ``done`` marker, last, once its snapshot is removed.
 
     :param config: The run.
     :param directory: Its directory.
@@ -311,6 +390,7 @@ def finish_run(
         f"({summary['train_steps_per_s']:,.0f} steps/s), score: {score_line(summary['score'])}"
         + (f"; {never_updated_line(last.get('learning_starts'))}" if last.get("n_updates") == 0 else "")
     )
+    remove_snapshot(directory)  # before the marker: a done run is never resumed, and returns as soon as it is marked
     mark_done(directory)
     return collect_result(directory)
 

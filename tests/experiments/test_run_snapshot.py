@@ -1,0 +1,126 @@
+"""A run killed after a snapshot goes on from it: the files of an uninterrupted run, and a fresh start when it cannot."""
+
+import csv
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import pytest
+import torch as th
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.experiments import SMOKE, RunConfig, runner
+from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.experiments.results import (
+    CHECKPOINT_DIR,
+    CHECKPOINT_EVALS_FILE,
+    CURVE_FILE,
+    LOG_FILE,
+    PROGRESS_FILE,
+    SUMMARY_FILE,
+    read_json,
+    run_directory,
+)
+from sb3_maddpg.experiments.run_snapshot import SNAPSHOT_DIR, STATE_FILE, SnapshotCallback, snapshot_steps
+
+
+class Killed(BaseException):
+    """Stands for the process dying: nothing in the run catches it."""
+
+
+def config(**changes: Any) -> RunConfig:
+    """
+    A smoke run that learns before and after its middle snapshots (updates from step 250 of 1,000). With 5 envs a
+    rollout is 10 steps of each and an episode 25: the rollout after the snapshot at 600 steps ends an episode, so the
+    logs are written before that rollout's update, with the values the update before the snapshot recorded.
+    """
+    experiment = dataclasses.replace(SMOKE, keep_checkpoints=True, n_envs=5, **changes)
+    return next(run for run in experiment.runs() if run.scheme == "selected" and run.seed == 0)
+
+
+def kill_after_snapshot(monkeypatch: pytest.MonkeyPatch, nth: int) -> None:
+    """Make the run die right after its ``nth`` snapshot is written."""
+
+    class DiesAfterSnapshot(SnapshotCallback):
+        def _on_rollout_start(self) -> None:
+            before = len(self.pending)
+            super()._on_rollout_start()
+            if len(self.pending) < before and len(snapshot_steps(self.model._total_timesteps)) - len(self.pending) >= nth:
+                raise Killed
+
+    monkeypatch.setattr(runner, "SnapshotCallback", DiesAfterSnapshot)
+
+
+def rows(path: Path, drop_prefix: str = "time/") -> list[dict[str, str]]:
+    with open(path, newline="") as file:
+        return [{k: v for k, v in row.items() if not k.startswith(drop_prefix)} for row in csv.DictReader(file)]
+
+
+def test_snapshots_fall_at_each_tenth_of_the_budget() -> None:
+    assert snapshot_steps(1_000) == [100, 200, 300, 400, 500, 600, 700, 800, 900]
+    assert snapshot_steps(5) == [1, 2, 3, 4]  # repeats merged, never at step 0
+
+
+def test_a_run_killed_after_a_snapshot_resumes_to_the_files_of_an_uninterrupted_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    run = config()
+    whole, resumed = tmp_path / "whole", tmp_path / "resumed"
+    runner.execute_run(run, whole, verbose=0)
+    with monkeypatch.context() as patch:
+        kill_after_snapshot(patch, nth=6)  # at 600 of 1,000 steps: after learning started, before the checkpoints
+        with pytest.raises(Killed):
+            runner.execute_run(run, resumed, verbose=0)
+    killed = run_directory(resumed, run)
+    assert (killed / SNAPSHOT_DIR / STATE_FILE).is_file() and not (killed / SUMMARY_FILE).exists()
+    runner.execute_run(run, resumed, verbose=0)
+
+    done, again = run_directory(whole, run), run_directory(resumed, run)
+    assert "resumed from its snapshot at 600 of 1,000 steps" in (again / LOG_FILE).read_text()
+    assert not (again / SNAPSHOT_DIR).exists() and not (done / SNAPSHOT_DIR).exists()  # removed when done
+    for name in (CURVE_FILE, CHECKPOINT_EVALS_FILE):
+        assert (again / name).read_text() == (done / name).read_text(), name
+    assert rows(again / PROGRESS_FILE) == rows(done / PROGRESS_FILE)  # every row, timings aside
+    first, second = read_json(done / SUMMARY_FILE), read_json(again / SUMMARY_FILE)
+    assert first["score"] == second["score"] and first["n_updates"] == second["n_updates"] > 0
+    assert first["behaviour"] == second["behaviour"]
+    last = sorted((done / CHECKPOINT_DIR).glob("*.zip"))[-1].name
+    weights = [MADDPG.load(d / CHECKPOINT_DIR / last).policy.state_dict() for d in (done, again)]
+    assert all(th.equal(weights[0][key], weights[1][key]) for key in weights[0])
+
+
+def test_a_snapshot_that_cannot_be_used_is_a_fresh_start(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    run = config()
+    with monkeypatch.context() as patch:
+        kill_after_snapshot(patch, nth=2)
+        with pytest.raises(Killed):
+            runner.execute_run(run, tmp_path, verbose=0)
+    directory = run_directory(tmp_path, run)
+    # Another config in the same run directory (a changed preset): its snapshot is not this run's.
+    other = dataclasses.replace(run, model_kwargs={**run.model_kwargs, "batch_size": 32})
+    with monkeypatch.context() as patch:
+        kill_after_snapshot(patch, nth=2)
+        with pytest.raises(Killed):
+            runner.execute_run(other, tmp_path, verbose=0)
+    log = (directory / LOG_FILE).read_text()
+    assert "starting afresh: its snapshot is of another config" in log and "resumed" not in log
+    # An unreadable snapshot: a fresh start that says why, and the run finishes.
+    (directory / SNAPSHOT_DIR / STATE_FILE).write_bytes(b"not a pickle")
+    summary = runner.execute_run(other, tmp_path, verbose=0)
+    assert "starting afresh: its snapshot could not be read (UnpicklingError" in (directory / LOG_FILE).read_text()
+    assert summary["total_timesteps"] == 1_000 and not (directory / SNAPSHOT_DIR).exists()
+
+
+def test_no_snapshots_when_switched_off(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    def refuse(*args: Any) -> None:
+        raise AssertionError("a snapshot was saved")
+
+    monkeypatch.setattr("sb3_maddpg.experiments.run_snapshot.save_snapshot", refuse)
+    runner.execute_run(config(), tmp_path, verbose=0, snapshots=False)
+    with pytest.raises(AssertionError, match="a snapshot was saved"):
+        runner.execute_run(config(), tmp_path / "on", verbose=0)
+    # The command line's switch reaches the runs (one worker: in this process, where the refusal is patched in).
+    command = ["run", "--config", "smoke", "--schemes", "full", "--seeds", "1", "--quiet", "--results"]
+    assert main([*command, str(tmp_path / "cli_off"), "--no-snapshots"]) == 0
+    assert (tmp_path / "cli_off" / "smoke" / "full" / "seed_000" / "done").is_file()
+    assert main([*command, str(tmp_path / "cli_on")]) == 1  # the run failed: it tried to save one
