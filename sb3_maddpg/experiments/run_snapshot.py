@@ -1,15 +1,16 @@
 """A run's training state, saved at each tenth of its budget so that a killed run resumes where it was, exactly.
 
 A sweep's run used to start again from scratch when its process was killed (a machine's session ending, a lost
-worker): an hour of an N=5 run lost at each interruption. At 10%, 20%, ..., 90% of its budget a run now writes its
-whole training state to ``<run>/resume/``: the model as SB3 saves it (weights, Adam's moments, counters, the last
-observations, the exploration noise, the update schedule's credit), its replay buffer, the random streams of
-Python, NumPy and PyTorch, the training env's worlds and their own random stream, the per-agent episode returns, the
-logger's pending values, the ``progress.csv`` rows, the learning curve and the checkpoints so far. It is taken at the
-start of a rollout, where the previous rollout's updates are done, so that ``learn(reset_num_timesteps=False)`` goes
-on from it as the uninterrupted ``learn`` would: the resumed run's files are those of an uninterrupted run, bit for bit
-on the CPU (timings aside; ``tests/experiments/test_run_snapshot.py``). The directory is replaced whole (written
-beside it, then renamed) and removed when the run is done; a snapshot of another config is not used.
+worker): an hour of an N=5 run lost at each interruption. At 10%, 20%, ..., 90% of its budget a run on the batched
+simple_spread env now writes its whole training state to ``<run>/resume/``: the model as SB3 saves it (weights,
+Adam's moments, counters, the last observations, the exploration noise, the update schedule's credit), its replay
+buffer, the random streams of Python, NumPy, PyTorch and the action space, the env's worlds and their own random
+stream, the per-agent episode returns, the logger's pending values, the ``progress.csv`` rows, the learning curve and
+the checkpoints so far. It is taken at the start of a rollout, where the previous rollout's updates are done, so that
+``learn(reset_num_timesteps=False)`` goes on from it as the uninterrupted ``learn`` would: the resumed run's files are
+those of an uninterrupted run, bit for bit on the CPU (timings aside; ``tests/experiments/test_run_snapshot.py``). The
+directory is replaced whole (written beside it, then renamed) and removed when the run is done; a snapshot of another
+config, of other versions, or not whole is not used.
 """
 
 import csv
@@ -17,16 +18,21 @@ import os
 import pickle
 import random
 import shutil
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import stable_baselines3
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
+
+from sb3_maddpg.envs.simple_spread_vec_env import SimpleSpreadVecEnv
+from sb3_maddpg.version import __version__
 
 SNAPSHOT_DIR = "resume"
 """A run's snapshot directory, inside the run's directory."""
@@ -37,6 +43,10 @@ SNAPSHOTS_PER_RUN = 10
 MODEL_FILE, BUFFER_FILE, STATE_FILE = "model.zip", "replay_buffer.pkl", "state.pkl"
 
 NO_SNAPSHOT = "no snapshot"
+
+UNREADABLE = (pickle.UnpicklingError, EOFError, zipfile.BadZipFile, KeyError, AttributeError, ValueError)
+"""Errors that say a snapshot's files are not whole or not of this code (the run starts afresh); any other error while
+loading one (e.g. out of memory) fails the run and keeps the snapshot for the next attempt."""
 """What :func:`load_snapshot` says when a run has none (a first attempt, or one killed before its first)."""
 
 
@@ -57,6 +67,29 @@ class RunProgress:
     progress_rows: list[dict[str, str]] = field(default_factory=list)
     curve: list[dict[str, float]] = field(default_factory=list)
     checkpoints: list[tuple[int, str]] = field(default_factory=list)
+
+
+def versions() -> dict[str, str]:
+    """:return: The versions a snapshot is only resumed under: this package's, SB3's, PyTorch's and NumPy's."""
+    return {
+        "sb3_maddpg": __version__,
+        "stable_baselines3": stable_baselines3.__version__,
+        "torch": th.__version__,
+        "numpy": np.__version__,
+    }
+
+
+def can_snapshot(env: VecEnv) -> bool:
+    """
+    :param env: A run's training env.
+    :return: Whether its state can be saved and restored exactly: the batched simple_spread env
+        (:class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`, plain arrays and a NumPy generator), possibly wrapped. Envs of
+        other objects (mpe2's PettingZoo envs in a ``DummyVecEnv``) pickle but do not come back whole.
+    """
+    layer = env
+    while isinstance(layer, VecEnvWrapper):
+        layer = layer.venv
+    return isinstance(layer, SimpleSpreadVecEnv)
 
 
 def snapshot_steps(total_timesteps: int) -> list[int]:
@@ -152,7 +185,11 @@ def save_snapshot(run_dir: str | os.PathLike[str], model: BaseAlgorithm, progres
     logger = model.logger
     state = {
         "progress": progress,
+        "versions": versions(),
         "random": random_state(),
+        # SB3's load seeds the action space again from the model's seed: random actions before learning_starts
+        # come from it, so its stream is restored from here.
+        "action_space": model.action_space,
         "env": env_layers(model.get_env()),  # type: ignore[arg-type]
         "agent_episode_returns": getattr(model, "_agent_episode_returns", None),  # not in SB3's save
         "logger": [dict(logger.name_to_value), dict(logger.name_to_count), dict(logger.name_to_excluded)],
@@ -170,31 +207,43 @@ def load_snapshot(
     run_dir: str | os.PathLike[str], config: dict[str, Any], algorithm: type[BaseAlgorithm], make_env: Callable[[], VecEnv]
 ) -> tuple[BaseAlgorithm, dict[str, Any]] | str:
     """
-    Load a run's snapshot: the model on ``env`` (its worlds restored), its replay buffer, and the random streams.
+    Load a run's snapshot: the model on a new env (its worlds restored), its replay buffer, and the random streams.
 
     :param run_dir: The run's directory.
     :param config: The run's config (``RunConfig.to_dict()``).
     :param algorithm: The run's algorithm class.
     :param make_env: Builds a new training env of the run, as the saved one was built.
     :return: The model and the rest of the state (``"progress"``: :class:`RunProgress`, ``"logger"``: the logger's
-        pending values), or why no snapshot is used (:data:`NO_SNAPSHOT`, another config's, unreadable).
+        pending values), or why no snapshot is used (:data:`NO_SNAPSHOT`, another config's, other versions', not
+        whole: :data:`UNREADABLE`); any other error (e.g. out of memory) is raised, the snapshot kept.
     """
     directory = Path(run_dir) / SNAPSHOT_DIR
-    for leftover in (directory.with_name(f"{SNAPSHOT_DIR}.tmp"), directory.with_name(f"{SNAPSHOT_DIR}.old")):
-        shutil.rmtree(leftover, ignore_errors=True)  # a save that was killed half-way
+    old = directory.with_name(f"{SNAPSHOT_DIR}.old")
+    if not directory.exists() and old.is_dir():  # killed between the two renames of a save: the last whole one
+        old.rename(directory)
+    for leftover in (directory.with_name(f"{SNAPSHOT_DIR}.tmp"), old):
+        shutil.rmtree(leftover, ignore_errors=True)  # a save killed half-way
     if not (directory / STATE_FILE).is_file():
         return NO_SNAPSHOT
     try:
         with open(directory / STATE_FILE, "rb") as file:
             state = pickle.load(file)
-        if state["progress"].config != config:
-            return "its snapshot is of another config"
-        env = make_env()
-        restore_env_layers(env, state["env"])
+    except UNREADABLE as error:
+        return f"its snapshot could not be read ({type(error).__name__}: {error})"
+    if state["progress"].config != config:
+        return "its snapshot is of another config"
+    if state.get("versions") != versions():
+        return f"its snapshot was saved under other versions ({state.get('versions')}, now {versions()})"
+    env = make_env()
+    try:
         model = algorithm.load(directory / MODEL_FILE, env=env, force_reset=False)
         model.load_replay_buffer(directory / BUFFER_FILE)  # type: ignore[attr-defined]
-    except Exception as error:  # a snapshot that cannot be used is a fresh start, not a failed run
+    except UNREADABLE as error:
+        env.close()
         return f"its snapshot could not be read ({type(error).__name__}: {error})"
+    # After the load, which seeds the env and the spaces from the model's seed: their saved state goes back on top.
+    restore_env_layers(model.get_env(), state["env"])  # type: ignore[arg-type]
+    model.action_space = state["action_space"]
     if state["agent_episode_returns"] is not None:
         model._agent_episode_returns = state["agent_episode_returns"]  # type: ignore[attr-defined]
     set_random_state(state["random"])  # last: loading the model built networks from the torch stream
@@ -229,6 +278,7 @@ class SnapshotCallback(BaseCallback):
     :param run_dir: The run's directory.
     :param progress: Returns what the run has written so far, when a snapshot is taken.
     :param on_save: Called with each snapshot's env steps (e.g. for a progress line).
+    :param log: Where a line goes when no snapshot can be taken (an env that cannot be saved, a failed write).
     """
 
     def __init__(
@@ -237,8 +287,10 @@ class SnapshotCallback(BaseCallback):
         run_dir: str | os.PathLike[str],
         progress: Callable[[], RunProgress],
         on_save: Callable[[int], None] | None = None,
+        log: Callable[[str], None] = print,
     ) -> None:
         super().__init__()
+        self.log = log
         self.pending = sorted(steps)
         self.run_dir = Path(run_dir)
         self.progress = progress
@@ -246,13 +298,21 @@ class SnapshotCallback(BaseCallback):
 
     def _on_training_start(self) -> None:
         self.pending = [step for step in self.pending if step > self.num_timesteps]
+        if self.pending and not can_snapshot(self.model.get_env()):  # type: ignore[arg-type]
+            self.log(f"no snapshots: the training env ({type(self.model.get_env()).__name__}) cannot be saved exactly")
+            self.pending = []
 
     def _on_rollout_start(self) -> None:
         if not self.pending or self.model.num_timesteps < self.pending[0]:
             return
         while self.pending and self.model.num_timesteps >= self.pending[0]:
             self.pending.pop(0)
-        save_snapshot(self.run_dir, self.model, self.progress())
+        try:
+            save_snapshot(self.run_dir, self.model, self.progress())
+        except OSError as error:  # e.g. a full disk: training goes on, the last whole snapshot stays
+            shutil.rmtree(self.run_dir / f"{SNAPSHOT_DIR}.tmp", ignore_errors=True)
+            self.log(f"snapshot at {self.model.num_timesteps:,} steps not saved ({type(error).__name__}: {error})")
+            return
         if self.on_save is not None:
             self.on_save(self.model.num_timesteps)
 

@@ -231,8 +231,13 @@ def execute_run(
             run_time = before.train_time_s + time.perf_counter() - started
             return RunProgress(config.to_dict(), run_time, rows, curve_rows, [(s, p.name) for s, p in checkpoints.saved])
 
-        on_save = lambda steps: progress.log(f"{config.run_id}: snapshot at {steps:,} steps")  # noqa: E731
-        callbacks.append(SnapshotCallback(snapshot_steps(config.total_timesteps), directory, so_far, on_save))
+        def on_save(steps: int) -> None:
+            progress.log(f"{config.run_id}: snapshot at {steps:,} steps")
+
+        def say(line: str) -> None:
+            progress.log(f"{config.run_id}: {line}")
+
+        callbacks.append(SnapshotCallback(snapshot_steps(config.total_timesteps), directory, so_far, on_save, say))
     if why_not not in ("", NO_SNAPSHOT):
         progress.log(f"{config.run_id}: starting afresh: {why_not}")
     progress.log(training_line(config) if model.num_timesteps == 0 else resumed_line(config, model.num_timesteps))

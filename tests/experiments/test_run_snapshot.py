@@ -9,7 +9,7 @@ import pytest
 import torch as th
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.experiments import SMOKE, RunConfig, runner
+from sb3_maddpg.experiments import SMOKE, RunConfig, run_snapshot, runner
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.results import (
     CHECKPOINT_DIR,
@@ -67,16 +67,21 @@ def test_a_run_killed_after_a_snapshot_resumes_to_the_files_of_an_uninterrupted_
     run = config()
     whole, resumed = tmp_path / "whole", tmp_path / "resumed"
     runner.execute_run(run, whole, verbose=0)
-    with monkeypatch.context() as patch:
-        kill_after_snapshot(patch, nth=6)  # at 600 of 1,000 steps: after learning started, before the checkpoints
-        with pytest.raises(Killed):
-            runner.execute_run(run, resumed, verbose=0)
-    killed = run_directory(resumed, run)
-    assert (killed / SNAPSHOT_DIR / STATE_FILE).is_file() and not (killed / SUMMARY_FILE).exists()
+    # Killed twice: at 200 steps, before learning starts (random actions from the action space's stream), then at
+    # 600, after it started and before the checkpoints; the third attempt finishes. The second kill comes after the
+    # resumed attempt's own snapshots, whose rows then hold the first attempt's too.
+    for nth in (2, 6):
+        with monkeypatch.context() as patch:
+            kill_after_snapshot(patch, nth=nth)
+            with pytest.raises(Killed):
+                runner.execute_run(run, resumed, verbose=0)
+        killed = run_directory(resumed, run)
+        assert (killed / SNAPSHOT_DIR / STATE_FILE).is_file() and not (killed / SUMMARY_FILE).exists()
     runner.execute_run(run, resumed, verbose=0)
 
     done, again = run_directory(whole, run), run_directory(resumed, run)
-    assert "resumed from its snapshot at 600 of 1,000 steps" in (again / LOG_FILE).read_text()
+    log = (again / LOG_FILE).read_text()
+    assert "resumed from its snapshot at 200 of 1,000 steps" in log and "at 600 of 1,000 steps" in log
     assert not (again / SNAPSHOT_DIR).exists() and not (done / SNAPSHOT_DIR).exists()  # removed when done
     for name in (CURVE_FILE, CHECKPOINT_EVALS_FILE):
         assert (again / name).read_text() == (done / name).read_text(), name
@@ -104,11 +109,55 @@ def test_a_snapshot_that_cannot_be_used_is_a_fresh_start(tmp_path: Path, monkeyp
             runner.execute_run(other, tmp_path, verbose=0)
     log = (directory / LOG_FILE).read_text()
     assert "starting afresh: its snapshot is of another config" in log and "resumed" not in log
+    # A snapshot of other versions of the package or its dependencies: a fresh start.
+    with monkeypatch.context() as patch:
+        patch.setattr(run_snapshot, "versions", lambda: {"sb3_maddpg": "0.0"})
+        with pytest.raises(Killed):
+            kill_after_snapshot(patch, nth=2)
+            runner.execute_run(other, tmp_path, verbose=0)
+    assert "starting afresh: its snapshot was saved under other versions" in (directory / LOG_FILE).read_text()
     # An unreadable snapshot: a fresh start that says why, and the run finishes.
     (directory / SNAPSHOT_DIR / STATE_FILE).write_bytes(b"not a pickle")
     summary = runner.execute_run(other, tmp_path, verbose=0)
     assert "starting afresh: its snapshot could not be read (UnpicklingError" in (directory / LOG_FILE).read_text()
     assert summary["total_timesteps"] == 1_000 and not (directory / SNAPSHOT_DIR).exists()
+
+
+def test_a_save_killed_between_its_renames_or_failing_leaves_the_last_whole_snapshot(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    run = config()
+    with monkeypatch.context() as patch:
+        kill_after_snapshot(patch, nth=3)
+        with pytest.raises(Killed):
+            runner.execute_run(run, tmp_path, verbose=0)
+    directory = run_directory(tmp_path, run)
+    # Killed after the last snapshot was moved aside and before the new one took its place: the last one is used.
+    (directory / SNAPSHOT_DIR).rename(directory / f"{SNAPSHOT_DIR}.old")
+    (directory / f"{SNAPSHOT_DIR}.tmp").mkdir()  # the new one, maybe not whole: not used
+    (directory / f"{SNAPSHOT_DIR}.tmp" / STATE_FILE).write_bytes(b"half")
+
+    def full_disk(*args: Any) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("sb3_maddpg.experiments.run_snapshot.save_snapshot", full_disk)  # and no more can be saved
+    runner.execute_run(run, tmp_path, verbose=0)
+    log = (directory / LOG_FILE).read_text()
+    assert "resumed from its snapshot at 300 of 1,000 steps" in log
+    assert "snapshot at 400 steps not saved (OSError: [Errno 28] No space left on device)" in log
+    assert (directory / "done").is_file() and not list(directory.glob(f"{SNAPSHOT_DIR}*"))
+
+
+def test_envs_that_cannot_be_saved_exactly_take_no_snapshot(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    def refuse(*args: Any) -> None:
+        raise AssertionError("a snapshot was saved")
+
+    monkeypatch.setattr("sb3_maddpg.experiments.run_snapshot.save_snapshot", refuse)
+    run = config(vec_env="mpe2")  # mpe2's own envs in a DummyVecEnv: they pickle, but do not come back whole
+    runner.execute_run(run, tmp_path, verbose=0)
+    directory = run_directory(tmp_path, run)
+    assert "no snapshots: the training env (VecMonitor) cannot be saved exactly" in (directory / LOG_FILE).read_text()
+    assert (directory / "done").is_file()
 
 
 def test_no_snapshots_when_switched_off(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
