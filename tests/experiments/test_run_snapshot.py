@@ -38,8 +38,8 @@ def config(**changes: Any) -> RunConfig:
     return next(run for run in experiment.runs() if run.scheme == "selected" and run.seed == 0)
 
 
-def kill_after_snapshot(monkeypatch: pytest.MonkeyPatch, nth: int) -> None:
-    """Make the run die right after its ``nth`` snapshot is written."""
+def run_killed(monkeypatch: pytest.MonkeyPatch, run: RunConfig, results: Path, nth: int) -> None:
+    """Run ``run`` into ``results`` and have it die right after its ``nth`` snapshot is written."""
 
     class DiesAfterSnapshot(SnapshotCallback):
         def _on_rollout_start(self) -> None:
@@ -48,7 +48,10 @@ def kill_after_snapshot(monkeypatch: pytest.MonkeyPatch, nth: int) -> None:
             if len(self.pending) < before and len(snapshot_steps(self.model._total_timesteps)) - len(self.pending) >= nth:
                 raise Killed
 
-    monkeypatch.setattr(runner, "SnapshotCallback", DiesAfterSnapshot)
+    with monkeypatch.context() as patch:
+        patch.setattr(runner, "SnapshotCallback", DiesAfterSnapshot)
+        with pytest.raises(Killed):
+            runner.execute_run(run, results, verbose=0)
 
 
 def rows(path: Path, drop_prefix: str = "time/") -> list[dict[str, str]]:
@@ -71,10 +74,7 @@ def test_a_run_killed_after_a_snapshot_resumes_to_the_files_of_an_uninterrupted_
     # 600, after it started and before the checkpoints; the third attempt finishes. The second kill comes after the
     # resumed attempt's own snapshots, whose rows then hold the first attempt's too.
     for nth in (2, 6):
-        with monkeypatch.context() as patch:
-            kill_after_snapshot(patch, nth=nth)
-            with pytest.raises(Killed):
-                runner.execute_run(run, resumed, verbose=0)
+        run_killed(monkeypatch, run, resumed, nth)
         killed = run_directory(resumed, run)
         assert (killed / SNAPSHOT_DIR / STATE_FILE).is_file() and not (killed / SUMMARY_FILE).exists()
     runner.execute_run(run, resumed, verbose=0)
@@ -96,25 +96,17 @@ def test_a_run_killed_after_a_snapshot_resumes_to_the_files_of_an_uninterrupted_
 
 def test_a_snapshot_that_cannot_be_used_is_a_fresh_start(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     run = config()
-    with monkeypatch.context() as patch:
-        kill_after_snapshot(patch, nth=2)
-        with pytest.raises(Killed):
-            runner.execute_run(run, tmp_path, verbose=0)
+    run_killed(monkeypatch, run, tmp_path, nth=2)
     directory = run_directory(tmp_path, run)
     # Another config in the same run directory (a changed preset): its snapshot is not this run's.
     other = dataclasses.replace(run, model_kwargs={**run.model_kwargs, "batch_size": 32})
-    with monkeypatch.context() as patch:
-        kill_after_snapshot(patch, nth=2)
-        with pytest.raises(Killed):
-            runner.execute_run(other, tmp_path, verbose=0)
+    run_killed(monkeypatch, other, tmp_path, nth=2)
     log = (directory / LOG_FILE).read_text()
     assert "starting afresh: its snapshot is of another config" in log and "resumed" not in log
     # A snapshot of other versions of the package or its dependencies: a fresh start.
     with monkeypatch.context() as patch:
         patch.setattr(run_snapshot, "versions", lambda: {"sb3_maddpg": "0.0"})
-        with pytest.raises(Killed):
-            kill_after_snapshot(patch, nth=2)
-            runner.execute_run(other, tmp_path, verbose=0)
+        run_killed(patch, other, tmp_path, nth=2)
     assert "starting afresh: its snapshot was saved under other versions" in (directory / LOG_FILE).read_text()
     # An unreadable snapshot: a fresh start that says why, and the run finishes.
     (directory / SNAPSHOT_DIR / STATE_FILE).write_bytes(b"not a pickle")
@@ -127,10 +119,7 @@ def test_a_save_killed_between_its_renames_or_failing_leaves_the_last_whole_snap
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     run = config()
-    with monkeypatch.context() as patch:
-        kill_after_snapshot(patch, nth=3)
-        with pytest.raises(Killed):
-            runner.execute_run(run, tmp_path, verbose=0)
+    run_killed(monkeypatch, run, tmp_path, nth=3)
     directory = run_directory(tmp_path, run)
     # Killed after the last snapshot was moved aside and before the new one took its place: the last one is used.
     (directory / SNAPSHOT_DIR).rename(directory / f"{SNAPSHOT_DIR}.old")
