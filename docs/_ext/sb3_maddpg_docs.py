@@ -153,8 +153,8 @@ class ResultsDirectory(SphinxDirective):
     """
     Show a results directory written by ``sb3-maddpg report`` (or a copy of it), if it exists: its
     ``index.rst`` or ``results.rst`` if it has one; else ``README.md`` or ``description.md`` first, then
-    every ``table_*.md`` each followed by its ``aggregates_*.md`` and ``claims_*.md``, then every figure (``*.svg``,
-    ``*.png``).
+    every ``table_*.md`` each followed by its ``aggregates_*.md`` and ``claims_*.md``, then ``cost.md``, then every
+    figure (``*.svg``, ``*.png``).
     Otherwise render the directive's content.
     """
 
@@ -175,6 +175,8 @@ class ResultsDirectory(SphinxDirective):
         for table in sorted(directory.glob("table_*.md")) if directory.is_dir() else []:
             companions = [table.with_name(table.name.replace("table_", prefix, 1)) for prefix in ("aggregates_", "claims_")]
             texts += [table, *(path for path in companions if path.is_file())]
+        if (directory / "cost.md").is_file():
+            texts.append(directory / "cost.md")
         figures = [*directory.glob("*.svg"), *directory.glob("*.png")] if directory.is_dir() else []
         # Learning curves before boxplots, as in the paper's figures; then by name.
         figures.sort(key=lambda path: (not path.name.startswith("learning_curves"), path.name))

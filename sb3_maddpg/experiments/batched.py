@@ -45,6 +45,7 @@ from sb3_maddpg.experiments.group_recorder import STATE_FRACTION, GroupProgress,
 from sb3_maddpg.experiments.group_state import (
     STATE_PREFIX,
     TRAINED_FILE,
+    TrainedRun,
     group_state_path,
     load_state,
     parse_seed_ranges,
@@ -58,6 +59,7 @@ from sb3_maddpg.experiments.group_state import (
 from sb3_maddpg.experiments.local_pool import OnResult
 from sb3_maddpg.experiments.ray_tasks import ray_parallel_tasks, ray_session, ray_task_options, submit_ray_tasks
 from sb3_maddpg.experiments.results import CHECKPOINT_DIR, LOG_FILE, PROGRESS_FILE, run_directory
+from sb3_maddpg.experiments.run_cost import TrainingResources
 from sb3_maddpg.experiments.runner import build_model, finish_run, start_run_directory, training_line
 
 __all__ = [  # the names of 0.2's single module stay importable from here
@@ -119,7 +121,7 @@ def train_group(
     results = []
     for config, directory, record in zip(configs, directories, trained):
         assert record is not None
-        saved, train_time = record
+        saved, train_time, resources = record
         log_path = str(directory / LOG_FILE)
 
         def log(line: str, path: str = log_path) -> None:  # the run's own train.log
@@ -127,7 +129,7 @@ def train_group(
 
         # Its checkpoints are deleted below, after its done marker: killed before, the run is evaluated again.
         keep = dataclasses.replace(config, keep_checkpoints=True)
-        results.append(finish_run(keep, directory, saved, time.perf_counter() - train_time, train_time, log))
+        results.append(finish_run(keep, directory, saved, time.perf_counter() - train_time, train_time, log, resources))
         if not config.keep_checkpoints:
             shutil.rmtree(directory / CHECKPOINT_DIR, ignore_errors=True)
         (directory / TRAINED_FILE).unlink(missing_ok=True)
@@ -139,11 +141,11 @@ def _train_runs(
     results_dir: str | os.PathLike[str],
     device: str,
     verbose: int,
-) -> list[tuple[list[tuple[int, Path]], float]]:
+) -> list[TrainedRun]:
     """
     Train runs together, to their budget (see :func:`train_group`), and record each as trained (:func:`write_trained`).
 
-    :return: Each run's checkpoints, ``(env steps, model file)`` in order, and train time.
+    :return: Each run's checkpoints, ``(env steps, model file)`` in order, train time and resources.
     """
     from sb3_maddpg.run_group import RunGroup
 
@@ -170,9 +172,11 @@ def _train_runs(
         recorder.close()
     # Each run's record, then the state goes: a crash while the runs are evaluated evaluates them again, whatever
     # group the next attempt puts them in.
-    trained = [(saved, train_time) for saved in recorder.saved]
-    for config, directory, (saved, _) in zip(configs, directories, trained):
-        write_trained(directory, config, saved, train_time)
+    # A group trains on the process's thread count (RunGroup.learn keeps it, as MADDPG.learn does not).
+    resources = TrainingResources(resolved.type, th.get_num_threads(), runs_trained_together=len(configs))
+    trained = [TrainedRun(saved, train_time, resources) for saved in recorder.saved]
+    for config, directory, run in zip(configs, directories, trained):
+        write_trained(directory, config, run.saved, train_time, resources)
     state_path.unlink(missing_ok=True)
     return trained
 

@@ -6,13 +6,14 @@ import csv
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import torch as th
 
 from sb3_maddpg.common.progress import log_line
 from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.results import CONFIG_FILE, LOG_FILE, read_json, run_directory, write_json_atomic
+from sb3_maddpg.experiments.run_cost import TrainingResources
 
 STATE_PREFIX = "group_seeds_"
 """A group's state file: ``<results>/<experiment>/<scheme>/group_seeds_<seeds>.pt`` (e.g. ``group_seeds_0-30.pt``)."""
@@ -132,7 +133,18 @@ def _read_state(
     return state, ""
 
 
-def write_trained(directory: Path, config: RunConfig, saved: Sequence[tuple[int, Path]], train_time: float) -> None:
+class TrainedRun(NamedTuple):
+    """A run whose training is over: its checkpoints, ``(env steps, model file)`` in order, its training's wall time
+    in seconds, and what trained it (``None`` when not recorded)."""
+
+    saved: list[tuple[int, Path]]
+    train_time: float
+    resources: TrainingResources | None
+
+
+def write_trained(
+    directory: Path, config: RunConfig, saved: Sequence[tuple[int, Path]], train_time: float, resources: TrainingResources
+) -> None:
     """
     Record that a run's training is over, before it is evaluated (see :data:`TRAINED_FILE`).
 
@@ -140,18 +152,25 @@ def write_trained(directory: Path, config: RunConfig, saved: Sequence[tuple[int,
     :param config: The run.
     :param saved: Its checkpoints, ``(env steps, model file)`` in order.
     :param train_time: Its training's wall time, seconds.
+    :param resources: What trained it (its group's device, threads and size).
     """
-    record = {"config": config.to_dict(), "saved": [[steps, str(path)] for steps, path in saved], "train_time": train_time}
+    record = {
+        "config": config.to_dict(),
+        "saved": [[steps, str(path)] for steps, path in saved],
+        "train_time": train_time,
+        "resources": resources.to_summary(),
+    }
     write_json_atomic(directory / TRAINED_FILE, record)
 
 
-def read_trained(directory: Path, config: RunConfig, echo: bool) -> tuple[list[tuple[int, Path]], float] | None:
+def read_trained(directory: Path, config: RunConfig, echo: bool) -> TrainedRun | None:
     """
     :param directory: A run's directory.
     :param config: The run.
     :param echo: Print why a record is not used, too (it is appended to the run's ``train.log``).
-    :return: Its checkpoints and train time, when its training is over (:func:`write_trained`) for this config and
-        its checkpoints are still there; else ``None`` (the run trains, again if it had).
+    :return: Its checkpoints, train time and resources (``None`` in a record written before 0.4), when its training
+        is over (:func:`write_trained`) for this config and its checkpoints are still there; else ``None`` (the run
+        trains, again if it had).
     """
     path = directory / TRAINED_FILE
     if not path.exists():
@@ -165,7 +184,12 @@ def read_trained(directory: Path, config: RunConfig, echo: bool) -> tuple[list[t
     elif not all(Path(file).exists() for _, file in record["saved"]):
         why = "some of the checkpoints its training saved are missing"
     else:
-        return [(int(steps), Path(file)) for steps, file in record["saved"]], float(record["train_time"])
+        resources = record.get("resources")
+        return TrainedRun(
+            [(int(steps), Path(file)) for steps, file in record["saved"]],
+            float(record["train_time"]),
+            TrainingResources(**resources) if isinstance(resources, dict) else None,
+        )
     log_line(f"{config.run_id}: {why}, so it trains again", str(directory / LOG_FILE), echo)
     return None
 

@@ -17,6 +17,7 @@ from sb3_maddpg.experiments.marl_eval import MARL_EVAL_FILE, write_marl_eval
 from sb3_maddpg.experiments.normalised_table import format_normalised_markdown
 from sb3_maddpg.experiments.paper_claims import write_claims_report
 from sb3_maddpg.experiments.results import load_experiments, load_summaries, never_updated_warning, run_updates
+from sb3_maddpg.experiments.run_cost import write_cost_report
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, aggregate
 from sb3_maddpg.experiments.tasks import declared_metrics, declared_sides, metric_info
 
@@ -361,7 +362,8 @@ def make_report(
     bootstrap intervals), ``claims_<metric>.md`` and ``claims_<metric>.csv`` for the paper's settings (its Table 2
     beside these runs' and its findings asked of them, see :mod:`~sb3_maddpg.experiments.paper_claims`),
     ``normalised.md`` for simple_spread settings (min-dist sum and team return between the
-    random team, 0, and the scripted controller, 1), ``marl_eval.json`` (every run in marl-eval's JSON, see
+    random team, 0, and the scripted controller, 1), ``cost.md`` and ``cost.csv`` (training time per run by setting
+    and scheme, see :mod:`~sb3_maddpg.experiments.run_cost`), ``marl_eval.json`` (every run in marl-eval's JSON, see
     :mod:`~sb3_maddpg.experiments.marl_eval`) and, with ``plots``, ``learning_curves_<metric>.png`` (IQM over
     runs with a 95% bootstrap band, vs env steps) and ``boxplot_<metric>.png`` (per-run scores, like the paper's
     Figures 7 and 8).
@@ -435,6 +437,7 @@ def make_report(
     if normalised is not None:
         (out / "normalised.md").write_text(normalised)
         written.append(out / "normalised.md")
+    written += write_cost_report(out, summaries, experiments)
     written.append(write_marl_eval(results_dir, out / MARL_EVAL_FILE))
     if verbose >= 1:
         print(format_terminal_table(tables, infos, experiments, baseline=baseline))

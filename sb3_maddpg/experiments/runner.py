@@ -38,6 +38,7 @@ from sb3_maddpg.experiments.results import (
     run_directory,
     write_json_atomic,
 )
+from sb3_maddpg.experiments.run_cost import TrainingResources
 from sb3_maddpg.experiments.run_snapshot import (
     NO_SNAPSHOT,
     RunProgress,
@@ -250,11 +251,12 @@ def execute_run(
     train_time = before.train_time_s + time.perf_counter() - started
     if before.progress_rows:  # this attempt's logger started progress.csv again: the earlier rows go first
         write_progress_rows(directory / PROGRESS_FILE, before.progress_rows + read_progress_rows(directory / PROGRESS_FILE))
+    resources = TrainingResources.here(model.device.type)
     model.get_env().close()  # type: ignore[union-attr]
     del model
 
     curve_env.close()
-    return finish_run(config, directory, checkpoints.saved, started - before.train_time_s, train_time, progress.log)
+    return finish_run(config, directory, checkpoints.saved, started - before.train_time_s, train_time, progress.log, resources)
 
 
 def resume_or_start(config: RunConfig, directory: Path) -> tuple[Any, RunProgress, list[dict[str, Any]], str]:
@@ -368,6 +370,7 @@ def finish_run(
     started: float,
     train_time: float,
     log: Callable[[str], None],
+    resources: TrainingResources | None = None,
 ) -> dict[str, Any]:
     """
     Evaluate a trained run's checkpoints and write the rest of its directory: ``checkpoint_evals.csv``,
@@ -379,6 +382,7 @@ def finish_run(
     :param started: When it started (``time.perf_counter()``).
     :param train_time: Its training's wall time, seconds.
     :param log: Where its last progress line goes.
+    :param resources: What trained it (recorded in the summary for the report's cost table); ``None``: not recorded.
     :return: The summary, plus ``"files"`` (see :func:`execute_run`).
     """
     eval_started = time.perf_counter()
@@ -388,7 +392,7 @@ def finish_run(
     if not config.keep_checkpoints:
         shutil.rmtree(directory / CHECKPOINT_DIR, ignore_errors=True)
 
-    summary = run_summary(config, rows, last, train_time, eval_time, time.perf_counter() - started)
+    summary = run_summary(config, rows, last, train_time, eval_time, time.perf_counter() - started, resources)
     write_json_atomic(directory / SUMMARY_FILE, summary)
     log(
         f"{config.run_id}: done in {format_seconds(summary['wall_time_s'])} "
@@ -442,6 +446,7 @@ def run_summary(
     train_time: float,
     eval_time: float,
     wall_time: float,
+    resources: TrainingResources | None = None,
 ) -> dict[str, Any]:
     """
     :param config: The run.
@@ -450,8 +455,10 @@ def run_summary(
     :param train_time: Its training's wall time, seconds.
     :param eval_time: Its evaluation's wall time, seconds.
     :param wall_time: Its whole wall time, seconds.
-    :return: Its ``summary.json``: the score (each of the task's scores' mean over the checkpoints), timings, and the
-        last checkpoint's ``n_updates`` and ``behaviour`` where known.
+    :param resources: What trained it: ``device``, ``torch_threads`` and ``runs_trained_together`` go into the summary
+        (the report's cost table reads them); ``None`` leaves them out.
+    :return: Its ``summary.json``: the score (each of the task's scores' mean over the checkpoints), timings, what
+        trained it, and the last checkpoint's ``n_updates`` and ``behaviour`` where known.
     """
     summary: dict[str, Any] = {
         "run_id": config.run_id,
@@ -467,6 +474,8 @@ def run_summary(
         "wall_time_s": round(wall_time, 2),
         "train_steps_per_s": round(config.total_timesteps / train_time, 1),
     }
+    if resources is not None:
+        summary.update(resources.to_summary())
     if "n_updates" in last:
         summary["n_updates"] = last["n_updates"]
     if last.get("behaviour") is not None:

@@ -42,11 +42,13 @@ def test_a_run_on_simple_tag_is_scored_by_catches_and_the_adversaries_return(tmp
     assert "group_return" in read_rows(directory / "learning_curve.csv")[0]
     written = make_report(tmp_path, tmp_path / "report", metrics=("group_return", "collisions"), plots=False)
     table = (tmp_path / "report" / "table_group_return.md").read_text()
-    assert "smoke (simple_tag, 30 ep.)" in table and len(written) == 9  # tables and aggregates, md and csv; marl-eval
+    assert "smoke (simple_tag, 30 ep.)" in table and len(written) == 11  # tables and aggregates, md and csv; cost; marl-eval
     # By default a task's main table: its own metrics, each side's return, the scored group's.
     metrics = ("collisions", "return_adversaries", "return_good_agents", "group_return")
     assert {path.name for path in make_report(tmp_path, tmp_path / "default", plots=False)} == {
         *(f"{kind}_{metric}.{ext}" for metric in metrics for kind in ("table", "aggregates") for ext in ("md", "csv")),
+        "cost.md",
+        "cost.csv",
         "marl_eval.json",
     }
 

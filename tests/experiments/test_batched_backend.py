@@ -115,6 +115,14 @@ def test_a_group_writes_the_runners_files(warm_up_results: dict[str, Path], tmp_
     assert len(load_summaries(batched)) == 3
 
 
+def test_each_summary_records_what_trained_it_for_the_cost_table(warm_up_results: dict[str, Path]) -> None:
+    # The local workers train on one torch thread each; the batched backend trains the three seeds in one group.
+    for backend, together in (("local", 1), ("batched", 3)):
+        for summary in load_summaries(warm_up_results[backend]):
+            resources = (summary["device"], summary["torch_threads"], summary["runs_trained_together"])
+            assert resources == ("cpu", 1 if backend == "local" else torch.get_num_threads(), together), backend
+
+
 def test_a_trained_groups_progress_csv_has_the_local_runs_header(tmp_path: Path) -> None:
     experiment = tiny(seeds=(0,), keep_checkpoints=False)  # training on: the train/* keys too
     headers = {}
@@ -221,6 +229,8 @@ def test_a_crash_while_the_runs_are_evaluated_evaluates_them_again_without_train
         assert log.count("in a run group of 2") == 1, log  # trained once
         done_lines = [line for line in log.splitlines() if ": done in" in line]
         assert done_lines and all(f"{config.run_id}: done in" in line for line in done_lines), log  # its own only
+        # Evaluated again from the trained record, which keeps what trained it for the cost table.
+        assert json.loads((ours / "summary.json").read_text())["runs_trained_together"] == 2
     assert not list((results / configs[0].run_id).parent.glob("group_seeds_*"))
 
 

@@ -336,7 +336,7 @@ def test_report_writes_table_and_plots(local_results: Path, tmp_path: Path, monk
     written = make_report(local_results, tmp_path)  # the default metrics: success and min-dist sum
     names = sorted(path.name for path in written)
     assert names == sorted(
-        ["normalised.md", "marl_eval.json"]
+        ["normalised.md", "cost.md", "cost.csv", "marl_eval.json"]
         + [
             f"{kind}_{metric}.{ext}"
             for metric in ("success_rate", "min_dist_sum")

@@ -208,7 +208,7 @@ def test_report_prints_the_tasks_main_table(tag_results: Path, tmp_path: Path, c
     assert {path.name for path in written} == {
         *(f"{kind}_{metric}.{ext}" for metric in ("collisions", "return_adversaries", "return_good_agents")
           for kind in ("table", "aggregates") for ext in ("md", "csv")),
-        MARL_EVAL_FILE,
+        "cost.md", "cost.csv", MARL_EVAL_FILE,
     }  # fmt: skip
     assert "smoke (simple_tag, 30 ep.): mean (std) over runs" in printed
     header = next(line for line in printed.splitlines() if line.startswith("method"))
