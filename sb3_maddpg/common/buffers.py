@@ -28,6 +28,9 @@ class MultiAgentReplayBufferSamples(NamedTuple):
     """Per-agent rewards r_i ``[batch, n_agents]``."""
     selections: th.Tensor | None
     """Agents each agent selected when the transition was stored, ``[batch, n_agents, k]`` (LongTensor), or None."""
+    next_selections: th.Tensor | None = None
+    """The selection the next-state target uses when it is not the stored one (a selector with ``target="next"``:
+    made from the next observation at sampling), like :attr:`selections`; None: the target uses :attr:`selections`."""
 
 
 class MultiAgentReplayBuffer(ReplayBuffer):
@@ -149,9 +152,12 @@ class MultiAgentReplayBuffer(ReplayBuffer):
 
     def _get_samples(self, batch_inds: np.ndarray, env: VecNormalize | None = None) -> MultiAgentReplayBufferSamples:  # type: ignore[override]
         env_indices = np.random.randint(0, high=self.n_envs, size=(len(batch_inds),))
-        selections = None
+        selections = next_selections = None
         if self.selection_size > 0:
             selections = th.as_tensor(self.selections[batch_inds, env_indices].astype(np.int64), device=self.device)
+        if self.selector is not None and self.selector.target == "next":  # from the raw next observations, as stored
+            chosen = self.selector.select(self.next_observations[batch_inds, env_indices], self.layout)
+            next_selections = th.as_tensor(chosen, device=self.device)
         observations = self._normalize_obs(self.observations[batch_inds, env_indices], env)
         next_observations = self._normalize_obs(self.next_observations[batch_inds, env_indices], env)
         assert isinstance(observations, np.ndarray) and isinstance(next_observations, np.ndarray)
@@ -162,6 +168,7 @@ class MultiAgentReplayBuffer(ReplayBuffer):
             dones=self.to_torch(self.dones[batch_inds, env_indices]),
             rewards=self.to_torch(self.rewards[batch_inds, env_indices]),
             selections=selections,
+            next_selections=next_selections,
         )
 
 

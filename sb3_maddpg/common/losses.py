@@ -111,7 +111,8 @@ def critic_targets(
     """
     with th.no_grad():
         next_actions = target_actions(batch.next_observations)
-        next_q = target_q(batch.next_observations, next_actions, batch.selections)
+        next_selections = batch.selections if batch.next_selections is None else batch.next_selections
+        next_q = target_q(batch.next_observations, next_actions, next_selections)
         return batch.rewards + (1.0 - batch.dones) * gamma * next_q
 
 
@@ -164,6 +165,5 @@ def actor_loss_terms(
 
 def one_member(batch: MultiAgentReplayBufferSamples) -> MultiAgentReplayBufferSamples:
     """:return: A team's replay batch with a member dimension in front (``M = 1``)."""
-    selections = None if batch.selections is None else batch.selections.unsqueeze(0)
-    observations, actions, next_observations, dones, rewards = (field.unsqueeze(0) for field in batch[:5])
-    return MultiAgentReplayBufferSamples(observations, actions, next_observations, dones, rewards, selections)
+    fields = [None if field is None else field.unsqueeze(0) for field in batch]
+    return MultiAgentReplayBufferSamples(*fields)  # type: ignore[arg-type]  # the first five are never None

@@ -9,11 +9,17 @@ next-state target.
 import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Hashable, Sequence
+from typing import Any, Literal
 
 import numpy as np
 
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.user_code import user_stacklevel
+
+TargetSelection = Literal["stored", "next"]
+"""Which selection a transition's next-state target uses (:attr:`Selector.target`)."""
+
+TARGET_SELECTIONS: tuple[TargetSelection, ...] = ("stored", "next")
 
 SelectionFn = Callable[[np.ndarray, AgentLayout], np.ndarray]
 """``fn(observations [n_envs, obs_dim], layout) -> int array [n_envs, n_agents, k]``."""
@@ -30,6 +36,11 @@ class Selector(ABC):
 
     checks_output: bool = True
     """Whether :meth:`select` validates every output (built-in selectors are valid by construction)."""
+
+    target: TargetSelection = "stored"
+    """Which selection the next-state target uses: ``"stored"``, the one made from the observation when the transition
+    was stored (the paper's Algorithm 3, the default), or ``"next"``, one made from the next observation when the
+    batch is sampled (see :class:`NearestAgents`)."""
 
     def __init__(self, k: int) -> None:
         if int(k) < 1:
@@ -73,15 +84,24 @@ class NearestAgents(Selector):
     Positions are read from each agent's own observation. In MPE (``simple_spread``) an agent's
     observation starts with ``[velocity (2), position (2), ...]``, hence the default ``slice(2, 4)``.
 
+    Agents move, so the nearest ones at the next step may be others, or the same in another order: with
+    ``target="stored"`` (the paper's Algorithm 3) the next-state target sees the agents selected at the transition's
+    first step, in that order, in slots the critic only ever saw hold the nearest agents (under random actions at N=5,
+    k=2, 11.5% of agent-transitions); ``target="next"`` selects again from the next observation, so the target's
+    input is laid out as the critic's inputs are. At N=5 with one critic shared by the agents the stored selection can
+    send training astray (``benchmarks/paper_n5``).
+
     :param k: How many other agents each agent selects (paper's partially observable setting: 2).
     :param position_slice: Where an agent's position lies within its own observation.
+    :param target: The selection the next-state target uses: ``"stored"`` or ``"next"`` (see above).
     """
 
     checks_output = False
 
-    def __init__(self, k: int = 2, position_slice: slice = slice(2, 4)) -> None:
+    def __init__(self, k: int = 2, position_slice: slice = slice(2, 4), target: TargetSelection = "stored") -> None:
         super().__init__(k)
         self.position_slice = position_slice
+        self.target = check_target(target)
 
     def validate(self, layout: AgentLayout) -> None:
         # The positions first: without them this selector cannot serve the team whatever k is.
@@ -215,16 +235,41 @@ def check_selection(selection: np.ndarray, layout: AgentLayout, k: int, n_rows: 
         )
 
 
-def resolve_selector(selector: Selector | int | None) -> Selector:
-    """The selector of ``selected`` sharing: the default ``NearestAgents(k=2)``, or an int ``k`` for ``NearestAgents(k)``."""
+def check_target(target: Any) -> TargetSelection:
+    """:return: ``target`` if it is one of :data:`TARGET_SELECTIONS`; else a ``ValueError`` naming them."""
+    if target not in TARGET_SELECTIONS:
+        raise ValueError(
+            f"target={target!r} is not a target selection: use 'stored' (the selection made when the transition was "
+            "stored, the paper's) or 'next' (made again from the next observation)."
+        )
+    return target  # type: ignore[no-any-return]
+
+
+def resolve_selector(selector: Selector | int | dict[str, Any] | None) -> Selector:
+    """
+    The selector of ``selected`` sharing.
+
+    :param selector: ``None`` for the default ``NearestAgents(k=2)``; an int ``k`` for ``NearestAgents(k)``; a dict of
+        :class:`NearestAgents`'s arguments ``k`` and ``target`` (as a JSON experiment file gives them, e.g.
+        ``{"k": 2, "target": "next"}``); or a :class:`Selector`.
+    :return: The selector.
+    """
     if selector is None:
         return NearestAgents(k=2)
     if isinstance(selector, int) and not isinstance(selector, bool):
         return NearestAgents(k=selector)
+    if isinstance(selector, dict):
+        unknown = sorted(set(selector) - {"k", "target"})
+        if unknown:
+            raise ValueError(
+                f"selector={selector!r} has unknown key(s) {unknown}: a dict selector gives NearestAgents's 'k' and "
+                "'target' (e.g. {'k': 2, 'target': 'next'}); pass a Selector object for any other rule."
+            )
+        return NearestAgents(**selector)
     if not isinstance(selector, Selector):
         raise TypeError(
-            f"selector must be a sb3_maddpg.common.selection.Selector or an int k (the k nearest agents), got "
-            f"{type(selector).__name__}: wrap a function as CallableSelector(fn, k=...)."
+            f"selector must be a sb3_maddpg.common.selection.Selector, an int k (the k nearest agents) or a dict of "
+            f"NearestAgents's k and target, got {type(selector).__name__}: wrap a function as CallableSelector(fn, k=...)."
         )
     return selector
 

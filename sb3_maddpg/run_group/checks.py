@@ -160,7 +160,7 @@ def describe_selector(selector: Selector | None) -> tuple[Any, ...] | None:
     if selector is None:
         return None
     if isinstance(selector, NearestAgents):
-        return ("NearestAgents", selector.k, selector.position_slice)
+        return ("NearestAgents", selector.k, selector.position_slice, selector.target)
     if isinstance(selector, FixedGraph):
         return ("FixedGraph", selector.k, selector.neighbors.tolist())
     return (type(selector).__name__, selector.k, id(selector))  # a user's rule: the same object in every model

@@ -167,9 +167,17 @@ class RunGroup:
 
         :param gradient_steps: Gradient steps of each run.
         """
-        steps = [self._step(self.buffers.sample(self.batch_size, self.streams)) for _ in range(gradient_steps)]
+        steps = [self._step(self._sample()) for _ in range(gradient_steps)]
         if steps:
             self.losses = summarise_steps(steps)
+
+    def _sample(self) -> MultiAgentReplayBufferSamples:
+        """Each run's batch; with a selector whose ``target`` is ``"next"``, the target's selection made from the next
+        observations, as :class:`~sb3_maddpg.common.buffers.MultiAgentReplayBuffer` makes it."""
+        batch = self.buffers.sample(self.batch_size, self.streams)
+        if self.select is not None and self.selector is not None and self.selector.target == "next":
+            batch = batch._replace(next_selections=self.select(batch.next_observations))
+        return batch
 
     # ----- data -----
 

@@ -124,6 +124,26 @@ class TerminatingTeam(gym.Env):
         return np.full(4, self.t, np.float32), 0.0, done, False, {"agent_rewards": rewards, "agent_terminations": [done] * 2}
 
 
+@pytest.mark.parametrize("target", ["stored", "next"])
+def test_a_selector_targeting_the_next_step_selects_again_from_the_next_observation(target: str) -> None:
+    selector = NearestAgents(k=1, target=target)  # type: ignore[arg-type]
+    buffer = make_buffer(selector=selector)
+    rng = np.random.default_rng(0)
+    obs, next_obs = (rng.normal(size=(2, 12)).astype(np.float32) for _ in range(2))
+    assert (selector.select(next_obs, LAYOUT) != selector.select(obs, LAYOUT)).any()  # the nearest changed
+    buffer.add(obs, next_obs, np.zeros((2, 6)), np.zeros(2), np.array([False, False]), [info([0, 0, 0])] * 2)
+    np.random.seed(3)
+    data = buffer._get_samples(np.zeros(8, dtype=np.int64))
+    np.random.seed(3)
+    envs = np.random.randint(0, 2, size=8)  # the env of each sampled row, as the buffer drew it
+    assert len(set(envs.tolist())) == 2
+    assert th.equal(data.selections, th.as_tensor(selector.select(obs[envs], LAYOUT)))  # stored at time t
+    if target == "stored":
+        assert data.next_selections is None  # the target reuses the stored selection
+    else:
+        assert th.equal(data.next_selections, th.as_tensor(selector.select(next_obs[envs], LAYOUT)))
+
+
 def test_true_termination_stops_bootstrapping() -> None:
     model = MADDPG("MlpPolicy", TerminatingTeam(), policy_kwargs=dict(net_arch=[8]), learning_starts=1000, batch_size=4)
     model.learn(9)

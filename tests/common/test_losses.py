@@ -101,3 +101,28 @@ def test_twin_critics_broadcast_over_the_targets() -> None:
 def test_total_is_the_sum_of_the_parts() -> None:
     terms = ActorLossTerms(th.tensor([[1.0, 2.0]]), th.tensor([[0.5, 0.25]]), th.zeros(1, 2))
     assert th.equal(terms.total, th.tensor([[1.5, 2.25]]))
+
+
+@pytest.mark.parametrize("next_selected", [None, 2])
+def test_the_target_reads_the_next_selection_when_the_batch_has_one(next_selected: int | None) -> None:
+    # A target critic that returns the index its agent selected: y = r + gamma * (1 - done) * that index.
+    selections = th.tensor([[[1], [0], [0]], [[2], [2], [1]]])
+    batch = MultiAgentReplayBufferSamples(
+        observations=th.zeros(2, 6),
+        actions=th.zeros(2, 6),
+        next_observations=th.zeros(2, 6),
+        dones=th.tensor([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0]]),
+        rewards=th.ones(2, 3),
+        selections=selections,
+        next_selections=None if next_selected is None else th.tensor([[[2], [2], [1]], [[1], [0], [0]]]),
+    )
+
+    def target_q(observations: th.Tensor, actions: th.Tensor, chosen: th.Tensor) -> th.Tensor:
+        return chosen[..., 0].float()
+
+    targets = critic_targets(th.zeros_like, target_q, one_member(batch), gamma=0.5)
+    if next_selected is None:  # the stored selection: indices 1, 0, (0) and 2, 2, 1
+        expected = [[1.5, 1.0, 1.0], [2.0, 2.0, 1.5]]
+    else:  # the next one: 2, 2, (1) and 1, 0, 0
+        expected = [[2.0, 2.0, 1.0], [1.5, 1.0, 1.0]]
+    assert targets[0].tolist() == expected

@@ -353,13 +353,27 @@ def test_a_selection_holds_agent_indices_of_the_team(agent: int, chosen: int, re
     [
         (None, None),
         (1, None),
-        (True, "selector must be a sb3_maddpg.common.selection.Selector or an int k"),
+        (True, "selector must be a sb3_maddpg.common.selection.Selector, an int k"),
         (1.0, "an int k"),
     ],
 )
 def test_a_selector_is_a_selector_or_an_int(selector: Any, refusal: str | None) -> None:
     """An int k is NearestAgents(k); a bool is not taken for one."""
     check(lambda: resolve_selector(selector), refusal, TypeError)
+
+
+@pytest.mark.parametrize(
+    ("selector", "refusal"),
+    [
+        ({"k": 2, "target": "next"}, None),
+        ({"k": 1}, None),
+        ({"k": 2, "radius": 1.0}, r"unknown key\(s\) \['radius'\]"),
+        ({"k": 2, "target": "later"}, "target='later' is not a target selection: use 'stored'"),
+    ],
+)
+def test_a_dict_selector_gives_nearest_agents_k_and_target(selector: dict[str, Any], refusal: str | None) -> None:
+    """As a JSON experiment file gives a selector: NearestAgents's arguments, anything else named."""
+    check(lambda: resolve_selector(selector), refusal, ValueError)
 
 
 # ---------------------------------------------------------------------------------------------- noise.py

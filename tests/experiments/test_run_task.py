@@ -1,13 +1,15 @@
 """A run's task is derived once from its config (``run_task(config)``, a :class:`RunTask` kept on the config): a
 run reads its envs, metrics, directions, sides, evaluation schedule and description from that one object."""
 
+import json
 import pickle
 from pathlib import Path
 
 import pytest
 
-from sb3_maddpg.experiments.config import SMOKE
-from sb3_maddpg.experiments.runner import execute_run
+from sb3_maddpg.common.selection import NearestAgents
+from sb3_maddpg.experiments.config import SMOKE, load_experiment
+from sb3_maddpg.experiments.runner import build_model, execute_run
 from sb3_maddpg.experiments.tasks import RunTask, run_task
 
 
@@ -48,3 +50,16 @@ def test_the_task_holds_its_metrics_their_directions_and_sides() -> None:
     assert "return_mean" not in tag.keys and "simple_tag" in tag.description
     partial = run_task(SMOKE.replace(env_kwargs={"num_landmark_neighbors": 1}).runs()[0])
     assert not partial.scores_behaviour  # the behaviour reads every landmark from the observations
+
+
+def test_a_json_configs_selector_dict_reaches_the_model_as_nearest_agents_with_its_target(tmp_path: Path) -> None:
+    data = {
+        **SMOKE.to_dict(),
+        "schemes": ["selected"],
+        "scheme_model_kwargs": {"selected": {"selector": {"k": 1, "target": "next"}}},
+    }
+    path = tmp_path / "experiment.json"
+    path.write_text(json.dumps(data))
+    (config,) = load_experiment(str(path)).runs()[:1]
+    model = build_model(config)
+    assert isinstance(model.selector, NearestAgents) and (model.selector.k, model.selector.target) == (1, "next")

@@ -471,6 +471,28 @@ def test_selections_on_the_device_are_the_selectors(selector: Any) -> None:
     assert np.array_equal(select_on_device(selector, observations, layout).numpy(), expected)
 
 
+@pytest.mark.parametrize("target", ["stored", "next"])
+def test_a_groups_target_selection_is_made_from_the_next_observations_as_the_buffers(
+    target: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    group = RunGroup([make_model(critic_sharing="selected", selector={"k": 1, "target": target})])
+    for _ in range(30):
+        group.collect_step()
+    batches: list[MultiAgentReplayBufferSamples] = []
+    step = group._step
+    monkeypatch.setattr(group, "_step", lambda batch: batches.append(batch) or step(batch))
+    group.train(1)
+    (batch,) = batches
+    if target == "stored":
+        assert batch.next_selections is None
+        return
+    assert batch.next_selections is not None and batch.selections is not None
+    layout = group.layout
+    expected = NearestAgents(1).select(batch.next_observations[0].numpy(), layout)  # from the raw next observations
+    assert np.array_equal(batch.next_selections[0].numpy(), expected)
+    assert not th.equal(batch.next_selections, batch.selections)  # the nearest agents changed on some rows
+
+
 # ----- 5. refusals -----
 
 
