@@ -51,6 +51,7 @@ from sb3_maddpg.experiments.run_snapshot import (
     write_progress_rows,
 )
 from sb3_maddpg.experiments.tasks import run_task
+from sb3_maddpg.sharing.registry import resolve_scheme
 
 
 def make_env(config: RunConfig, n_envs: int | None = None) -> VecEnv:
@@ -315,17 +316,23 @@ def build_model(config: RunConfig, **kwargs: Any) -> Any:
     """
     :param config: The run.
     :param kwargs: More keyword arguments for the algorithm (e.g. ``device``), under the config's ``model_kwargs``.
-    :return: The run's untrained model, on a new training env (:func:`make_train_env`).
+    :return: The run's untrained model, on a new training env (:func:`make_train_env`). Its ``critic_sharing`` is the
+        run's scheme, unless its ``model_kwargs`` name one: a variant of a scheme compared beside it in one study (e.g.
+        scheme ``"selected_next"`` with ``{"critic_sharing": "selected", "selector": {"k": 2, "target": "next"}}``).
     """
     algorithm: Any = load_algorithm(config.algorithm)
     # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.
-    return algorithm(
-        "MlpPolicy",
-        run_task(config).make_train_env(),
-        critic_sharing=config.scheme,
-        seed=config.seed,
-        **{**kwargs, **copy.deepcopy(config.model_kwargs)},
-    )
+    options = {"critic_sharing": config.scheme, **kwargs, **copy.deepcopy(config.model_kwargs)}
+    if options["critic_sharing"] == config.scheme and isinstance(config.scheme, str):
+        try:
+            resolve_scheme(config.scheme)
+        except ValueError:
+            raise ValueError(
+                f"Scheme {config.scheme!r} of {config.experiment} is not a critic_sharing scheme: name one, or, for a "
+                f"variant of a scheme, give its critic_sharing in the experiment's scheme_model_kwargs, e.g. "
+                f'{{"{config.scheme}": {{"critic_sharing": "selected", "selector": {{"k": 2, "target": "next"}}}}}}.'
+            ) from None
+    return algorithm("MlpPolicy", run_task(config).make_train_env(), seed=config.seed, **options)
 
 
 def curve_callback(config: RunConfig, curve_env: VecEnv, n_envs: int, directory: Path) -> TeamEvalCallback | None:

@@ -1,6 +1,7 @@
 """A run's task is derived once from its config (``run_task(config)``, a :class:`RunTask` kept on the config): a
 run reads its envs, metrics, directions, sides, evaluation schedule and description from that one object."""
 
+import dataclasses
 import json
 import pickle
 from pathlib import Path
@@ -63,3 +64,21 @@ def test_a_json_configs_selector_dict_reaches_the_model_as_nearest_agents_with_i
     (config,) = load_experiment(str(path)).runs()[:1]
     model = build_model(config)
     assert isinstance(model.selector, NearestAgents) and (model.selector.k, model.selector.target) == (1, "next")
+
+
+def test_a_schemes_variant_names_its_critic_sharing_and_runs_in_its_own_directory(tmp_path: Path) -> None:
+    variant = {"critic_sharing": "selected", "selector": {"k": 1, "target": "next"}}
+    experiment = dataclasses.replace(
+        SMOKE, schemes=("selected", "selected_next"), seeds=(0,), scheme_model_kwargs={"selected_next": variant}
+    )
+    stored, next_step = experiment.runs()
+    assert next_step.run_id == "smoke/selected_next/seed_000"
+    models = [build_model(config) for config in (stored, next_step)]
+    assert [type(model.critic.extractors[0]).__name__ for model in models] == ["SelectedCriticFeatures"] * 2
+    assert [model.selector.target for model in models] == ["stored", "next"]
+
+
+def test_a_scheme_that_is_none_says_how_to_name_a_variants_critic_sharing() -> None:
+    (config,) = dataclasses.replace(SMOKE, schemes=("selected_next",), seeds=(0,)).runs()
+    with pytest.raises(ValueError, match="Scheme 'selected_next' of smoke is not a critic_sharing scheme: name one, or"):
+        build_model(config)
