@@ -476,14 +476,15 @@ def _check_experiments(experiments: Sequence[ExperimentConfig]) -> None:
 
     :param experiments: The sweep's experiments.
     """
-    from sb3_maddpg.sharing.registry import resolve_scheme
+    from sb3_maddpg.experiments.runner import run_critic_sharing
+    from sb3_maddpg.sharing.registry import validate_critic_sharing
 
     for experiment in experiments:
-        experiment.runs()  # RunConfig checks each run's budget and schedule
+        runs = experiment.runs()  # RunConfig checks each run's budget and schedule
         if experiment.algorithm in ALGORITHMS.values():
-            for scheme in experiment.schemes:
+            for scheme, config in {config.scheme: config for config in runs}.items():
                 try:
-                    resolve_scheme(scheme)
+                    validate_critic_sharing(run_critic_sharing(config))
                 except ValueError as error:
                     raise ValueError(f"{experiment.name}: --schemes {scheme!r}: {error}") from None
 

@@ -322,17 +322,27 @@ def build_model(config: RunConfig, **kwargs: Any) -> Any:
     """
     algorithm: Any = load_algorithm(config.algorithm)
     # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.
-    options = {"critic_sharing": config.scheme, **kwargs, **copy.deepcopy(config.model_kwargs)}
-    if options["critic_sharing"] == config.scheme and isinstance(config.scheme, str):
-        try:
-            resolve_scheme(config.scheme)
-        except ValueError:
-            raise ValueError(
-                f"Scheme {config.scheme!r} of {config.experiment} is not a critic_sharing scheme: name one, or, for a "
-                f"variant of a scheme, give its critic_sharing in the experiment's scheme_model_kwargs, e.g. "
-                f'{{"{config.scheme}": {{"critic_sharing": "selected", "selector": {{"k": 2, "target": "next"}}}}}}.'
-            ) from None
+    options = {**kwargs, **copy.deepcopy(config.model_kwargs), "critic_sharing": run_critic_sharing(config)}
     return algorithm("MlpPolicy", run_task(config).make_train_env(), seed=config.seed, **options)
+
+
+def run_critic_sharing(config: RunConfig) -> Any:
+    """
+    :param config: The run.
+    :return: Its ``critic_sharing``: its ``model_kwargs``'s when they name one (a variant of a scheme), else its scheme;
+        a ``ValueError`` that says how to name a variant's when the scheme is no scheme and names none.
+    """
+    if "critic_sharing" in config.model_kwargs:
+        return config.model_kwargs["critic_sharing"]
+    try:
+        resolve_scheme(config.scheme)
+    except ValueError as error:
+        raise ValueError(
+            f"{error} For a variant of a scheme under a name of its own, give its critic_sharing in the experiment's "
+            f'scheme_model_kwargs, e.g. {{"{config.scheme}": {{"critic_sharing": "selected", "selector": {{"k": 2, '
+            f'"target": "next"}}}}}}.'
+        ) from None
+    return config.scheme
 
 
 def curve_callback(config: RunConfig, curve_env: VecEnv, n_envs: int, directory: Path) -> TeamEvalCallback | None:

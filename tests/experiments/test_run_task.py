@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from sb3_maddpg.common.selection import NearestAgents
+from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import SMOKE, load_experiment
 from sb3_maddpg.experiments.runner import build_model, execute_run
 from sb3_maddpg.experiments.tasks import RunTask, run_task
@@ -80,5 +81,21 @@ def test_a_schemes_variant_names_its_critic_sharing_and_runs_in_its_own_director
 
 def test_a_scheme_that_is_none_says_how_to_name_a_variants_critic_sharing() -> None:
     (config,) = dataclasses.replace(SMOKE, schemes=("selected_next",), seeds=(0,)).runs()
-    with pytest.raises(ValueError, match="Scheme 'selected_next' of smoke is not a critic_sharing scheme: name one, or"):
+    cause, remedy = "^Unknown critic_sharing 'selected_next': use one of ", "For a variant of a scheme under a name of its own"
+    with pytest.raises(ValueError, match=f"{cause}.*{remedy}"):
         build_model(config)
+
+
+def test_the_cli_takes_an_experiment_with_a_variant_and_refuses_a_scheme_that_is_none(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    variant = {"critic_sharing": "selected", "selector": {"k": 1, "target": "next"}}
+    data = {**SMOKE.to_dict(), "schemes": ["selected", "selected_next"], "scheme_model_kwargs": {"selected_next": variant}}
+    path = tmp_path / "experiment.json"
+    path.write_text(json.dumps(data))
+    argv = ["run", "--config", str(path), "--results", str(tmp_path / "results"), "--dry-run"]
+    assert main(argv) == 0
+    assert "smoke/selected_next/seed_001" in capsys.readouterr().out
+    path.write_text(json.dumps({**data, "scheme_model_kwargs": {}}))
+    assert main(argv) == 2
+    assert "smoke: --schemes 'selected_next': Unknown critic_sharing 'selected_next'" in capsys.readouterr().err
