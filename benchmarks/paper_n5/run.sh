@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The paper's question at N=5 (issue 31): its five schemes (independent, full, observations, actions, selected with the
-# two nearest agents) in both settings at the presets that learn N=5 (exp1_tuned, exp2_tuned), 1M env steps per run
+# two nearest agents), and selected_next (selected with its target's agents selected again from the next observation:
+# see benchmarks/paper_n5/README.md, "Why selected trails"), in both settings at the presets that learn N=5 (exp1_tuned, exp2_tuned), 1M env steps per run
 # (40,000 episodes; ~39,000 gradient steps at one per 25 transitions), the paper's protocol (checkpoints over the last
 # 20%, 20 for exp1 and 30 for exp2, 100 episodes each; learning curves of 50 points). Seeds outermost: a partial sweep
 # stays balanced across schemes. exp1's runs come first, then exp2's.
