@@ -265,6 +265,9 @@ def resolve_selector(selector: Selector | int | dict[str, Any] | None) -> Select
                 f"selector={selector!r} has unknown key(s) {unknown}: a dict selector gives NearestAgents's 'k' and "
                 "'target' (e.g. {'k': 2, 'target': 'next'}); pass a Selector object for any other rule."
             )
+        k = selector.get("k", 2)
+        if isinstance(k, bool) or not isinstance(k, int):
+            raise ValueError(f"selector={selector!r}: 'k' must be an int (the k nearest agents), got {k!r}.")
         return NearestAgents(**selector)
     if not isinstance(selector, Selector):
         raise TypeError(

@@ -66,7 +66,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
     def _set_up_team(
         self,
         critic_sharing: CriticSharing,
-        selector: Selector | int | None,
+        selector: Selector | int | dict[str, Any] | None,
         update_rule: UpdateSchedule,
         noise_std: float | Sequence[float],
         warn_selection: bool,

@@ -168,7 +168,7 @@ def read_trained(directory: Path, config: RunConfig, echo: bool) -> TrainedRun |
     :param directory: A run's directory.
     :param config: The run.
     :param echo: Print why a record is not used, too (it is appended to the run's ``train.log``).
-    :return: Its checkpoints, train time and resources (``None`` in a record written before 0.4), when its training
+    :return: Its checkpoints, train time and resources (``None`` in a record written before 0.3), when its training
         is over (:func:`write_trained`) for this config and its checkpoints are still there; else ``None`` (the run
         trains, again if it had).
     """
@@ -185,11 +185,11 @@ def read_trained(directory: Path, config: RunConfig, echo: bool) -> TrainedRun |
         why = "some of the checkpoints its training saved are missing"
     else:
         resources = record.get("resources")
-        return TrainedRun(
-            [(int(steps), Path(file)) for steps, file in record["saved"]],
-            float(record["train_time"]),
-            TrainingResources(**resources) if isinstance(resources, dict) else None,
-        )
+        try:
+            recorded = TrainingResources(**resources) if isinstance(resources, dict) else None
+        except TypeError:  # not ours: the cost table says "-" for this run rather than training it again
+            recorded = None
+        return TrainedRun([(int(steps), Path(file)) for steps, file in record["saved"]], float(record["train_time"]), recorded)
     log_line(f"{config.run_id}: {why}, so it trains again", str(directory / LOG_FILE), echo)
     return None
 

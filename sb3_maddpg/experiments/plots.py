@@ -4,6 +4,7 @@ matplotlib is imported inside the functions (with the Agg backend), so the packa
 """
 
 import os
+import zlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,20 @@ COLORS = {
     "learned_selection": "tab:pink",
 }
 """One color per scheme, the same in every figure."""
+
+OTHER_COLORS = ("tab:olive", "tab:cyan", "tab:gray")
+"""The colors of other schemes (a variant, a user's scheme), each name always the same one (:func:`scheme_color`)."""
+
+
+def scheme_color(scheme: str) -> str:
+    """
+    :param scheme: A scheme's name.
+    :return: Its color: :data:`COLORS`'s, else one of :data:`OTHER_COLORS` chosen by the name (the same in every
+        figure and every run of the report).
+    """
+    if scheme in COLORS:
+        return COLORS[scheme]
+    return OTHER_COLORS[zlib.crc32(scheme.encode()) % len(OTHER_COLORS)]
 
 
 def _pyplot() -> Any:
@@ -107,7 +122,7 @@ def plot_learning_curves(
     for axis, setting in zip(axes[0], settings):
         for scheme in ordered_schemes(set(curves.get(setting, {}))):
             steps, middle, low, high = curves[setting][scheme]
-            color = COLORS.get(scheme)
+            color = scheme_color(scheme)
             axis.plot(steps, middle, label=PAPER_NAMES.get(scheme, scheme), color=color)
             axis.fill_between(steps, low, high, color=color, alpha=0.2, linewidth=0)
         experiment = (experiments or {}).get(setting)
@@ -233,7 +248,7 @@ def plot_boxplots(
             showfliers=False,
         )
         for patch, cell in zip(boxes["boxes"], row):
-            patch.set_facecolor(COLORS.get(cell.scheme, "tab:gray"))
+            patch.set_facecolor(scheme_color(cell.scheme))
             patch.set_alpha(0.35)
         # Deterministic jitter, so the same results draw the same figure.
         jitter = np.random.default_rng(0)
@@ -242,7 +257,7 @@ def plot_boxplots(
         span = (top - bottom) or 1.0
         for position, cell in zip(positions, row):
             offsets = jitter.uniform(-0.12, 0.12, size=len(cell.scores))
-            axis.scatter(position + offsets, cell.scores, s=12, color=COLORS.get(cell.scheme, "tab:gray"), zorder=3)
+            axis.scatter(position + offsets, cell.scores, s=12, color=scheme_color(cell.scheme), zorder=3)
             if cell.stars:
                 axis.text(position, top + 0.04 * span, cell.stars, ha="center", va="bottom", fontsize=12)
         # A score that cannot be negative (a rate, a distance) gets an axis from 0, so all-zero scores sit on it.

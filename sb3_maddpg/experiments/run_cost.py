@@ -66,6 +66,8 @@ class SchemeCost:
     :param train_hours: Each run's training wall time, hours.
     :param eval_hours: Each run's checkpoint evaluations' wall time, hours.
     :param steps_per_s: Each run's env steps per second of training.
+    :param trained_together: Each run's runs trained in the same process at once (1 where not recorded): a run group's
+        training time is its members' together, so the study's run-hours count it once.
     :param core_hours: Each run's training core-hours on the CPU or GPU-hours on a GPU (see
         :func:`training_core_hours`), or ``None`` when a run does not record what trained it (runs before 0.3) or
         its runs trained on different kinds of device.
@@ -79,13 +81,15 @@ class SchemeCost:
     train_hours: tuple[float, ...]
     eval_hours: tuple[float, ...]
     steps_per_s: tuple[float, ...]
+    trained_together: tuple[int, ...]
     core_hours: tuple[float, ...] | None
     unit: str = ""
 
     @property
     def total_hours(self) -> float:
-        """Training and evaluation run-hours of all its runs."""
-        return float(sum(self.train_hours) + sum(self.eval_hours))
+        """The wall time its runs took, training and evaluation, in hours: a run group's training counted once."""
+        training = sum(hours / together for hours, together in zip(self.train_hours, self.trained_together))
+        return float(training + sum(self.eval_hours))
 
 
 def training_core_hours(summary: dict[str, Any]) -> tuple[float, str] | None:
@@ -125,6 +129,7 @@ def scheme_costs(summaries: Sequence[dict[str, Any]]) -> list[SchemeCost]:
                     train_hours=tuple(float(summary["train_time_s"]) / HOUR for summary in runs),
                     eval_hours=tuple(float(summary.get("eval_time_s", 0.0)) / HOUR for summary in runs),
                     steps_per_s=tuple(float(summary["train_steps_per_s"]) for summary in runs),
+                    trained_together=tuple(int(summary.get("runs_trained_together", 1)) for summary in runs),
                     core_hours=tuple(cost[0] for cost in core if cost is not None) if known else None,
                     unit=units.pop() if known else "",
                 )
@@ -154,8 +159,10 @@ def format_cost_markdown(costs: Sequence[SchemeCost], experiments: dict[str, dic
         "",
         "Wall time of each run's training, mean (min-max) over its runs; it depends on what ran beside a run as much "
         "as on its scheme. Core-hours (CPU) = training hours x torch threads / runs trained together in one process, "
-        "GPU-hours = training hours / runs trained together, where the runs record what trained them (since 0.3); "
-        "`-` where they do not. Evaluation: the checkpoint evaluations after training.",
+        "GPU-hours = training hours / runs trained together, where the runs record what trained them (since 0.3; a "
+        "resumed run: its last attempt's); `-` where they do not, or where a scheme's runs trained on different kinds "
+        "of device. Evaluation: the checkpoint evaluations after training. Run-hours: the wall time the runs took, "
+        "a run group's training counted once.",
         "",
         "| setting | method | runs | env steps per run | training min per run | env steps/s | core-h or GPU-h per run | "
         "evaluation s per run | run-hours in all |",
@@ -178,7 +185,7 @@ def format_cost_markdown(costs: Sequence[SchemeCost], experiments: dict[str, dic
         totals.append(f"{spent:.1f} {unit} of training")
     unknown = sum(cost.runs for cost in costs if cost.core_hours is None)
     if unknown and unknown < runs:
-        totals.append(f"{unknown} run(s) not counted in them (no record of what trained them)")
+        totals.append(f"{unknown} run(s) not counted in them (no record of what trained them, or mixed devices)")
     lines += ["", "In all: " + ", ".join(totals) + "."]
     return "\n".join(lines) + "\n"
 
@@ -203,7 +210,7 @@ def write_cost_csv(costs: Sequence[SchemeCost], path: str | Path) -> None:
                 "steps_per_s_mean",
                 "core_or_gpu_hours_mean",
                 "unit",
-                "eval_hours_mean",
+                "eval_seconds_mean",
                 "run_hours_total",
             ]
         )
@@ -221,7 +228,7 @@ def write_cost_csv(costs: Sequence[SchemeCost], path: str | Path) -> None:
                     f"{np.mean(cost.steps_per_s):.1f}",
                     "" if cost.core_hours is None else f"{np.mean(cost.core_hours):.4f}",
                     cost.unit,
-                    f"{np.mean(cost.eval_hours):.4f}",
+                    f"{np.mean(cost.eval_hours) * HOUR:.1f}",
                     f"{cost.total_hours:.4f}",
                 ]
             )

@@ -7,6 +7,7 @@ import copy
 import dataclasses
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar
 
@@ -290,12 +291,7 @@ class ExperimentConfig(Setting):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        unknown = sorted(set(self.scheme_model_kwargs) - set(SCHEMES) - set(self.schemes))
-        if unknown:
-            raise ValueError(
-                f"scheme_model_kwargs names unknown scheme(s) {unknown}: its keys must be schemes, e.g. "
-                f"{{'selected': {{'selector': 1}}}} (schemes: {', '.join(SCHEMES)})."
-            )
+        check_scheme_variants(self.schemes, self.model_kwargs, self.scheme_model_kwargs)
         if not self.description:
             object.__setattr__(self, "description", describe_setting(self))
 
@@ -427,3 +423,53 @@ def describe_setting(experiment: Setting) -> str:
     else:
         parts.append("no learning curve")
     return ", ".join(parts)
+
+
+SCHEME_LABEL = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+"""What a scheme's name may be: it names its runs' directory (``<experiment>/<scheme>/seed_<seed>``)."""
+
+
+def check_scheme_variants(
+    schemes: tuple[str, ...], model_kwargs: dict[str, Any], scheme_model_kwargs: dict[str, dict[str, Any]]
+) -> None:
+    """
+    Refuse what would train a scheme under another's name: ``critic_sharing`` in the kwargs every scheme shares, a
+    scheme of the registry given another's ``critic_sharing``, ``scheme_model_kwargs`` of a scheme that is neither one
+    of the package's nor a variant (one that names its ``critic_sharing``), and a scheme name that is no directory name.
+
+    :param schemes: The experiment's schemes.
+    :param model_kwargs: The kwargs of every scheme.
+    :param scheme_model_kwargs: Each scheme's own kwargs.
+    """
+    from sb3_maddpg.sharing.registry import resolve_scheme
+
+    if "critic_sharing" in model_kwargs:
+        raise ValueError(
+            f"model_kwargs hold critic_sharing={model_kwargs['critic_sharing']!r}, which would train every scheme as "
+            "that one under its own name: a scheme's critic_sharing is its name; for a variant of a scheme under a name "
+            'of its own, give it in scheme_model_kwargs, e.g. {"selected_next": {"critic_sharing": "selected", ...}}.'
+        )
+    for scheme in schemes:
+        if not SCHEME_LABEL.match(scheme):
+            raise ValueError(
+                f"Scheme name {scheme!r} cannot name its runs' directory: use letters, digits, '_', '-' and '.', "
+                "starting with a letter or digit (e.g. 'selected_next')."
+            )
+    for scheme, kwargs in scheme_model_kwargs.items():
+        if "critic_sharing" not in kwargs:
+            if scheme not in SCHEMES and scheme not in schemes:
+                raise ValueError(
+                    f"scheme_model_kwargs names unknown scheme {scheme!r}: its keys must be schemes, e.g. "
+                    f"{{'selected': {{'selector': 1}}}} (schemes: {', '.join(SCHEMES)}), or variants that name their "
+                    "critic_sharing, e.g. {'selected_next': {'critic_sharing': 'selected', ...}}."
+                )
+            continue
+        try:
+            named = resolve_scheme(scheme)
+        except ValueError:
+            continue  # a variant's own name
+        if resolve_scheme(kwargs["critic_sharing"]) is not named:
+            raise ValueError(
+                f"scheme_model_kwargs give scheme {scheme!r} critic_sharing={kwargs['critic_sharing']!r}: its runs would "
+                f"be reported as {scheme!r}. Give the variant a name of its own (e.g. '{scheme}_variant')."
+            )

@@ -55,9 +55,10 @@ class MADDPG(TeamOffPolicyAlgorithm):
         subclass; or a mapping from each agent id to its own critic's scheme, e.g. ``{"adversary_0": "full",
         "agent_0": "independent", "agent_1": "independent"}``.
     :param selector: For schemes that use a selection, the rule that selects: a :class:`~sb3_maddpg.common.selection.Selector`,
-        or an int ``k`` for ``NearestAgents(k)`` (default ``NearestAgents(k=2)``). It is applied to the observation
-        when a transition is stored. A ``k`` of ``n_agents - 1`` selects every other agent (full sharing in another
-        order) and gets a warning.
+        an int ``k`` for ``NearestAgents(k)`` (default ``NearestAgents(k=2)``), or a dict of ``NearestAgents``'s ``k``
+        and ``target`` (``{"k": 2, "target": "next"}``). It is applied to the observation when a transition is stored
+        (and, with ``target="next"``, to the next observation for the target). A ``k`` of ``n_agents - 1`` selects
+        every other agent (full sharing in another order) and gets a warning.
     :param learning_rate: Learning rate of every actor and critic (Adam), constant or a schedule.
     :param buffer_size: Replay buffer size, in joint transitions.
     :param learning_starts: Env steps (all envs counted) of uniformly random actions before learning starts; no
@@ -115,7 +116,7 @@ class MADDPG(TeamOffPolicyAlgorithm):
         policy: str | type[MADDPGPolicy],
         env: GymEnv | str | None,
         critic_sharing: CriticSharing = "full",
-        selector: Selector | int | None = None,
+        selector: Selector | int | dict[str, Any] | None = None,
         learning_rate: float | Schedule = 1e-2,
         buffer_size: int = 1_000_000,
         learning_starts: int = 25_600,

@@ -135,7 +135,7 @@ class MATD3(MADDPG):
         policy: str | type[MATD3Policy],
         env: GymEnv | str | None,
         critic_sharing: CriticSharing = "full",
-        selector: Selector | int | None = None,
+        selector: Selector | int | dict[str, Any] | None = None,
         learning_rate: float | Schedule = 1e-2,
         buffer_size: int = 1_000_000,
         learning_starts: int = 25_600,

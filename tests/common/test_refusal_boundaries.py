@@ -369,6 +369,8 @@ def test_a_selector_is_a_selector_or_an_int(selector: Any, refusal: str | None) 
         ({"k": 1}, None),
         ({"k": 2, "radius": 1.0}, r"unknown key\(s\) \['radius'\]"),
         ({"k": 2, "target": "later"}, "target='later' is not a target selection: use 'stored'"),
+        ({"k": 2.5}, "'k' must be an int"),
+        ({"k": True}, "'k' must be an int"),
     ],
 )
 def test_a_dict_selector_gives_nearest_agents_k_and_target(selector: dict[str, Any], refusal: str | None) -> None:

@@ -56,6 +56,15 @@ def test_costs_per_scheme_hold_each_runs_hours_in_the_papers_order() -> None:
     assert full.steps_per_s == pytest.approx((555.6, 185.2), abs=0.1)
 
 
+def test_a_run_groups_training_counts_once_in_the_run_hours_and_is_shared_in_the_core_hours() -> None:
+    group = [summary("full", seed, 7200.0, **cpu(1, together=4)) for seed in range(4)]  # 4 runs trained in 2 h
+    (cost,) = scheme_costs(group)
+    assert cost.train_hours == (2.0,) * 4  # each run's training took the group's 2 h
+    assert cost.core_hours == (0.5,) * 4  # one core for 2 h, shared by 4 runs
+    assert math.isclose(cost.total_hours, 2.0 + 4 * 0.01)  # the machine was busy 2 h, not 8
+    assert "In all: 4 runs, 2.0 run-hours, 2.0 core-h of training." in format_cost_markdown([cost], {})
+
+
 def test_a_scheme_with_a_run_of_unknown_or_other_resources_has_no_core_hours() -> None:
     unknown = scheme_costs([summary("full", 0, 3600.0, **cpu(1)), summary("full", 1, 3600.0)])[0]
     mixed = scheme_costs([summary("full", 0, 3600.0, **cpu(1)), summary("full", 1, 3600.0, device="cuda", torch_threads=1)])[0]
@@ -76,7 +85,8 @@ def test_the_markdown_table_says_each_scheme_and_the_studys_total() -> None:
     assert full in lines
     assert "| study | IDDPG | 1 | 1,000,000 | 60.0 | 278 | - | 36.0 | 1.0 |" in lines
     assert lines[-1] == (
-        "In all: 3 runs, 3.0 run-hours, 2.0 core-h of training, 1 run(s) not counted in them (no record of what trained them)."
+        "In all: 3 runs, 3.0 run-hours, 2.0 core-h of training, 1 run(s) not counted in them (no record of what trained "
+        "them, or mixed devices)."
     )
 
 
@@ -88,4 +98,5 @@ def test_the_report_writes_the_table_and_a_csv_of_it(tmp_path: Path) -> None:
     assert (row["scheme"], row["method"], row["runs"], row["unit"]) == ("full", "MADDPG", "2", "core-h")
     assert float(row["train_hours_mean"]) == 1.0 and float(row["core_or_gpu_hours_mean"]) == 2.0
     assert (float(row["train_hours_min"]), float(row["train_hours_max"])) == (0.5, 1.5)
+    assert float(row["eval_seconds_mean"]) == 36.0
     assert float(row["run_hours_total"]) == pytest.approx(2.02)

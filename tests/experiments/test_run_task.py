@@ -4,7 +4,9 @@ run reads its envs, metrics, directions, sides, evaluation schedule and descript
 import dataclasses
 import json
 import pickle
+import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -99,3 +101,26 @@ def test_the_cli_takes_an_experiment_with_a_variant_and_refuses_a_scheme_that_is
     path.write_text(json.dumps({**data, "scheme_model_kwargs": {}}))
     assert main(argv) == 2
     assert "smoke: --schemes 'selected_next': Unknown critic_sharing 'selected_next'" in capsys.readouterr().err
+
+
+def test_an_experiment_with_a_variant_narrows_to_the_papers_schemes() -> None:
+    variant = {"critic_sharing": "selected", "selector": {"k": 1, "target": "next"}}
+    experiment = dataclasses.replace(SMOKE, schemes=("full", "selected_next"), scheme_model_kwargs={"selected_next": variant})
+    assert dataclasses.replace(experiment, schemes=("full",)).schemes == ("full",)  # as --schemes full does
+
+
+@pytest.mark.parametrize(
+    ("changes", "refusal"),
+    [
+        ({"model_kwargs": {"critic_sharing": "full"}}, "model_kwargs hold critic_sharing='full', which would train every"),
+        (
+            {"scheme_model_kwargs": {"full": {"critic_sharing": "independent"}}},
+            "give scheme 'full' critic_sharing='independent': its runs would be reported as 'full'",
+        ),
+        ({"schemes": ("full", "../elsewhere")}, "Scheme name '../elsewhere' cannot name its runs' directory"),
+        ({"scheme_model_kwargs": {"selected_nxt": {"selector": 1}}}, "names unknown scheme 'selected_nxt'"),
+    ],
+)
+def test_what_would_train_a_scheme_under_another_name_is_refused(changes: dict[str, Any], refusal: str) -> None:
+    with pytest.raises(ValueError, match=re.escape(refusal)):
+        dataclasses.replace(SMOKE, **changes)

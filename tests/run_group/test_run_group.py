@@ -72,7 +72,7 @@ def random_batch(model: MADDPG, batch_size: int, generator: th.Generator) -> Mul
 
 def stack_batches(batches: list[MultiAgentReplayBufferSamples]) -> MultiAgentReplayBufferSamples:
     """Runs' batches stacked along the run dimension."""
-    fields = [None if batches[0][i] is None else th.stack([b[i] for b in batches]) for i in range(6)]
+    fields = [None if field[0] is None else th.stack(field) for field in zip(*batches)]
     return MultiAgentReplayBufferSamples(*fields)  # type: ignore[arg-type]
 
 
