@@ -23,6 +23,7 @@ import numpy as np
 from sb3_maddpg.experiments.aggregates import IntervalEstimate, improvement_interval
 from sb3_maddpg.experiments.config import BASELINE_SCHEME, DEFAULT_ENV, PAPER_NAMES, setting_label
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, mann_whitney, seeds_to_separate
+from sb3_maddpg.sharing.registry import SCHEME_ALIASES
 
 Observability = Literal["full", "partial"]
 
@@ -103,6 +104,32 @@ def observability(experiment: Mapping[str, Any] | None) -> Observability | None:
     return "full" if neighbors is None or neighbors >= experiment["n_agents"] - 1 else "partial"
 
 
+def paper_scheme_variants(experiment: Mapping[str, Any] | None) -> dict[str, str]:
+    """
+    :param experiment: A stored experiment config (``experiment.json``).
+    :return: Its schemes that are variants of one of the paper's (a name of their own whose ``scheme_model_kwargs``
+        give a paper scheme's ``critic_sharing``, e.g. ``selected_next`` of ``selected``), each with that scheme.
+    """
+    if not experiment:
+        return {}
+    variants = {}
+    for scheme, kwargs in (experiment.get("scheme_model_kwargs") or {}).items():
+        sharing = kwargs.get("critic_sharing") if isinstance(kwargs, Mapping) else None
+        if scheme in PAPER_NAMES or not isinstance(sharing, str):
+            continue
+        paper = SCHEME_ALIASES.get(sharing, sharing)
+        if paper in PAPER_NAMES:
+            variants[scheme] = paper
+    return variants
+
+
+def scheme_text(scheme: str, variants: Mapping[str, str] | None = None) -> str:
+    """:return: A scheme as the claims name it: the paper's name, or a variant's with the paper's in brackets."""
+    if scheme in (variants or {}):
+        return f"{scheme} ({PAPER_NAMES[(variants or {})[scheme]]})"
+    return PAPER_NAMES.get(scheme, scheme)
+
+
 @dataclass(frozen=True)
 class ClaimCheck:
     """
@@ -120,6 +147,10 @@ class ClaimCheck:
         or ``"too few runs"`` (so few that even completely separated runs would not reach p < :data:`ALPHA`).
     :param seeds_needed: For ``"not separated"``: the seeds per scheme that would separate them at the measured spread
         (None when even 200 would not).
+    :param better_scheme: The scheme asked in ``claim.better``'s place: itself, or a variant of it (see
+        :func:`paper_scheme_variants`).
+    :param worse_scheme: The scheme asked in ``claim.worse``'s place.
+    :param variants: The setting's variants of the paper's schemes (for the claim's text).
     """
 
     claim: PaperClaim
@@ -130,6 +161,15 @@ class ClaimCheck:
     improvement: IntervalEstimate
     verdict: str
     seeds_needed: int | None
+    better_scheme: str = ""
+    worse_scheme: str = ""
+    variants: Mapping[str, str] | None = None
+
+    @property
+    def text(self) -> str:
+        """The claim as asked, e.g. ``"MADDPG-soa > MADDPG"`` or ``"selected_next (MADDPG-soa) > MADDPG"``."""
+        better, worse = self.better_scheme or self.claim.better, self.worse_scheme or self.claim.worse
+        return f"{scheme_text(better, self.variants)} {self.claim.relation} {scheme_text(worse, self.variants)}"
 
     @property
     def n(self) -> int:
@@ -167,7 +207,8 @@ def check_claims(
     claims: Sequence[PaperClaim] = PAPER_CLAIMS,
 ) -> list[ClaimCheck]:
     """
-    Ask each claim of every setting with its observability that has runs of both its schemes.
+    Ask each claim of every setting with its observability that has runs of both its schemes, and again with a
+    variant of a scheme in its place (:func:`paper_scheme_variants`: e.g. ``selected_next`` for ``selected``).
 
     :param cells: One metric's Table 2 (:func:`~sb3_maddpg.experiments.stats.aggregate`).
     :param metric: Its key (for its direction when ``infos`` does not give it).
@@ -184,17 +225,43 @@ def check_claims(
         for setting in settings:
             if observability(experiments.get(setting)) != claim.observability:
                 continue
-            better, worse = by_key.get((setting, claim.better)), by_key.get((setting, claim.worse))
-            if better is None or worse is None:
-                continue
-            info = (infos or {}).get(setting) or METRICS.get(metric, Metric(metric, metric))
-            sign = 1.0 if info.higher_is_better else -1.0
-            _, p_value = mann_whitney(better.scores, worse.scores)
-            improvement = improvement_interval([np.multiply(sign, better.scores)], [np.multiply(sign, worse.scores)])
-            verdict = _verdict(claim, p_value, improvement.value, better.n, worse.n)
-            needed = seeds_to_separate(better.scores, worse.scores, alpha=ALPHA) if verdict == "not separated" else None
-            checks.append(ClaimCheck(claim, setting, better.scores, worse.scores, p_value, improvement, verdict, needed))
+            variants = paper_scheme_variants(experiments.get(setting))
+
+            def asked(scheme: str, of: Mapping[str, str] = variants) -> list[str]:
+                return [scheme, *(variant for variant, paper in of.items() if paper == scheme)]
+
+            for better_scheme in asked(claim.better):
+                for worse_scheme in asked(claim.worse):
+                    better, worse = by_key.get((setting, better_scheme)), by_key.get((setting, worse_scheme))
+                    if better is None or worse is None:
+                        continue
+                    info = (infos or {}).get(setting) or METRICS.get(metric, Metric(metric, metric))
+                    checks.append(_check(claim, setting, better, worse, info, variants))
     return checks
+
+
+def _check(
+    claim: PaperClaim, setting: str, better: Cell, worse: Cell, info: Metric, variants: Mapping[str, str]
+) -> ClaimCheck:
+    """One claim asked of two cells of a setting (the claim's schemes or variants of them)."""
+    sign = 1.0 if info.higher_is_better else -1.0
+    _, p_value = mann_whitney(better.scores, worse.scores)
+    improvement = improvement_interval([np.multiply(sign, better.scores)], [np.multiply(sign, worse.scores)])
+    verdict = _verdict(claim, p_value, improvement.value, better.n, worse.n)
+    needed = seeds_to_separate(better.scores, worse.scores, alpha=ALPHA) if verdict == "not separated" else None
+    return ClaimCheck(
+        claim,
+        setting,
+        better.scores,
+        worse.scores,
+        p_value,
+        improvement,
+        verdict,
+        needed,
+        better.scheme,
+        worse.scheme,
+        variants or None,
+    )
 
 
 def _p(p_value: float) -> str:
@@ -206,8 +273,9 @@ def _p(p_value: float) -> str:
 def _finding(check: ClaimCheck) -> str:
     """The verdict in words, with the seeds that would separate the two where the runs do not."""
     if check.verdict == "does not hold":
-        winner = check.claim.better if check.improvement.value > 0.5 else check.claim.worse
-        return f"does not hold ({PAPER_NAMES.get(winner, winner)} scores better)"
+        better, worse = check.better_scheme or check.claim.better, check.worse_scheme or check.claim.worse
+        winner = better if check.improvement.value > 0.5 else worse
+        return f"does not hold ({scheme_text(winner, check.variants)} scores better)"
     if check.verdict != "not separated":
         return check.verdict
     if len(set(check.better_scores) | set(check.worse_scores)) == 1:
@@ -248,7 +316,7 @@ def format_claims_markdown(
         means = f"{np.mean(check.better_scores):.2f} vs {np.mean(check.worse_scores):.2f}"
         runs = f"{len(check.better_scores)}, {len(check.worse_scores)}"
         lines.append(
-            f"| {label} | {check.claim.text} | {check.claim.evidence} | {runs} | {means} | {_p(check.p_value)} | "
+            f"| {label} | {check.text} | {check.claim.evidence} | {runs} | {means} | {_p(check.p_value)} | "
             f"{check.improvement.format(2)} | {_finding(check)} |"
         )
     lines += [
@@ -288,8 +356,13 @@ def format_beside_paper(
     roles = {setting: observability((experiments or {}).get(setting)) for setting in settings}
     if not any(roles.values()):
         return None
-    schemes = list(PAPER_TABLE2["full"])
-    header = ["setting", *(PAPER_NAMES[scheme] for scheme in schemes)]
+    # The paper's five, then the settings' variants of them (no paper value).
+    variants: dict[str, str] = {}
+    for setting in settings:
+        if roles[setting]:
+            variants.update(paper_scheme_variants((experiments or {}).get(setting)))
+    schemes = [*PAPER_TABLE2["full"], *(variant for variant in variants if any(c.scheme == variant for c in cells))]
+    header = ["setting", *(scheme_text(scheme, variants) for scheme in schemes)]
     lines = [
         f"### Beside the paper's Table 2: {metric_label}",
         "",
@@ -306,6 +379,7 @@ def format_beside_paper(
             continue
         paper = PAPER_TABLE2[role]
         row = [f"{mean:.2f} ({std:.2f}){' ' + stars if stars else ''}" for mean, std, stars in paper.values()]
+        row += [""] * (len(schemes) - len(paper))
         lines.append(f"| {paper_label}, success % (31 runs) | " + " | ".join(row) + " |")
         for setting in mine:
             here = [by_key.get((setting, scheme)) for scheme in schemes]
@@ -328,7 +402,8 @@ def format_beside_paper(
 
 def write_claims_csv(checks: Sequence[ClaimCheck], metric: str, path: str | os.PathLike[str]) -> None:
     """
-    One row per claim and setting: ``setting, observability, better, worse, relation, paper_evidence, metric,
+    One row per claim, setting and schemes asked (``better`` and ``worse``: the claim's, or variants of them in their
+    place): ``setting, observability, better, worse, relation, paper_evidence, metric,
     n_better, n_worse, mean_better, mean_worse, p_value, improvement, improvement_low, improvement_high, verdict,
     seeds_needed`` (empty when not estimated).
 
@@ -344,7 +419,8 @@ def write_claims_csv(checks: Sequence[ClaimCheck], metric: str, path: str | os.P
         writer.writerow(fields)
         for check in checks:
             claim, improvement = check.claim, check.improvement
-            what = [check.setting, claim.observability, claim.better, claim.worse, claim.relation, claim.evidence, metric]
+            better, worse = check.better_scheme or claim.better, check.worse_scheme or claim.worse
+            what = [check.setting, claim.observability, better, worse, claim.relation, claim.evidence, metric]
             means = [repr(float(np.mean(check.better_scores))), repr(float(np.mean(check.worse_scores)))]
             tests = [repr(check.p_value), repr(improvement.value), repr(improvement.low), repr(improvement.high)]
             needed = "" if check.seeds_needed is None else check.seeds_needed

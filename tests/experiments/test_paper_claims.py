@@ -41,9 +41,7 @@ def cells(scores: dict[str, dict[str, list[float]]], metric: str = "success_rate
 
 def checks_by_claim(scores: dict[str, dict[str, list[float]]], experiments: dict[str, Any], metric: str = "success_rate"):  # type: ignore[no-untyped-def]
     infos = {setting: metric_info(metric, "simple_spread") for setting in scores}
-    return {
-        (check.setting, check.claim.text): check for check in check_claims(cells(scores, metric), metric, experiments, infos)
-    }
+    return {(check.setting, check.text): check for check in check_claims(cells(scores, metric), metric, experiments, infos)}
 
 
 def test_a_setting_is_the_paper_s_exp1_or_exp2_by_what_each_agent_observes() -> None:
@@ -154,3 +152,24 @@ def test_the_report_files_put_the_paper_beside_the_runs_and_list_each_check(tmp_
     assert format_beside_paper(table, "success", {}) is None
     custom = (PaperClaim("full", "full", "actions", ">", "mine"),)
     assert [check.verdict for check in check_claims(table, "success_rate", experiments, infos, custom)] == ["reverses"]
+
+
+def test_a_variant_of_a_paper_scheme_is_asked_its_claims_too(tmp_path: Path) -> None:
+    variant = {"critic_sharing": "soa", "selector": {"k": 2, "target": "next"}}  # the paper's alias resolves too
+    experiment = {**FULL, "scheme_model_kwargs": {"selected": {"selector": 2}, "selected_next": variant}}
+    middle = [0.45, 0.47, 0.50, 0.52, 0.48, 0.46, 0.51, 0.49]  # between LOW and HIGH, overlapping neither
+    scores = {"exp1": {"full": middle, "selected": LOW, "selected_next": HIGH, "actions": MIXED}}
+    checks = checks_by_claim(scores, {"exp1": experiment})
+    stored, next_step = checks["exp1", "MADDPG-soa > MADDPG"], checks["exp1", "selected_next (MADDPG-soa) > MADDPG"]
+    assert (stored.better_scheme, next_step.better_scheme) == ("selected", "selected_next")
+    assert stored.verdict == "reverses" and next_step.verdict == "holds"
+    assert next_step.better_scores == pytest.approx([100 * v for v in HIGH])  # in %, as the table shows them
+    assert next_step.worse_scores == pytest.approx([100 * v for v in middle])
+    # The variant has its column beside the paper's Table 2 (no paper value), and its rows in the CSV.
+    table = cells(scores)
+    beside = format_beside_paper(table, "success", {"exp1": experiment})
+    assert beside is not None and "| MADDPG-soa | selected_next (MADDPG-soa) |" in beside
+    write_claims_report(tmp_path, table, "success_rate", {"exp1": experiment})
+    rows = list(csv.DictReader((tmp_path / "claims_success_rate.csv").open()))
+    asked = {(row["better"], row["worse"]) for row in rows}
+    assert asked == {("actions", "full"), ("selected", "full"), ("selected_next", "full")}
