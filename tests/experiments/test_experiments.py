@@ -92,7 +92,7 @@ def test_scheme_model_kwargs_and_the_n3_presets() -> None:
             assert getattr(run, field.name) == getattr(experiment, field.name), field.name
     # Written to JSON and read back, as sweeps store it.
     assert ExperimentConfig.from_dict(json.loads(json.dumps(experiment.to_dict()))).runs()[4].same_as(experiment.runs()[4])
-    with pytest.raises(ValueError, match=r"unknown scheme\(s\) \['selectd'\]"):
+    with pytest.raises(ValueError, match=r"unknown scheme 'selectd': its keys must be schemes"):
         SMOKE.replace(scheme_model_kwargs={"selectd": {"selector": 1}})
     for experiment in (N3_FULL, N3_PARTIAL):
         runs = experiment.runs()
