@@ -8,6 +8,7 @@ import importlib.util
 import json
 import re
 import sys
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
@@ -27,6 +28,7 @@ from sb3_maddpg.experiments.config import (
     merge_model_kwargs,
     scaled_schedule,
 )
+from sb3_maddpg.experiments.results import link_complete_seeds
 from sb3_maddpg.experiments.stats import METRICS
 
 DEFAULT_RESULTS = "runs/experiments"
@@ -400,6 +402,12 @@ def _add_report_parser(commands: Any) -> None:
         "return_adversaries (default: the task's main metrics: simple_spread's success_rate and min_dist_sum)",
     )
     report.add_argument("--no-plots", action="store_true", help="tables only")
+    report.add_argument(
+        "--complete-seeds",
+        action="store_true",
+        help="report only the seeds that every scheme of a setting has finished, so that a sweep in progress compares "
+        "like with like (the finished runs left out are listed)",
+    )
 
 
 def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
@@ -746,8 +754,6 @@ def report_command(args: argparse.Namespace) -> int:
     :param args: Parsed ``report`` arguments.
     :return: The exit status.
     """
-    from sb3_maddpg.experiments.report import make_report
-
     if not Path(args.results).is_dir():
         print(
             f"sb3-maddpg report: no results directory {args.results}: give the directory a sweep wrote (sb3-maddpg run "
@@ -760,8 +766,32 @@ def report_command(args: argparse.Namespace) -> int:
         print(no_matplotlib_message(), file=sys.stderr)
         return 1
     out = args.out or f"{args.results.rstrip('/')}/report"
+    with tempfile.TemporaryDirectory(prefix="sb3_maddpg_report_") as view:
+        results = args.results
+        if args.complete_seeds:
+            results = str(Path(view) / "complete_seeds")
+            left_out = link_complete_seeds(args.results, results)
+            if left_out:
+                print(
+                    f"--complete-seeds: {len(left_out)} finished run(s) left out, their seed not finished by every "
+                    f"scheme of their setting: {', '.join(left_out)}",
+                    file=sys.stderr,
+                )
+        return _write_report(results, out, args.metric, plots)
+
+
+def _write_report(results: str, out: str, metrics: list[str] | None, plots: bool) -> int:
+    """
+    :param results: The results directory to report.
+    :param out: Where to write the report.
+    :param metrics: ``--metric``'s scores (``None``: the tasks' main ones).
+    :param plots: Draw the figures too.
+    :return: The exit status.
+    """
+    from sb3_maddpg.experiments.report import make_report
+
     try:
-        for path in make_report(args.results, out, metrics=args.metric, plots=plots):
+        for path in make_report(results, out, metrics=metrics, plots=plots):
             print(path)
     except ModuleNotFoundError as error:  # a part of matplotlib missing: the same advice
         if error.name is None or error.name.split(".")[0] != "matplotlib":

@@ -486,6 +486,32 @@ def test_only_seeds_every_scheme_finished_are_linked(tmp_path: Path) -> None:
     assert (view / "both" / "experiment.json").is_file() and not (view / "none_common").exists()
 
 
+def test_report_of_complete_seeds_leaves_out_a_seed_one_scheme_has_not_finished(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    results = tmp_path / "results"
+    shutil.copytree(PAPER_SMALL_RESULTS, results)
+    (setting,) = [path.parent for path in results.glob("*/experiment.json")]
+    (setting / "full" / "seed_003" / "done").unlink()  # one scheme's seed 3 still running
+    (setting / "selected" / "seed_005" / "done").unlink()  # another's seed 5
+    argv = ["report", str(results), "--metric", "min_dist_sum", "--no-plots"]
+
+    def runs_per_scheme(out: Path) -> dict[str, int]:
+        with open(out / "table_min_dist_sum.csv") as file:
+            return {row["scheme"]: int(row["n"]) for row in csv.DictReader(file)}
+
+    assert main([*argv, "--out", str(tmp_path / "all")]) == 0
+    all_runs = runs_per_scheme(tmp_path / "all")
+    assert main([*argv, "--out", str(tmp_path / "complete"), "--complete-seeds"]) == 0
+    complete = runs_per_scheme(tmp_path / "complete")
+    err = capsys.readouterr().err
+    # Seeds 3 and 5 are left out of every scheme, and the finished runs of them are named.
+    assert set(complete) == set(all_runs) and all(complete[scheme] == all_runs["independent"] - 2 for scheme in complete)
+    assert f"{setting.name}/independent/seed_003" in err and f"{setting.name}/full/seed_005" in err
+    assert f"{setting.name}/full/seed_003" not in err  # not finished: not a run left out
+    assert not (results / "report").exists()  # nothing written beside the results
+
+
 def test_the_small_scale_result_is_its_config() -> None:
     assert COMMITTED_REPORTS[0][0] == PAPER_SMALL_RESULTS
     config = json.loads((REPO / "benchmarks" / "paper_small" / "config.json").read_text())
