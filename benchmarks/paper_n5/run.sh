@@ -13,7 +13,7 @@
 # Resumable: run it again (from any commit whose run code gives the same results) and finished runs are skipped, and
 # since commit bbab576 a run killed with its session goes on from its last snapshot (each tenth of its budget); more
 # seeds extend the same results (SEEDS=0,1,...,9). Each start appends its commit to results/commits.log.
-# Then: sb3-maddpg report benchmarks/paper_n5/results --out docs/_static/paper_n5 --metric success_rate_r0.3 \
+# Then (with --complete-seeds while it runs): sb3-maddpg report benchmarks/paper_n5/results --out docs/_static/paper_n5 --metric success_rate_r0.3 \
 #           --metric success_rate --metric min_dist_sum --metric return_mean
 set -u
 cd "$(dirname "$0")/../.."

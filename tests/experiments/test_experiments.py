@@ -436,7 +436,7 @@ PAPER_SMALL_RESULTS = REPO / "benchmarks" / "paper_small" / "results"
 
 COMMITTED_REPORTS = [
     (REPO / "benchmarks" / name / "results", REPO / "docs" / "_static" / name)
-    for name in ("paper_small", "paper_n3", "paper_n5_outlook", "learned_selection")
+    for name in ("paper_small", "paper_n3", "paper_n5_outlook", "learned_selection", "paper_n5")
     if (REPO / "docs" / "_static" / name).is_dir()
 ]
 
