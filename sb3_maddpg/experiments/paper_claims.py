@@ -145,8 +145,9 @@ class ClaimCheck:
         :data:`ALPHA`), ``"not separated"`` (p >= :data:`ALPHA`; for a ``"~"`` claim: consistent with it, though no
         evidence that the two are alike), ``"does not hold"`` (a ``"~"`` claim whose schemes differ, p < :data:`ALPHA`)
         or ``"too few runs"`` (so few that even completely separated runs would not reach p < :data:`ALPHA`).
-    :param seeds_needed: For ``"not separated"``: the seeds per scheme that would separate them at the measured spread
-        (None when even 200 would not).
+    :param seeds_needed: For ``"not separated"``, and ``"too few runs"`` with at least 2 runs a side (a sweep in
+        progress): the seeds per scheme that would separate them at the measured spread (None when even 200 would not,
+        or otherwise).
     :param better_scheme: The scheme asked in ``claim.better``'s place: itself, or a variant of it (see
         :func:`paper_scheme_variants`).
     :param worse_scheme: The scheme asked in ``claim.worse``'s place.
@@ -248,7 +249,8 @@ def _check(
     _, p_value = mann_whitney(better.scores, worse.scores)
     improvement = improvement_interval([np.multiply(sign, better.scores)], [np.multiply(sign, worse.scores)])
     verdict = _verdict(claim, p_value, improvement.value, better.n, worse.n)
-    needed = seeds_to_separate(better.scores, worse.scores, alpha=ALPHA) if verdict == "not separated" else None
+    estimable = verdict == "not separated" or (verdict == "too few runs" and min(better.n, worse.n) >= 2)
+    needed = seeds_to_separate(better.scores, worse.scores, alpha=ALPHA) if estimable else None
     return ClaimCheck(
         claim,
         setting,
@@ -276,18 +278,25 @@ def _finding(check: ClaimCheck) -> str:
         better, worse = check.better_scheme or check.claim.better, check.worse_scheme or check.claim.worse
         winner = better if check.improvement.value > 0.5 else worse
         return f"does not hold ({scheme_text(winner, check.variants)} scores better)"
+    if check.verdict == "too few runs" and check.seeds_needed is not None:
+        return f"too few runs ({_seeds_outlook(check)})"
     if check.verdict != "not separated":
         return check.verdict
     if len(set(check.better_scores) | set(check.worse_scores)) == 1:
         return "not separated (every run scores the same)"
     if check.seeds_needed is None:
         return "not separated (more than 200 seeds per scheme would be needed at this spread)"
+    return f"not separated ({_seeds_outlook(check)})"
+
+
+def _seeds_outlook(check: ClaimCheck) -> str:
+    """Which way the runs lean and the seeds per scheme that would likely show it (``check.seeds_needed`` is set)."""
     needed = f"~{check.seeds_needed} seeds per scheme"
     if check.claim.relation == "~" or check.improvement.value == 0.5:
-        return f"not separated ({needed} would tell them apart at this spread)"
+        return f"{needed} would tell them apart at this spread"
     if check.improvement.value > 0.5:
-        return f"not separated (leans the claim's way; {needed} would likely confirm it at this spread)"
-    return f"not separated (leans the other way; {needed} would likely show the reverse at this spread)"
+        return f"leans the claim's way; {needed} would likely confirm it at this spread"
+    return f"leans the other way; {needed} would likely show the reverse at this spread"
 
 
 def format_claims_markdown(
@@ -328,7 +337,8 @@ def format_claims_markdown(
         "with the seeds per scheme that would separate the two with 80% power if each scheme's runs were spread as "
         "measured: a bootstrap power analysis, rough from few runs; for `~` this is consistent with the claim, not "
         "evidence that the two are alike), *does not hold* (a `~` claim whose schemes differ), *too few runs* (even "
-        "completely separated runs could not reach the level). P(first scores better): the chance that a random run "
+        "completely separated runs could not reach the level; with 2 or more runs a side, the same estimate of the "
+        "seeds that would separate them). P(first scores better): the chance that a random run "
         "of the claim's first scheme scores better than one of its second (0.5: no difference). Each verdict is one "
         "test among many on this page: at this level about one in twenty unrelated differences would show by chance.",
         "",

@@ -19,7 +19,7 @@ from sb3_maddpg.experiments.paper_claims import (
     smallest_p_value,
     write_claims_report,
 )
-from sb3_maddpg.experiments.stats import aggregate
+from sb3_maddpg.experiments.stats import aggregate, seeds_to_separate
 from sb3_maddpg.experiments.tasks import metric_info
 
 FULL = {"env": "simple_spread", "n_agents": 5, "num_agent_neighbors": 4, "episodes": 100}
@@ -83,9 +83,14 @@ def test_verdicts_follow_the_mann_whitney_test_and_the_metric_direction() -> Non
     assert checks["e1", "MADDPG > MADDPG-fo"].verdict == "too few runs"
     # Three runs against three cannot reach p < .05 even when every run of one beats every run of the other; four can.
     assert smallest_p_value(3, 3) == pytest.approx(0.1) and smallest_p_value(4, 4) == pytest.approx(2 / 70)
-    assert checks_by_claim({"e1": {"actions": HIGH[:3], "full": LOW[:3]}}, {"e1": FULL})[
-        "e1", "MADDPG-fa > MADDPG"
-    ].verdict == ("too few runs")
+    three = checks_by_claim({"e1": {"actions": HIGH[:3], "full": LOW[:3]}}, {"e1": FULL})["e1", "MADDPG-fa > MADDPG"]
+    assert three.verdict == "too few runs"
+    # ... but they say how many seeds would separate them at their spread (a sweep in progress): 4 when every run of
+    # one beats every run of the other by far, named in the report's finding; one run a side gives no estimate.
+    assert three.seeds_needed == seeds_to_separate(HIGH[:3], LOW[:3]) == 4
+    finding = format_claims_markdown([three], "success rate (%)", "higher is better")
+    assert "| too few runs (leans the claim's way; ~4 seeds per scheme would likely confirm it at this spread) |" in finding
+    assert checks["e1", "MADDPG > MADDPG-fo"].seeds_needed is None
     assert checks_by_claim({"e1": {"actions": HIGH[:4], "full": LOW[:4]}}, {"e1": FULL})[
         "e1", "MADDPG-fa > MADDPG"
     ].verdict == ("holds")
