@@ -33,6 +33,9 @@ from sb3_maddpg.experiments.stats import METRICS
 
 DEFAULT_RESULTS = "runs/experiments"
 
+LEFT_OUT_SHOWN = 10
+"""``report --complete-seeds`` names this many of the finished runs it leaves out (and counts them all)."""
+
 ALGORITHMS = {"maddpg": "sb3_maddpg:MADDPG", "matd3": "sb3_maddpg:MATD3"}
 """``run --algo``'s names and the experiments' ``algorithm`` each sets."""
 
@@ -771,10 +774,18 @@ def report_command(args: argparse.Namespace) -> int:
         if args.complete_seeds:
             results = str(Path(view) / "complete_seeds")
             left_out = link_complete_seeds(args.results, results)
+            if not Path(results).is_dir():
+                print(
+                    f"sb3-maddpg report: no seed in {args.results} is finished by every scheme of its setting "
+                    f"({len(left_out)} finished run(s)): report them without --complete-seeds, or once a seed is.",
+                    file=sys.stderr,
+                )
+                return 1
             if left_out:
+                shown = ", ".join(left_out[:LEFT_OUT_SHOWN]) + (", ..." if len(left_out) > LEFT_OUT_SHOWN else "")
                 print(
                     f"--complete-seeds: {len(left_out)} finished run(s) left out, their seed not finished by every "
-                    f"scheme of their setting: {', '.join(left_out)}",
+                    f"scheme of their setting: {shown}",
                     file=sys.stderr,
                 )
         return _write_report(results, out, args.metric, plots)

@@ -510,6 +510,11 @@ def test_report_of_complete_seeds_leaves_out_a_seed_one_scheme_has_not_finished(
     assert f"{setting.name}/independent/seed_003" in err and f"{setting.name}/full/seed_005" in err
     assert f"{setting.name}/full/seed_003" not in err  # not finished: not a run left out
     assert not (results / "report").exists()  # nothing written beside the results
+    # No seed finished by every scheme: said, and nothing reported.
+    for run in (setting / "full").glob("seed_*"):
+        (run / "done").unlink(missing_ok=True)
+    assert main([*argv, "--out", str(tmp_path / "none"), "--complete-seeds"]) == 1
+    assert "no seed in" in capsys.readouterr().err and not (tmp_path / "none").exists()
 
 
 def test_the_small_scale_result_is_its_config() -> None:
