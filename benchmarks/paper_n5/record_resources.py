@@ -17,7 +17,10 @@ import json
 import re
 from pathlib import Path
 
+from sb3_maddpg.experiments.results import write_json_atomic
+
 START = re.compile(r"sweep of \d+ runs \(.*\) on (\w+) with \d+ worker\(s\) x (\d+) thread\(s\)")
+"""A start of the sweep on the local backend; any other start (run groups, say) fails the check."""
 SOURCE = "afterwards, from sweep.log: every start of the sweep trained runs alone on the local backend, one torch thread"
 
 
@@ -25,12 +28,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[1])
     parser.add_argument("results", type=Path, help="the sweep's results directory (holds sweep.log)")
     results = parser.parse_args().results
-    starts = [START.search(line) for line in (results / "sweep.log").read_text().splitlines()]
-    found = [(match.group(1), int(match.group(2))) for match in starts if match is not None]
-    if not found or set(found) != {("local", 1)}:
+    starts = [line for line in (results / "sweep.log").read_text().splitlines() if "sweep of " in line]
+    matches = [START.search(line) for line in starts]
+    found = {(match.group(1), int(match.group(2))) if match else ("unrecognised", 0) for match in matches}
+    if not starts or found != {("local", 1)}:
         raise SystemExit(
-            f"sweep.log's starts are not all 'local with ... x 1 thread(s)' ({sorted(set(found))}): "
-            "what trained the older runs cannot be told from it; leave their summaries as they are"
+            f"sweep.log's {len(starts)} starts are not all 'on local with ... x 1 thread(s)' ({sorted(found)}): what "
+            "trained the older runs cannot be told from it; leave their summaries as they are"
         )
     written = 0
     for path in sorted(results.glob("*/*/seed_*/summary.json")):
@@ -38,9 +42,9 @@ def main() -> None:
         if "torch_threads" in summary:
             continue
         summary.update(device="cpu", torch_threads=1, runs_trained_together=1, resources_recorded=SOURCE)
-        path.write_text(json.dumps(summary, indent=2))
+        write_json_atomic(path, summary)
         written += 1
-    print(f"{written} summaries given what trained them ({len(found)} starts in sweep.log, all local, 1 thread)")
+    print(f"{written} summaries given what trained them ({len(starts)} starts in sweep.log, all local, 1 thread)")
 
 
 if __name__ == "__main__":

@@ -409,7 +409,8 @@ def _add_report_parser(commands: Any) -> None:
         "--complete-seeds",
         action="store_true",
         help="report only the seeds that every scheme of a setting has finished, so that a sweep in progress compares "
-        "like with like (the finished runs left out are listed)",
+        f"like with like (the finished runs left out are counted, the first {LEFT_OUT_SHOWN} named; exit status 1 "
+        "when no seed is complete)",
     )
 
 
@@ -769,34 +770,41 @@ def report_command(args: argparse.Namespace) -> int:
         print(no_matplotlib_message(), file=sys.stderr)
         return 1
     out = args.out or f"{args.results.rstrip('/')}/report"
+    if not args.complete_seeds:
+        return _write_report(args.results, out, args.metric, plots)
     with tempfile.TemporaryDirectory(prefix="sb3_maddpg_report_") as view:
-        results = args.results
-        if args.complete_seeds:
-            results = str(Path(view) / "complete_seeds")
-            left_out = link_complete_seeds(args.results, results)
-            if not Path(results).is_dir():
-                print(
-                    f"sb3-maddpg report: no seed in {args.results} is finished by every scheme of its setting "
-                    f"({len(left_out)} finished run(s)): report them without --complete-seeds, or once a seed is.",
-                    file=sys.stderr,
-                )
-                return 1
-            if left_out:
-                shown = ", ".join(left_out[:LEFT_OUT_SHOWN]) + (", ..." if len(left_out) > LEFT_OUT_SHOWN else "")
-                print(
-                    f"--complete-seeds: {len(left_out)} finished run(s) left out, their seed not finished by every "
-                    f"scheme of their setting: {shown}",
-                    file=sys.stderr,
-                )
-        return _write_report(results, out, args.metric, plots)
+        complete = str(Path(view) / "complete_seeds")
+        left_out = link_complete_seeds(args.results, complete)
+        if not Path(complete).is_dir():
+            print(
+                f"sb3-maddpg report: no seed in {args.results} is finished by every scheme of its setting "
+                + (
+                    f"({len(left_out)} finished run(s)): report them without --complete-seeds, or once every scheme "
+                    "of a setting has finished a seed."
+                    if left_out
+                    else "(no finished runs): report it once a sweep has finished runs there (sb3-maddpg run --results DIR)."
+                ),
+                file=sys.stderr,
+            )
+            return 1
+        if left_out:
+            shown = ", ".join(left_out[:LEFT_OUT_SHOWN]) + (", ..." if len(left_out) > LEFT_OUT_SHOWN else "")
+            print(
+                f"sb3-maddpg report: --complete-seeds leaves out {len(left_out)} finished run(s), their seed not "
+                f"finished by every scheme of their setting: {shown}",
+                file=sys.stderr,
+            )
+        return _write_report(complete, out, args.metric, plots, shown_as=args.results)
 
 
-def _write_report(results: str, out: str, metrics: list[str] | None, plots: bool) -> int:
+def _write_report(results: str, out: str, metrics: list[str] | None, plots: bool, shown_as: str | None = None) -> int:
     """
     :param results: The results directory to report.
     :param out: Where to write the report.
     :param metrics: ``--metric``'s scores (``None``: the tasks' main ones).
     :param plots: Draw the figures too.
+    :param shown_as: The directory an error names instead of ``results`` (``--complete-seeds``' temporary view of the
+        user's directory); ``None``: ``results``.
     :return: The exit status.
     """
     from sb3_maddpg.experiments.report import make_report
@@ -810,7 +818,7 @@ def _write_report(results: str, out: str, metrics: list[str] | None, plots: bool
         print(no_matplotlib_message(), file=sys.stderr)
         return 1
     except (FileNotFoundError, ValueError) as error:  # no finished runs, or a metric the runs do not have
-        print(f"sb3-maddpg report: {error}", file=sys.stderr)
+        print(f"sb3-maddpg report: {str(error).replace(results, shown_as or results)}", file=sys.stderr)
         return 1
     return 0
 

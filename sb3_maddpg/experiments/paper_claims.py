@@ -146,8 +146,8 @@ class ClaimCheck:
         evidence that the two are alike), ``"does not hold"`` (a ``"~"`` claim whose schemes differ, p < :data:`ALPHA`)
         or ``"too few runs"`` (so few that even completely separated runs would not reach p < :data:`ALPHA`).
     :param seeds_needed: For ``"not separated"``, and ``"too few runs"`` with at least 2 runs a side (a sweep in
-        progress): the seeds per scheme that would separate them at the measured spread (None when even 200 would not,
-        or otherwise).
+        progress): the seeds per scheme that would separate them at the measured spread; ``None`` when not estimated
+        (other verdicts, fewer than 2 runs a side) or when even 200 would not.
     :param better_scheme: The scheme asked in ``claim.better``'s place: itself, or a variant of it (see
         :func:`paper_scheme_variants`).
     :param worse_scheme: The scheme asked in ``claim.worse``'s place.
@@ -200,6 +200,12 @@ def _verdict(claim: PaperClaim, p_value: float, improvement: float, n_better: in
     return "holds" if improvement > 0.5 else "reverses"
 
 
+def _seeds_estimated(verdict: str, n: int) -> bool:
+    """Whether a check estimates the seeds that would separate its schemes: not separated, or too few runs with at
+    least 2 a side (``n``: the runs of the side with fewer) to estimate a spread from."""
+    return verdict == "not separated" or (verdict == "too few runs" and n >= 2)
+
+
 def check_claims(
     cells: Sequence[Cell],
     metric: str,
@@ -249,8 +255,8 @@ def _check(
     _, p_value = mann_whitney(better.scores, worse.scores)
     improvement = improvement_interval([np.multiply(sign, better.scores)], [np.multiply(sign, worse.scores)])
     verdict = _verdict(claim, p_value, improvement.value, better.n, worse.n)
-    estimable = verdict == "not separated" or (verdict == "too few runs" and min(better.n, worse.n) >= 2)
-    needed = seeds_to_separate(better.scores, worse.scores, alpha=ALPHA) if estimable else None
+    estimated = _seeds_estimated(verdict, min(better.n, worse.n))
+    needed = seeds_to_separate(better.scores, worse.scores, alpha=ALPHA) if estimated else None
     return ClaimCheck(
         claim,
         setting,
@@ -278,15 +284,13 @@ def _finding(check: ClaimCheck) -> str:
         better, worse = check.better_scheme or check.claim.better, check.worse_scheme or check.claim.worse
         winner = better if check.improvement.value > 0.5 else worse
         return f"does not hold ({scheme_text(winner, check.variants)} scores better)"
-    if check.verdict == "too few runs" and check.seeds_needed is not None:
-        return f"too few runs ({_seeds_outlook(check)})"
-    if check.verdict != "not separated":
+    if not _seeds_estimated(check.verdict, check.n):
         return check.verdict
     if len(set(check.better_scores) | set(check.worse_scores)) == 1:
-        return "not separated (every run scores the same)"
+        return f"{check.verdict} (every run scores the same)"
     if check.seeds_needed is None:
-        return "not separated (more than 200 seeds per scheme would be needed at this spread)"
-    return f"not separated ({_seeds_outlook(check)})"
+        return f"{check.verdict} (more than 200 seeds per scheme would be needed at this spread)"
+    return f"{check.verdict} ({_seeds_outlook(check)})"
 
 
 def _seeds_outlook(check: ClaimCheck) -> str:

@@ -500,6 +500,7 @@ def test_report_of_complete_seeds_leaves_out_a_seed_one_scheme_has_not_finished(
         with open(out / "table_min_dist_sum.csv") as file:
             return {row["scheme"]: int(row["n"]) for row in csv.DictReader(file)}
 
+    listing = sorted(results.rglob("*"))
     assert main([*argv, "--out", str(tmp_path / "all")]) == 0
     all_runs = runs_per_scheme(tmp_path / "all")
     assert main([*argv, "--out", str(tmp_path / "complete"), "--complete-seeds"]) == 0
@@ -509,7 +510,11 @@ def test_report_of_complete_seeds_leaves_out_a_seed_one_scheme_has_not_finished(
     assert set(complete) == set(all_runs) and all(complete[scheme] == all_runs["independent"] - 2 for scheme in complete)
     assert f"{setting.name}/independent/seed_003" in err and f"{setting.name}/full/seed_005" in err
     assert f"{setting.name}/full/seed_003" not in err  # not finished: not a run left out
-    assert not (results / "report").exists()  # nothing written beside the results
+    assert sorted(results.rglob("*")) == listing  # nothing written into the results
+    # An error names the user's directory, not the temporary view of it.
+    assert main(["report", str(results), "--metric", "bob_correct", "--no-plots", "--complete-seeds"]) == 1
+    err = capsys.readouterr().err
+    assert f"the runs in {results} score" in err and "sb3_maddpg_report_" not in err
     # No seed finished by every scheme: said, and nothing reported.
     for run in (setting / "full").glob("seed_*"):
         (run / "done").unlink(missing_ok=True)

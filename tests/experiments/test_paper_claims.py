@@ -91,6 +91,15 @@ def test_verdicts_follow_the_mann_whitney_test_and_the_metric_direction() -> Non
     finding = format_claims_markdown([three], "success rate (%)", "higher is better")
     assert "| too few runs (leans the claim's way; ~4 seeds per scheme would likely confirm it at this spread) |" in finding
     assert checks["e1", "MADDPG > MADDPG-fo"].seeds_needed is None
+    assert format_claims_markdown([checks["e1", "MADDPG > MADDPG-fo"]], "success", "higher is better").count(
+        "| too few runs |"
+    )
+    # Runs so alike that no number of seeds would separate them say so, as "not separated" does.
+    alike = checks_by_claim({"e1": {"actions": MIXED[:3], "full": [0.56, 0.69, 0.41]}}, {"e1": FULL})
+    assert alike["e1", "MADDPG-fa > MADDPG"].seeds_needed is None
+    assert "| too few runs (more than 200 seeds per scheme would be needed at this spread) |" in format_claims_markdown(
+        [alike["e1", "MADDPG-fa > MADDPG"]], "success", "higher is better"
+    )
     assert checks_by_claim({"e1": {"actions": HIGH[:4], "full": LOW[:4]}}, {"e1": FULL})[
         "e1", "MADDPG-fa > MADDPG"
     ].verdict == ("holds")
