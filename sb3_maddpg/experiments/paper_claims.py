@@ -201,8 +201,12 @@ def _verdict(claim: PaperClaim, p_value: float, improvement: float, n_better: in
 
 
 def _seeds_estimated(verdict: str, n: int) -> bool:
-    """Whether a check estimates the seeds that would separate its schemes: not separated, or too few runs with at
-    least 2 a side (``n``: the runs of the side with fewer) to estimate a spread from."""
+    """
+    :param verdict: A check's verdict.
+    :param n: The runs of its side with fewer.
+    :return: Whether it estimates the seeds that would separate its schemes: when not separated, or too few runs with at
+        least 2 a side to estimate a spread from.
+    """
     return verdict == "not separated" or (verdict == "too few runs" and n >= 2)
 
 
