@@ -407,7 +407,8 @@ def format_beside_paper(
             ]
             runs = sorted({cell.n for cell in here if cell is not None})
             label = setting_label(setting, (experiments or {}).get(setting))
-            lines.append(f"| {label}, {metric_label} ({', '.join(map(str, runs))} runs) | " + " | ".join(row) + " |")
+            runs_label = f"{', '.join(map(str, runs))} {'run' if runs == [1] else 'runs'}"
+            lines.append(f"| {label}, {metric_label} ({runs_label}) | " + " | ".join(row) + " |")
     lines += [
         "",
         "Mean (std) of the per-run scores; `*` p < .05, `**` p < .01: two-sided Mann-Whitney U against MADDPG in the "
