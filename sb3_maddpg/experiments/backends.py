@@ -34,7 +34,7 @@ class Execution:
     :param workers: Parallel processes (local), or the CPUs of a local Ray instance (0: all).
     :param threads: Torch threads per run (or per run group).
     :param ray_address: The Ray cluster's address; ``None`` starts a local instance.
-    :param device: The run groups' device (``"auto"``: CUDA when there is a GPU).
+    :param device: Where the runs train, alone or in run groups (``"auto"``: CUDA when there is a GPU).
     :param runs_per_process: The most runs per group (``None``: all of a setting and scheme, or as many as fit).
     :param verbose: 1 to print each run's (or group's) progress.
     :param snapshots: Runs alone (local, Ray) save a snapshot at each tenth of their budget, which a killed run goes
@@ -201,6 +201,16 @@ class LocalBackend(RunsBackend):
 
     name = "local"
 
+    def check(self, runs: Sequence[RunConfig]) -> None:
+        """
+        :param runs: The runs to do.
+        :raise BatchedRunRefused: For a ``device`` this machine cannot train on (before anything is written).
+        """
+        from sb3_maddpg.experiments.group_plan import check_device
+
+        if runs:
+            check_device(self.execution.device)
+
     def parallel(self) -> int:
         """:return: The pool's workers."""
         return self.execution.workers
@@ -217,6 +227,7 @@ class LocalBackend(RunsBackend):
             verbose=execution.verbose,
             log=progress.log,
             snapshots=execution.snapshots,
+            device=execution.device,
         )
 
 
@@ -254,4 +265,5 @@ class RayBackend(RunsBackend):
             verbose=execution.verbose,
             on_parallel=on_parallel,
             snapshots=execution.snapshots,
+            device=execution.device,
         )

@@ -274,7 +274,9 @@ def _add_run_execution(execution: Any) -> None:
         help="; ".join(f"{name}: {entry.help}" for name, entry in BACKENDS.items()) + " (default: %(default)s)",
     )
     execution.add_argument(
-        "--device", default="auto", help="batched: where the run groups train, cpu or cuda (default auto: cuda if there)"
+        "--device",
+        default="auto",
+        help="where the runs (or, batched, the run groups) train: cpu or cuda (default auto: cuda if there)",
     )
     execution.add_argument(
         "--no-snapshots",

@@ -114,8 +114,8 @@ def memory_bound(device: str, log: Callable[[str], None] | None = None) -> Calla
 
 def check_device(device: str) -> None:
     """
-    Refuse a device the groups cannot train on here, before anything is written (every group would fail after its
-    runs' directories were started afresh).
+    Refuse a device the runs (alone or in groups) cannot train on here, before anything is written (every run would
+    fail after its directory was started afresh).
 
     :param device: ``--device``: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:<index>"``.
     :raise BatchedRunRefused: For a device that is not one, or a CUDA device this machine does not have.
@@ -128,7 +128,7 @@ def check_device(device: str) -> None:
         return
     if not th.cuda.is_available():
         raise BatchedRunRefused(
-            f"CUDA is not available on this machine, so the run groups cannot train on {device}: use --device cpu or "
+            f"CUDA is not available on this machine, so the runs cannot train on {device}: use --device cpu or "
             "auto (or --ray, to train on a cluster's GPUs)."
         )
     if resolved.index is not None and resolved.index >= th.cuda.device_count():

@@ -94,8 +94,8 @@ def _exit_with_parent(parent_pid: int, interval_s: float = 0.5) -> None:
     os._exit(1)
 
 
-def _execute(config: RunConfig, results_dir: str, threads: int, verbose: int, snapshots: bool) -> dict[str, Any]:
-    return execute_run(config, results_dir, threads=threads, verbose=verbose, snapshots=snapshots)
+def _execute(config: RunConfig, results_dir: str, threads: int, verbose: int, snapshots: bool, device: str) -> dict[str, Any]:
+    return execute_run(config, results_dir, threads=threads, verbose=verbose, snapshots=snapshots, device=device)
 
 
 def run_local(
@@ -107,6 +107,7 @@ def run_local(
     verbose: int = 1,
     log: Callable[[str], None] = print,
     snapshots: bool = True,
+    device: str = "auto",
 ) -> None:
     """
     Run on this machine: in this process with one worker, else in a pool of ``workers`` processes
@@ -124,13 +125,14 @@ def run_local(
     :param log: Where a line saying that a worker died goes.
     :param snapshots: Each run saves a snapshot at each tenth of its budget (see
         :func:`~sb3_maddpg.experiments.runner.execute_run`), so that a run lost with its worker goes on from it.
+    :param device: Where each run trains (SB3's ``device``; ``"auto"``: CUDA when there is a GPU).
     """
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}.")
     if workers == 1:
         for config in configs:
             try:
-                result = _execute(config, results_dir, threads, verbose, snapshots)
+                result = _execute(config, results_dir, threads, verbose, snapshots, device)
             except Exception:
                 on_result(config, None, traceback.format_exc())
             else:
@@ -138,7 +140,7 @@ def run_local(
         return
     queue = deque(configs)
     while queue:
-        lost = _run_pool(queue, results_dir, on_result, workers, threads, verbose, snapshots)
+        lost = _run_pool(queue, results_dir, on_result, workers, threads, verbose, snapshots, device)
         if lost:
             log(
                 f"a worker process died: {len(lost)} run(s) in progress lost ({', '.join(c.run_id for c in lost)}); "
@@ -156,6 +158,7 @@ def _run_pool(
     threads: int,
     verbose: int,
     snapshots: bool,
+    device: str,
 ) -> list[RunConfig]:
     """
     Run the queue's runs in a new process pool, at most ``workers`` submitted at once (so that every submitted
@@ -169,7 +172,7 @@ def _run_pool(
             pool_broke = False
             try:
                 while queue and len(running) < workers:
-                    running[pool.submit(_execute, queue[0], results_dir, threads, verbose, snapshots)] = queue[0]
+                    running[pool.submit(_execute, queue[0], results_dir, threads, verbose, snapshots, device)] = queue[0]
                     queue.popleft()
             except BrokenProcessPool:  # it broke between two runs
                 pool_broke = True

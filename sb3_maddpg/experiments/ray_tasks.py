@@ -38,6 +38,7 @@ def run_ray(
     verbose: int = 1,
     on_parallel: Callable[[int], None] | None = None,
     snapshots: bool = True,
+    device: str = "auto",
 ) -> None:
     """
     Run as Ray tasks, one CPU slot per ``threads``: on the cluster at ``address`` (e.g. ``"auto"`` or
@@ -60,12 +61,14 @@ def run_ray(
         // ``threads``), e.g. for a time-left estimate.
     :param snapshots: Each run saves a snapshot at each tenth of its budget, which a retried task goes on from when it
         sees it (on the node that wrote it, or on shared storage).
+    :param device: Where each run trains (SB3's ``device``): ``"cuda"`` asks Ray for one GPU per run
+        (:func:`ray_task_options`), ``"auto"`` and ``"cpu"`` for none.
     """
     with ray_session(address, num_cpus, verbose) as ray:
         if on_parallel is not None:
             on_parallel(ray_parallel_runs(ray.cluster_resources(), threads))
         work = execute_runs if snapshots else execute_runs_without_snapshots
-        submit_ray_tasks(ray, [[config] for config in configs], results_dir, work, "cpu", threads, verbose, on_result)
+        submit_ray_tasks(ray, [[config] for config in configs], results_dir, work, device, threads, verbose, on_result)
 
 
 @contextmanager
@@ -190,19 +193,22 @@ def execute_runs(
 
     :param configs: The runs.
     :param results_dir: The sweep's results directory.
-    :param device: Unused: each run trains where its config says (the signature of a task's work).
+    :param device: Where each run trains (see :func:`~sb3_maddpg.experiments.runner.execute_run`).
     :param threads: Torch threads.
     :param verbose: 1 to print each run's progress.
     :return: Each run's result.
     """
-    return [execute_run(config, results_dir, threads=threads, verbose=verbose) for config in configs]
+    return [execute_run(config, results_dir, threads=threads, verbose=verbose, device=device) for config in configs]
 
 
 def execute_runs_without_snapshots(
     configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int
 ) -> list[dict[str, Any]]:
     """:func:`execute_runs` with no snapshots saved (``--no-snapshots``)."""
-    return [execute_run(config, results_dir, threads=threads, verbose=verbose, snapshots=False) for config in configs]
+    return [
+        execute_run(config, results_dir, threads=threads, verbose=verbose, snapshots=False, device=device)
+        for config in configs
+    ]
 
 
 TaskWork = Callable[[Sequence[RunConfig], str, str, int, int], list[dict[str, Any]]]

@@ -204,7 +204,11 @@ def save_snapshot(run_dir: str | os.PathLike[str], model: BaseAlgorithm, progres
 
 
 def load_snapshot(
-    run_dir: str | os.PathLike[str], config: dict[str, Any], algorithm: type[BaseAlgorithm], make_env: Callable[[], VecEnv]
+    run_dir: str | os.PathLike[str],
+    config: dict[str, Any],
+    algorithm: type[BaseAlgorithm],
+    make_env: Callable[[], VecEnv],
+    device: str = "auto",
 ) -> tuple[BaseAlgorithm, dict[str, Any]] | str:
     """
     Load a run's snapshot: the model on a new env (its worlds restored), its replay buffer, and the random streams.
@@ -213,6 +217,7 @@ def load_snapshot(
     :param config: The run's config (``RunConfig.to_dict()``).
     :param algorithm: The run's algorithm class.
     :param make_env: Builds a new training env of the run, as the saved one was built.
+    :param device: Where the loaded model trains on (SB3's ``device``).
     :return: The model and the rest of the state (``"progress"``: :class:`RunProgress`, ``"logger"``: the logger's
         pending values), or why no snapshot is used (:data:`NO_SNAPSHOT`, another config's, other versions', not
         whole: :data:`UNREADABLE`); any other error (e.g. out of memory) is raised, the snapshot kept.
@@ -236,7 +241,7 @@ def load_snapshot(
         return f"its snapshot was saved under other versions ({state.get('versions')}, now {versions()})"
     env = make_env()
     try:
-        model = algorithm.load(directory / MODEL_FILE, env=env, force_reset=False)
+        model = algorithm.load(directory / MODEL_FILE, env=env, device=device, force_reset=False)
         model.load_replay_buffer(directory / BUFFER_FILE)  # type: ignore[attr-defined]
     except UNREADABLE as error:
         env.close()

@@ -181,6 +181,7 @@ def execute_run(
     threads: int | None = 1,
     verbose: int = 1,
     snapshots: bool = True,
+    device: str = "auto",
 ) -> dict[str, Any]:
     """
     Train one run and evaluate it, writing its directory; a finished run is not repeated, an interrupted one goes on
@@ -200,6 +201,8 @@ def execute_run(
     :param verbose: 1 to print progress lines.
     :param snapshots: Save a snapshot at each tenth of the budget (``False``: a killed run starts again from
         scratch; a snapshot left by an earlier attempt is still used).
+    :param device: Where the run trains (SB3's ``device``; ``"auto"``: CUDA when there is a GPU); a ``device`` in the
+        config's ``model_kwargs`` comes first.
     :return: The summary, plus ``"files"``: the text of the small result files, so that a remote worker's
         results can be written on the machine that collects them (see :func:`write_result_files`).
     """
@@ -213,7 +216,7 @@ def execute_run(
 
     started = time.perf_counter()
     task = run_task(config)  # derived once, here, for the whole run
-    model, before, pending_logs, why_not = resume_or_start(config, directory)
+    model, before, pending_logs, why_not = resume_or_start(config, directory, device)
     model.set_logger(configure(str(directory), ["csv"]))
     restore_logger_values(model, pending_logs)
     progress = ProgressLogCallback(config.run_id, config.total_timesteps, str(directory / LOG_FILE), echo=verbose >= 1)
@@ -260,17 +263,22 @@ def execute_run(
     return finish_run(config, directory, checkpoints.saved, started - before.train_time_s, train_time, progress.log, resources)
 
 
-def resume_or_start(config: RunConfig, directory: Path) -> tuple[Any, RunProgress, list[dict[str, Any]], str]:
+def resume_or_start(
+    config: RunConfig, directory: Path, device: str = "auto"
+) -> tuple[Any, RunProgress, list[dict[str, Any]], str]:
     """
     :param config: The run.
     :param directory: Its directory.
+    :param device: Where the model trains (see :func:`execute_run`).
     :return: The model to train (the snapshot's, or a new one in a directory started afresh), what the run had
         written by then, the logger's pending values then, and why no snapshot was used (``""`` when one was).
     """
-    resumed = load_snapshot(directory, config.to_dict(), load_algorithm(config.algorithm), run_task(config).make_train_env)
+    device = config.model_kwargs.get("device", device)
+    algorithm = load_algorithm(config.algorithm)
+    resumed = load_snapshot(directory, config.to_dict(), algorithm, run_task(config).make_train_env, device=device)
     if isinstance(resumed, str):
         start_run_directory(config, directory)
-        return build_model(config), RunProgress(config.to_dict()), [], resumed
+        return build_model(config, device=device), RunProgress(config.to_dict()), [], resumed
     model, state = resumed
     return model, state["progress"], state["logger"], ""
 

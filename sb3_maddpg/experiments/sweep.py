@@ -155,7 +155,9 @@ def run_sweep(
     :param threads: Torch threads per run.
     :param ray_address: The Ray cluster's address; ``None`` starts a local instance.
     :param verbose: 0 quiet, 1 the sweep's progress (a line per finished run), 2 also each run's progress.
-    :param device: The batched backends' device (``"auto"``: CUDA when there is a GPU).
+    :param device: Where the runs train: each run alone (local, Ray) or each run group (batched), ``"cpu"``,
+        ``"cuda"`` or ``"auto"`` (CUDA when there is a GPU); a ``device`` in an experiment's ``model_kwargs`` comes first
+        for its runs alone.
     :param runs_per_process: The batched backends' most runs per group (``None``: all of a setting and scheme).
     :param on_ray: ``backend="batched"`` with this is ``"batched-ray"``: each group a Ray task (a GPU each on a CUDA
         device; at ``ray_address``, or on a local instance of ``workers`` CPUs).

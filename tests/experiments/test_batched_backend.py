@@ -309,19 +309,38 @@ def test_a_matd3_group_trains_and_writes_matd3_checkpoints(tmp_path: Path) -> No
         assert not torch.equal(first.critic.twin.mlp.weights[0], last.critic.twin.mlp.weights[0])
 
 
-def test_a_device_the_groups_cannot_train_on_is_refused_before_anything_is_written(
+def test_a_device_the_runs_cannot_train_on_is_refused_before_anything_is_written(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)  # this machine, as one without CUDA
-    for device, cause in (
-        ("cuda", r"^CUDA is not available on this machine, .*use --device cpu or auto"),
-        ("cuda:0", r"^CUDA is not available on this machine"),
-        ("gpu", r"^--device 'gpu' is not a device torch knows"),
-    ):
-        with pytest.raises(BatchedRunRefused, match=cause):
-            run_sweep([tiny(seeds=(0,))], tmp_path, backend="batched", verbose=0, device=device)
-        assert not (tmp_path / "tiny").exists()  # nothing trained, nothing written
+    for backend in ("batched", "local"):
+        for device, cause in (
+            ("cuda", r"^CUDA is not available on this machine, .*use --device cpu or auto"),
+            ("cuda:0", r"^CUDA is not available on this machine"),
+            ("gpu", r"^--device 'gpu' is not a device torch knows"),
+        ):
+            with pytest.raises(BatchedRunRefused, match=cause):
+                run_sweep([tiny(seeds=(0,))], tmp_path, backend=backend, verbose=0, device=device)
+            assert not (tmp_path / "tiny").exists()  # nothing trained, nothing written
     check_batched([], device="cuda")  # no run to do: nothing to refuse
+
+
+def test_runs_alone_train_on_the_device_asked_for(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # This machine, as one with a GPU: SB3's "auto" would pick CUDA, so a run that ignored --device cpu would fail
+    # here (no CUDA build) and its summary would not say cpu.
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    result = run_sweep([tiny(seeds=(0,))], tmp_path, backend="local", verbose=0, device="cpu")
+    assert result.ok, result.failed
+    assert [summary["device"] for summary in load_summaries(tmp_path)] == ["cpu"]
+    # A device in the experiment's model_kwargs comes first, also when a killed run resumes from its snapshot.
+    seen: list[str] = []
+    build_model = runner.build_model
+    monkeypatch.setattr(
+        runner, "build_model", lambda config, **kwargs: seen.append(kwargs["device"]) or build_model(config, **kwargs)
+    )
+    pinned = tiny(name="pinned", seeds=(0,), model_kwargs={**SMOKE.model_kwargs, "device": "cpu"})
+    assert run_sweep([pinned], tmp_path, backend="local", verbose=0, device="cuda").ok
+    assert seen == ["cpu"]
 
 
 def test_groups_are_one_setting_and_scheme() -> None:
