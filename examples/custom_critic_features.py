@@ -103,8 +103,8 @@ def main() -> None:
     # Check that the actor of agent 0 can learn through its critic: d Q_0 / d a_0 must not be zero.
     layout = model.agent_layout
     env.seed(0)
-    obs = th.as_tensor(env.reset()[:1])  # world 0's joint observation, a batch of one
-    actions = th.zeros(1, layout.action_dim, requires_grad=True)
+    obs = th.as_tensor(env.reset()[:1], device=model.device)  # world 0's joint observation, a batch of one
+    actions = th.zeros(1, layout.action_dim, device=model.device, requires_grad=True)
     model.policy.critics[0](obs, actions).sum().backward()
     own = layout.action_slices[0]
     assert actions.grad is not None and actions.grad[0, own].abs().sum() > 0, "the critic must pass gradients to a_0"

@@ -93,9 +93,9 @@ def main() -> None:
     print(f"joint actions {action.shape}, agent 0's part in world 0: {action[0, layout.action_slices[0]].round(2)}")
 
     # Each agent's actor alone (decentralised execution): actors[i](o_i) -> a_i in the policy's [-1, 1] space.
-    own_obs = th.as_tensor(obs[:1, layout.obs_slices[1]])
+    own_obs = th.as_tensor(obs[:1, layout.obs_slices[1]], device=model.device)  # where the networks are (CPU or GPU)
     with th.no_grad():
-        print("agent 1 alone, world 0:", model.policy.actors[1](own_obs).numpy().round(2))
+        print("agent 1 alone, world 0:", model.policy.actors[1](own_obs).cpu().numpy().round(2))
 
 
 if __name__ == "__main__":

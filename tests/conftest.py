@@ -26,6 +26,29 @@ BATCH = 8
 """Rows of :func:`replay_batch`'s batches."""
 
 
+@pytest.fixture(autouse=True)
+def auto_device_is_the_cpu(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> None:
+    """
+    On a machine with a GPU, SB3's ``device="auto"`` means the CPU in the tests: they build models with the default
+    device and check them against tensors made on the CPU (hand computations, batches, numpy). A test asks for CUDA by
+    name (``device="cuda"``), or is marked ``sb3_auto_device`` to see SB3's own choice. Without a GPU nothing changes.
+    """
+    if not th.cuda.is_available() or request.node.get_closest_marker("sb3_auto_device") is not None:
+        return
+    import sys
+
+    from stable_baselines3.common import utils
+
+    original = utils.get_device
+
+    def get_device(device: th.device | str = "auto") -> th.device:
+        return original("cpu" if device == "auto" else device)
+
+    for name, module in list(sys.modules.items()):
+        if name.startswith(("stable_baselines3", "sb3_maddpg")) and getattr(module, "get_device", None) is original:
+            monkeypatch.setattr(module, "get_device", get_device)
+
+
 @pytest.fixture
 def collected_model() -> Callable[..., MADDPG]:
     """

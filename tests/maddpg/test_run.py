@@ -237,6 +237,7 @@ def test_predict_shapes_and_bounds():
     assert np.any((actions > 0.01) & (actions < 0.99))
 
 
+@pytest.mark.sb3_auto_device
 @pytest.mark.parametrize("device", ["cpu", "auto"])
 def test_device(device):
     model = MADDPG("MlpPolicy", make_team(), device=device, **TRAINS_QUICKLY)
@@ -449,7 +450,7 @@ def test_no_noise():
     model.learn(total_timesteps=80)
     rows = slice(TRAINS_QUICKLY["learning_starts"], 80)
     with th.no_grad():
-        expected = model.actor(th.as_tensor(model.replay_buffer.observations[rows, 0])).numpy()
+        expected = model.actor(th.as_tensor(model.replay_buffer.observations[rows, 0], device=model.device)).cpu().numpy()
     np.testing.assert_allclose(model.replay_buffer.actions[rows, 0], expected, rtol=1e-5, atol=1e-6)
 
 

@@ -39,6 +39,7 @@ def make_model(
         "batch_size": 32,
         "buffer_size": 2_000,
         "policy_kwargs": SMALL,
+        "device": "cpu",  # the groups and batches here are on the CPU, also on a machine with a GPU
         **kwargs,
     }
     return algorithm("MlpPolicy", SimpleSpreadVecEnv(n_envs, n_agents=n_agents), seed=seed, **settings)

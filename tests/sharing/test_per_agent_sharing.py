@@ -87,7 +87,7 @@ def test_a_mixed_team_trains_saves_and_loads(device: str, tmp_path: Path) -> Non
     assert model.selector is None
     model.learn(600)
     model.save(tmp_path / "mixed.zip")
-    loaded = MADDPG.load(tmp_path / "mixed.zip")
+    loaded = MADDPG.load(tmp_path / "mixed.zip", device=device)
     assert [type(e) for e in loaded.critic.extractors] == [type(e) for e in extractors]
     for mine, theirs in zip(model.critic.parameters(), loaded.critic.parameters()):
         th.testing.assert_close(mine, theirs)
