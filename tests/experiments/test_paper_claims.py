@@ -149,7 +149,9 @@ def test_the_report_files_put_the_paper_beside_the_runs_and_list_each_check(tmp_
     assert "| paper, Exp. 2 (2 nearest obs.), success % (31 runs) | 70.11 (21.58) |" in markdown
     assert "(8 runs) |" in markdown and "(1 run" not in markdown
     assert "means here (higher is better)" in markdown and "| holds |" in markdown
-    single = write_claims_report(tmp_path / "single", cells({"e1": {"full": LOW[:1], "actions": HIGH[:1]}}), "success_rate", experiments, infos)
+    single = write_claims_report(
+        tmp_path / "single", cells({"e1": {"full": LOW[:1], "actions": HIGH[:1]}}), "success_rate", experiments, infos
+    )
     assert ", success rate (%) (1 run) |" in single[0].read_text()  # a sweep's first seed reads as one run
     assert "against MADDPG in the paper's rows, against MADDPG in the others" in markdown
     other = write_claims_report(tmp_path / "other", table, "success_rate", experiments, infos, baseline="actions")
