@@ -57,9 +57,9 @@ def main(experiment: Path, learning_starts: int = 25_600, checkpoint_fraction: f
     print()
     print("| phase | env steps/s, summed over the runs |")
     print("|---|---|")
-    print(f"| the whole run (random steps, training, checkpoint evaluations) | {runs * steps / train_s:,.0f} |")
+    print(f"| the whole training (random steps, updates, checkpoints, curve points) | {runs * steps / train_s:,.0f} |")
     print(f"| training, before the checkpoints (past {learning_starts:,} random steps) | {training:,.0f} |")
-    print(f"| the last {checkpoint_fraction:.0%}, training and evaluating its checkpoints | {checkpoints:,.0f} |")
+    print(f"| the last {checkpoint_fraction:.0%}, training while saving its checkpoints | {checkpoints:,.0f} |")
     print()
     hours = PAPER_PROTOCOL_STEPS / training / 3600
     print(f"At the training speed, the paper's protocol ({PAPER_PROTOCOL_STEPS:,} env steps, 310 runs): {hours:.1f} h,")
