@@ -1,6 +1,7 @@
 """Shared pytest setup."""
 
 import os
+import sys
 
 # Headless rendering: pygame (imported by mpe2) must see this before it opens a display.
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
@@ -32,11 +33,11 @@ def auto_device_is_the_cpu(request: pytest.FixtureRequest, monkeypatch: pytest.M
     On a machine with a GPU, SB3's ``device="auto"`` means the CPU in the tests: they build models with the default
     device and check them against tensors made on the CPU (hand computations, batches, numpy). A test asks for CUDA by
     name (``device="cuda"``), or is marked ``sb3_auto_device`` to see SB3's own choice. Without a GPU nothing changes.
+    Only this process's SB3 is patched: spawned workers and subprocesses (the CLI tests), and the run groups' own
+    ``--device auto`` (``torch.cuda.is_available``), still pick CUDA there.
     """
     if not th.cuda.is_available() or request.node.get_closest_marker("sb3_auto_device") is not None:
         return
-    import sys
-
     from stable_baselines3.common import utils
 
     original = utils.get_device
@@ -45,7 +46,8 @@ def auto_device_is_the_cpu(request: pytest.FixtureRequest, monkeypatch: pytest.M
         return original("cpu" if device == "auto" else device)
 
     for name, module in list(sys.modules.items()):
-        if name.startswith(("stable_baselines3", "sb3_maddpg")) and getattr(module, "get_device", None) is original:
+        # vars(), not getattr(): a moved module's placeholder (sb3_maddpg.compat) would import its target on getattr.
+        if name.startswith(("stable_baselines3", "sb3_maddpg")) and vars(module).get("get_device") is original:
             monkeypatch.setattr(module, "get_device", get_device)
 
 

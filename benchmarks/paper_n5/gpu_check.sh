@@ -3,6 +3,8 @@
 # the CUDA tests, then the study's exp1 preset as a run group of the paper's 31 seeds on the GPU (`--backend batched
 # --device cuda`), at a shortened budget, to measure what the paper's protocol would cost there.
 #   EPISODES (default 4000: 100k env steps, 74k of them trained after the 25,600 random ones), SCHEME (default full).
+# The device machine has torch, pytest and pytest-xdist but none of the package's other requirements: put their wheels
+# for its Python (3.12) in .whl/ (git-ignored; the device tool's README says how to download them) and carry it.
 # On a CPU, to check the script: DEVICE=cpu SEEDS=0,1 EPISODES=1100 SKIP_TESTS=1 OUT=/tmp/out bash benchmarks/paper_n5/gpu_check.sh
 set -u
 OUT="${OUT:?set OUT to a folder for the outputs}"

@@ -24,11 +24,12 @@ def steps_per_second(progress: Path, first: float, last: float) -> float:
     :param last: The last step of the window.
     :return: The run's env steps per second between the two (``nan`` if the log has too few rows there).
     """
-    rows = [
-        (float(row["time/total_timesteps"]), float(row["time/time_elapsed"]))
-        for row in csv.DictReader(progress.open())
-        if row.get("time/time_elapsed") and first <= float(row["time/total_timesteps"]) <= last
-    ]
+    with progress.open(newline="") as file:
+        rows = [
+            (float(row["time/total_timesteps"]), float(row["time/time_elapsed"]))
+            for row in csv.DictReader(file)
+            if row.get("time/time_elapsed") and first <= float(row["time/total_timesteps"]) <= last
+        ]
     if len(rows) < 2 or rows[-1][1] <= rows[0][1]:
         return float("nan")
     return (rows[-1][0] - rows[0][0]) / (rows[-1][1] - rows[0][1])
@@ -50,6 +51,8 @@ def main(experiment: Path, learning_starts: int = 25_600, checkpoint_fraction: f
     devices = ", ".join(sorted({summary.get("device", "?") for summary in summaries}))
     together = sorted({summary.get("runs_trained_together", 1) for summary in summaries})
     progress = sorted(experiment.glob("*/seed_*/progress.csv"))
+    if together != [runs]:
+        print(f"note: the runs did not all train in one group ({together} together): the sums below assume they did")
     # A group's runs step together: the summed speed is one run's speed times the runs.
     training = runs * np.nanmedian([steps_per_second(p, learning_starts, (1 - checkpoint_fraction) * steps) for p in progress])
     checkpoints = runs * np.nanmedian([steps_per_second(p, (1 - checkpoint_fraction) * steps, steps) for p in progress])

@@ -57,7 +57,13 @@ from sb3_maddpg.experiments.group_state import (
     write_trained,
 )
 from sb3_maddpg.experiments.local_pool import OnResult
-from sb3_maddpg.experiments.ray_tasks import ray_parallel_tasks, ray_session, ray_task_options, submit_ray_tasks
+from sb3_maddpg.experiments.ray_tasks import (
+    ray_device,
+    ray_parallel_tasks,
+    ray_session,
+    ray_task_options,
+    submit_ray_tasks,
+)
 from sb3_maddpg.experiments.results import CHECKPOINT_DIR, LOG_FILE, PROGRESS_FILE, run_directory
 from sb3_maddpg.experiments.run_cost import TrainingResources
 from sb3_maddpg.experiments.runner import build_model, finish_run, start_run_directory, training_line
@@ -342,24 +348,10 @@ def train_groups_on_ray(
     threads = execution.threads
     with ray_session(execution.ray_address, execution.ray_cpus, execution.verbose) as ray:
         resources = ray.cluster_resources()
-        device = _ray_device(execution.device, resources.get("GPU", 0))
+        device = ray_device(execution.device, resources.get("GPU", 0))
         if on_parallel is not None:
             on_parallel(ray_parallel_tasks(resources, ray_task_options(threads, device)), device)
         submit_ray_tasks(ray, groups, results_dir, _train_group_task, device, threads, execution.verbose, on_result)
-
-
-def _ray_device(device: str, gpus: float) -> str:
-    """:return: The device a group task trains on, given ``--device`` and the Ray cluster's GPUs."""
-    if device == "auto":
-        return "cuda" if gpus > 0 else "cpu"
-    if device.split(":")[0] == "cuda":
-        if gpus < 1:
-            raise BatchedRunRefused(
-                f"The run groups cannot train on {device} under Ray: the Ray cluster has no GPU, so a task asking "
-                "for one would wait forever. Use --device cpu (or auto), or a cluster with GPU nodes."
-            )
-        return "cuda"  # Ray picks each task's GPU (its CUDA_VISIBLE_DEVICES): "cuda:1" would name another
-    return device
 
 
 def _train_group_task(

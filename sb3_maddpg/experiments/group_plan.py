@@ -13,7 +13,10 @@ BATCHED_HINT = "Train such runs with --backend local (e.g. in a second sweep, le
 
 
 class BatchedRunRefused(ValueError):
-    """A run of the sweep cannot train in a run group (the message names it, the cause, and what to do)."""
+    """
+    A sweep refused before anything trains: a device this machine or Ray cluster lacks, or a run that cannot train in a
+    run group (the message names it, the cause, and what to do).
+    """
 
 
 def group_key(config: RunConfig) -> str:
@@ -129,7 +132,7 @@ def check_device(device: str) -> None:
     if not th.cuda.is_available():
         raise BatchedRunRefused(
             f"CUDA is not available on this machine, so the runs cannot train on {device}: use --device cpu or "
-            "auto (or --ray, to train on a cluster's GPUs)."
+            "auto (or --backend ray or batched-ray, to train on a Ray cluster's GPUs)."
         )
     if resolved.index is not None and resolved.index >= th.cuda.device_count():
         raise BatchedRunRefused(

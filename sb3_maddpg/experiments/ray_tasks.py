@@ -8,8 +8,11 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
+import torch as th
+
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.experiments.config import RunConfig
+from sb3_maddpg.experiments.group_plan import BatchedRunRefused
 from sb3_maddpg.experiments.local_pool import LOST_RUN, OnResult, set_worker_threads
 from sb3_maddpg.experiments.results import write_result_files
 from sb3_maddpg.experiments.runner import execute_run
@@ -61,12 +64,16 @@ def run_ray(
         // ``threads``), e.g. for a time-left estimate.
     :param snapshots: Each run saves a snapshot at each tenth of its budget, which a retried task goes on from when it
         sees it (on the node that wrote it, or on shared storage).
-    :param device: Where each run trains (SB3's ``device``): ``"cuda"`` asks Ray for one GPU per run
-        (:func:`ray_task_options`), ``"auto"`` and ``"cpu"`` for none.
+    :param device: Where each run trains: ``"cuda"`` (one GPU per run, the one Ray gives its task), ``"cpu"``, or
+        ``"auto"`` (CUDA when the cluster has GPUs), as :func:`ray_device` resolves it.
+    :raise BatchedRunRefused: For a device that is not one, or a CUDA device on a cluster without GPUs (its tasks would
+        wait forever), before any task.
     """
     with ray_session(address, num_cpus, verbose) as ray:
+        resources = ray.cluster_resources()
+        device = ray_device(device, resources.get("GPU", 0))
         if on_parallel is not None:
-            on_parallel(ray_parallel_runs(ray.cluster_resources(), threads))
+            on_parallel(ray_parallel_tasks(resources, ray_task_options(threads, device)))
         work = execute_runs if snapshots else execute_runs_without_snapshots
         submit_ray_tasks(ray, [[config] for config in configs], results_dir, work, device, threads, verbose, on_result)
 
@@ -109,6 +116,30 @@ def ray_session(address: str | None, num_cpus: int | None, verbose: int) -> Iter
     finally:
         if started_here:
             ray.shutdown()
+
+
+def ray_device(device: str, gpus: float) -> str:
+    """
+    :param device: ``--device``: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:<index>"``.
+    :param gpus: The Ray cluster's GPUs.
+    :return: The device a Ray task trains on: ``"cuda"`` (on the GPU Ray gives the task, its ``CUDA_VISIBLE_DEVICES``,
+        so ``"cuda:1"`` would name another) when asked for CUDA, or for ``"auto"`` on a cluster with GPUs; else ``"cpu"``.
+    :raise BatchedRunRefused: For a device torch does not know, or CUDA on a cluster without GPUs.
+    """
+    if device == "auto":
+        return "cuda" if gpus > 0 else "cpu"
+    try:
+        kind = th.device(device).type
+    except (RuntimeError, TypeError) as error:
+        raise BatchedRunRefused(f"--device {device!r} is not a device torch knows ({error}): use cpu, cuda or auto.") from None
+    if kind != "cuda":
+        return device
+    if gpus < 1:
+        raise BatchedRunRefused(
+            f"The runs cannot train on {device} under Ray: the Ray cluster has no GPU, so a task asking for one would "
+            "wait forever. Use --device cpu (or auto), or a cluster with GPU nodes."
+        )
+    return "cuda"
 
 
 def ray_task_options(threads: int, device: str = "cpu") -> dict[str, Any]:

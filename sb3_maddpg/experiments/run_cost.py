@@ -179,7 +179,7 @@ def format_cost_markdown(costs: Sequence[SchemeCost], experiments: dict[str, dic
         )
     runs = sum(cost.runs for cost in costs)
     total = sum(cost.total_hours for cost in costs)
-    totals = [f"{runs} runs", f"{total:.1f} run-hours"]
+    totals = [f"{runs} {'run' if runs == 1 else 'runs'}", f"{total:.1f} run-hours"]
     for unit in sorted({cost.unit for cost in costs if cost.core_hours is not None}):
         spent = sum(sum(cost.core_hours or ()) for cost in costs if cost.unit == unit)
         totals.append(f"{spent:.1f} {unit} of training")

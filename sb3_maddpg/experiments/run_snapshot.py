@@ -217,7 +217,7 @@ def load_snapshot(
     :param config: The run's config (``RunConfig.to_dict()``).
     :param algorithm: The run's algorithm class.
     :param make_env: Builds a new training env of the run, as the saved one was built.
-    :param device: Where the loaded model trains on (SB3's ``device``).
+    :param device: Where the loaded model trains (SB3's ``device``).
     :return: The model and the rest of the state (``"progress"``: :class:`RunProgress`, ``"logger"``: the logger's
         pending values), or why no snapshot is used (:data:`NO_SNAPSHOT`, another config's, other versions', not
         whole: :data:`UNREADABLE`); any other error (e.g. out of memory) is raised, the snapshot kept.

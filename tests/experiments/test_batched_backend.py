@@ -325,6 +325,7 @@ def test_a_device_the_runs_cannot_train_on_is_refused_before_anything_is_written
     check_batched([], device="cuda")  # no run to do: nothing to refuse
 
 
+@pytest.mark.sb3_auto_device  # SB3's own "auto", which a backend ignoring --device would fall back to
 def test_runs_alone_train_on_the_device_asked_for(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # This machine, as one with a GPU: SB3's "auto" would pick CUDA, so a run that ignored --device cpu would fail
     # here (no CUDA build) and its summary would not say cpu.
@@ -332,7 +333,7 @@ def test_runs_alone_train_on_the_device_asked_for(tmp_path: Path, monkeypatch: p
     result = run_sweep([tiny(seeds=(0,))], tmp_path, backend="local", verbose=0, device="cpu")
     assert result.ok, result.failed
     assert [summary["device"] for summary in load_summaries(tmp_path)] == ["cpu"]
-    # A device in the experiment's model_kwargs comes first, also when a killed run resumes from its snapshot.
+    # A device in the experiment's model_kwargs comes first (a resumed run's: tests/experiments/test_run_snapshot.py).
     seen: list[str] = []
     build_model = runner.build_model
     monkeypatch.setattr(

@@ -10,12 +10,12 @@ from typing import Any
 
 import pytest
 
-from sb3_maddpg.experiments import SMOKE, run_sweep
+from sb3_maddpg.experiments import SMOKE, ray_tasks, run_sweep
 from sb3_maddpg.experiments.batched import BatchedRunRefused, run_batched_ray
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.local_pool import LOST_RUN
-from sb3_maddpg.experiments.ray_tasks import RAY_MAX_RETRIES, ray_task_options
+from sb3_maddpg.experiments.ray_tasks import RAY_MAX_RETRIES, ray_task_options, run_ray
 from sb3_maddpg.experiments.results import SWEEP_LOG, load_summaries
 from tests.experiments.test_batched_backend import files, keys, read_rows
 
@@ -170,3 +170,37 @@ def test_refusals_come_before_ray_starts(
     assert "add --ray to run the groups as Ray tasks" in capsys.readouterr().err
     with pytest.raises(ValueError, match="on_ray runs the batched backend's groups"):
         run_sweep([WARM_UP_ONLY], tmp_path, backend="local", on_ray=True)
+
+
+def test_runs_alone_on_ray_take_a_gpu_each_on_cuda_and_are_refused_where_none_is(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    configs = dataclasses.replace(WARM_UP_ONLY, seeds=(0, 1)).runs()
+
+    def submit(fake: FakeRay, device: str) -> list[int]:
+        monkeypatch.setitem(sys.modules, "ray", fake)
+        at_once: list[int] = []
+        run_ray(configs, str(tmp_path / device), lambda *_: None, threads=2, on_parallel=at_once.append, device=device)
+        return at_once
+
+    gpus = FakeRay({"CPU": 16.0, "GPU": 3.0})
+    assert submit(gpus, "cuda:1") == [3]  # 3 GPUs: 3 runs at once, however many CPUs
+    assert gpus.options == [{"num_gpus": 1, "num_cpus": 2, "max_retries": RAY_MAX_RETRIES}]
+    assert [args[2] for args in gpus.submitted] == ["cuda", "cuda"]  # the GPU Ray gives the task: its device 0
+    cpus = FakeRay({"CPU": 4.0})
+    assert submit(cpus, "auto") == [2] and "num_gpus" not in cpus.options[0] and cpus.submitted[0][2] == "cpu"
+    for device, cause in (("cuda", "the Ray cluster has no GPU"), ("gpu", "not a device torch knows")):
+        none = FakeRay({"CPU": 16.0})
+        with pytest.raises(BatchedRunRefused, match=cause):
+            submit(none, device)
+        assert not none.submitted  # refused before any task: none would wait forever or fail on its node
+
+
+def test_a_ray_task_trains_its_runs_on_its_device(monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: list[tuple[str, Any]] = []
+    monkeypatch.setattr(ray_tasks, "execute_run", lambda config, results, **kwargs: seen.append((config.run_id, kwargs)))
+    configs = WARM_UP_ONLY.runs()
+    ray_tasks.execute_runs(configs, "results", "cuda", 2, 0)
+    ray_tasks.execute_runs_without_snapshots(configs[:1], "results", "cpu", 1, 0)
+    assert [kwargs["device"] for _, kwargs in seen] == ["cuda", "cuda", "cpu"]
+    assert seen[-1][1]["snapshots"] is False

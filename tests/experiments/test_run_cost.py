@@ -63,6 +63,8 @@ def test_a_run_groups_training_counts_once_in_the_run_hours_and_is_shared_in_the
     assert cost.core_hours == (0.5,) * 4  # one core for 2 h, shared by 4 runs
     assert math.isclose(cost.total_hours, 2.0 + 4 * 0.01)  # the machine was busy 2 h, not 8
     assert "In all: 4 runs, 2.0 run-hours, 2.0 core-h of training." in format_cost_markdown([cost], {})
+    (alone,) = scheme_costs(group[:1])
+    assert "In all: 1 run, 0.5 run-hours" in format_cost_markdown([alone], {})  # its share of the group
 
 
 def test_a_scheme_with_a_run_of_unknown_or_other_resources_has_no_core_hours() -> None:

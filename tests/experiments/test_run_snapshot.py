@@ -162,3 +162,19 @@ def test_no_snapshots_when_switched_off(tmp_path: Path, monkeypatch: pytest.Monk
     assert main([*command, str(tmp_path / "cli_off"), "--no-snapshots"]) == 0
     assert (tmp_path / "cli_off" / "smoke" / "full" / "seed_000" / "done").is_file()
     assert main([*command, str(tmp_path / "cli_on")]) == 1  # the run failed: it tried to save one
+
+
+def test_a_resumed_run_loads_on_the_device_asked_for(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    run = config()
+    run_killed(monkeypatch, run, tmp_path, nth=2)
+    devices: list[Any] = []
+    load = MADDPG.load.__func__  # type: ignore[attr-defined]
+
+    def recording_load(cls: type[MADDPG], *args: Any, **kwargs: Any) -> MADDPG:
+        devices.append(kwargs.get("device"))
+        return load(cls, *args, **kwargs)
+
+    monkeypatch.setattr(MADDPG, "load", classmethod(recording_load))
+    runner.execute_run(run, tmp_path, verbose=0, device="cpu")
+    assert "resumed from its snapshot" in (run_directory(tmp_path, run) / LOG_FILE).read_text()
+    assert devices[0] == "cpu"  # the snapshot's model, loaded where --device says (then the checkpoints, for scoring)
