@@ -1,6 +1,8 @@
 """The paper's claims asked of runs: which setting each applies to, the test and verdict, the direction, the files."""
 
 import csv
+import dataclasses
+import math
 from pathlib import Path
 from typing import Any
 
@@ -192,3 +194,25 @@ def test_a_variant_of_a_paper_scheme_is_asked_its_claims_too(tmp_path: Path) -> 
     rows = list(csv.DictReader((tmp_path / "claims_success_rate.csv").open()))
     asked = {(row["better"], row["worse"]) for row in rows}
     assert asked == {("actions", "full"), ("selected", "full"), ("selected_next", "full")}
+
+
+@pytest.mark.parametrize(
+    ("p_value", "shown"),
+    [
+        (0.0, "< .001"),
+        (0.000999, "< .001"),  # just below .001: would round to ".001"
+        (0.001, ".001"),  # at .001: not below it
+        (0.00149, ".001"),
+        (0.0123, ".012"),  # three places, no leading zero
+        (0.5, ".500"),
+        (1.0, "1.000"),
+        (math.nan, "n/a"),  # no test
+    ],
+)
+def test_the_claims_table_shows_p_to_three_places_and_below_001_as_less_than(p_value: float, shown: str) -> None:
+    check = checks_by_claim({"e1": {"actions": HIGH, "full": LOW}}, {"e1": FULL})["e1", "MADDPG-fa > MADDPG"]
+    markdown = format_claims_markdown([dataclasses.replace(check, p_value=p_value)], "success rate (%)", "higher is better")
+    (row,) = [line for line in markdown.splitlines() if line.startswith("| ") and "| MADDPG-fa > MADDPG |" in line]
+    header = next(line for line in markdown.splitlines() if line.startswith("| setting |"))
+    assert header.split(" | ")[5] == "p"
+    assert row.split(" | ")[5] == shown, row
