@@ -6,12 +6,13 @@ import argparse
 import dataclasses
 import importlib.util
 import json
+import os
 import re
 import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from sb3_maddpg.analysis.evaluation import side_return_key
 from sb3_maddpg.common.install_hint import extra_install_command
@@ -30,6 +31,9 @@ from sb3_maddpg.experiments.config import (
 )
 from sb3_maddpg.experiments.results import link_complete_seeds
 from sb3_maddpg.experiments.stats import METRICS
+
+if TYPE_CHECKING:
+    from sb3_maddpg.experiments.report import UnscoredMetricError
 
 DEFAULT_RESULTS = "runs/experiments"
 
@@ -772,6 +776,10 @@ def report_command(args: argparse.Namespace) -> int:
         print(no_matplotlib_message(), file=sys.stderr)
         return 1
     out = args.out or f"{args.results.rstrip('/')}/report"
+    unwritable = unwritable_out_message(out)
+    if unwritable is not None:
+        print(unwritable, file=sys.stderr)
+        return 2
     if not args.complete_seeds:
         return _write_report(args.results, out, args.metric, plots)
     with tempfile.TemporaryDirectory(prefix="sb3_maddpg_report_") as view:
@@ -799,6 +807,49 @@ def report_command(args: argparse.Namespace) -> int:
         return _write_report(complete, out, args.metric, plots, shown_as=args.results)
 
 
+def unwritable_out_message(out: str) -> str | None:
+    """
+    :param out: The report's directory (``--out``, or ``<results>/report``).
+    :return: Why ``report`` cannot write there, in one line with what to do (the directory, or the first of its
+        parents that exists, is a file or not writable); ``None`` when it can.
+    """
+    existing = Path(out)
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if existing.exists() and not existing.is_dir():
+        where = "is a file" if existing == Path(out) else f"is inside {existing}, a file"
+        return f"sb3-maddpg report: the report's directory {out} {where}: give --out a directory (new or existing)."
+    if existing.is_dir() and not os.access(existing, os.W_OK | os.X_OK):
+        return (
+            f"sb3-maddpg report: cannot write the report's directory {out} ({existing} is not writable): give --out a "
+            "directory you can write to."
+        )
+    return None
+
+
+def unscored_metric_message(error: "UnscoredMetricError", directory: str) -> str:
+    """
+    :param error: :func:`~sb3_maddpg.experiments.report.make_report`'s refusal of a metric no run scores.
+    :param directory: The results directory, as the user named it.
+    :return: ``report``'s line: the metric(s) no run scores, those that ``--metric`` could take instead, what to do.
+    """
+    asked = ", ".join(error.unscored)
+    choices = set(report_metric_choices())
+    instead = [metric for metric in error.scored if metric in choices]
+    radii = any(
+        metric not in ("success_rate", "coverage") and metric.startswith(("success_rate_", "coverage_"))
+        for metric in error.unscored
+    )
+    old_runs = " (runs written before 0.2 have no success or coverage at other radii)" if radii else ""
+    fix = (
+        f"the runs there score {', '.join(instead)}: give --metric one of those, or leave --metric out for each task's "
+        "main metrics."
+        if instead
+        else "leave --metric out for each task's main metrics."
+    )
+    return f"sb3-maddpg report: no run in {directory} scores --metric {asked}{old_runs}; {fix}"
+
+
 def _write_report(results: str, out: str, metrics: list[str] | None, plots: bool, shown_as: str | None = None) -> int:
     """
     :param results: The results directory to report.
@@ -809,17 +860,20 @@ def _write_report(results: str, out: str, metrics: list[str] | None, plots: bool
         user's directory); ``None``: ``results``.
     :return: The exit status.
     """
-    from sb3_maddpg.experiments.report import make_report
+    from sb3_maddpg.experiments.report import UnscoredMetricError, make_report
 
     try:
         for path in make_report(results, out, metrics=metrics, plots=plots):
             print(path)
+    except UnscoredMetricError as error:  # a user's error: said before anything is written
+        print(unscored_metric_message(error, shown_as or results), file=sys.stderr)
+        return 2
     except ModuleNotFoundError as error:  # a part of matplotlib missing: the same advice
         if error.name is None or error.name.split(".")[0] != "matplotlib":
             raise
         print(no_matplotlib_message(), file=sys.stderr)
         return 1
-    except (FileNotFoundError, ValueError) as error:  # no finished runs, or a metric the runs do not have
+    except (FileNotFoundError, ValueError) as error:  # no finished runs, or runs that cannot be read
         print(f"sb3-maddpg report: {str(error).replace(results, shown_as or results)}", file=sys.stderr)
         return 1
     return 0

@@ -269,6 +269,24 @@ def write_aggregates_csv(rows: Sequence[dict[str, Any]], metric: str, path: str 
             )
 
 
+class UnscoredMetricError(ValueError):
+    """
+    A metric asked of a report that no run of its results directory scores (:func:`make_report`): a user's error,
+    which ``sb3-maddpg report`` says in one line with exit status 2.
+
+    :param unscored: The metrics asked that no run scores.
+    :param scored: Those the runs score, sorted.
+    :param results_dir: The results directory.
+    """
+
+    def __init__(self, unscored: Sequence[str], scored: Sequence[str], results_dir: str | os.PathLike[str]) -> None:
+        self.unscored, self.scored, self.results_dir = list(unscored), list(scored), str(results_dir)
+        super().__init__(
+            f"Unknown metric(s) {self.unscored}: the runs in {self.results_dir} score {self.scored} (runs written before "
+            "0.2 have no success or coverage at other radii); pick --metric among those."
+        )
+
+
 DEFAULT_REPORT_METRICS = ("success_rate", "min_dist_sum")
 """What a simple_spread report shows unless told: success (higher is better; near 0 early in training) and the
 min-dist sum (lower is better; informative at every scale). Other tasks: see :func:`default_metrics`."""
@@ -382,6 +400,8 @@ def make_report(
     :param baseline: The scheme the others are tested against.
     :param verbose: 1: print the main table (:func:`format_terminal_table`) to stdout; 0: nothing.
     :return: The files written.
+    :raise FileNotFoundError: When the directory has no finished runs.
+    :raise UnscoredMetricError: When no run scores one of ``metrics`` (a ``ValueError``), before anything is written.
     """
     summaries = load_summaries(results_dir)
     if not summaries:
@@ -399,10 +419,7 @@ def make_report(
     unknown = [metric for metric, runs in scored.items() if not runs]
     if unknown:
         known = sorted({metric for summary in summaries for metric in summary["score"] if _scored(summary, metric)})
-        raise ValueError(
-            f"Unknown metric(s) {unknown}: the runs in {results_dir} score {known} (runs written before 0.2 have no "
-            "success or coverage at other radii); pick --metric among those."
-        )
+        raise UnscoredMetricError(unknown, known, results_dir)
     warning = never_updated_warning([summary["run_id"] for summary in summaries if run_updates(summary) == 0])
     if warning is not None:
         warnings.warn(warning, UserWarning, stacklevel=2)

@@ -6,6 +6,8 @@ import dataclasses
 import json
 import math
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -512,14 +514,66 @@ def test_report_of_complete_seeds_leaves_out_a_seed_one_scheme_has_not_finished(
     assert f"{setting.name}/full/seed_003" not in err  # not finished: not a run left out
     assert sorted(results.rglob("*")) == listing  # nothing written into the results
     # An error names the user's directory, not the temporary view of it.
-    assert main(["report", str(results), "--metric", "bob_correct", "--no-plots", "--complete-seeds"]) == 1
+    assert main(["report", str(results), "--metric", "bob_correct", "--no-plots", "--complete-seeds"]) == 2
     err = capsys.readouterr().err
-    assert f"the runs in {results} score" in err and "sb3_maddpg_report_" not in err
+    assert f"no run in {results} scores --metric bob_correct" in err and "sb3_maddpg_report_" not in err
     # No seed finished by every scheme: said, and nothing reported.
     for run in (setting / "full").glob("seed_*"):
         (run / "done").unlink(missing_ok=True)
     assert main([*argv, "--out", str(tmp_path / "none"), "--complete-seeds"]) == 1
     assert "no seed in" in capsys.readouterr().err and not (tmp_path / "none").exists()
+
+
+def test_a_report_s_user_errors_are_one_line_naming_the_cause_and_the_fix_with_exit_status_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A metric the runs do not score, or a report directory that cannot be one, is the user's error: one line on
+    stderr (the cause, then what to do), exit status 2, nothing written; as a missing results directory or a metric
+    ``--metric`` does not take."""
+    results, out = tmp_path / "results", tmp_path / "report"
+    shutil.copytree(PAPER_SMALL_RESULTS, results)
+    listing = sorted(results.rglob("*"))
+
+    def refused(*options: str) -> str:
+        assert main(["report", str(results), "--no-plots", *options]) == 2
+        captured = capsys.readouterr()
+        assert captured.out == "" and captured.err.count("\n") == 1 and captured.err.startswith("sb3-maddpg report: ")
+        assert sorted(results.rglob("*")) == listing and not out.exists()  # nothing written
+        return captured.err
+
+    # A metric of another task (simple_crypto's): named, with the metrics these runs score that --metric takes (not
+    # return_std or episode_length, which it refuses), and the fix.
+    err = refused("--out", str(out), "--metric", "bob_correct")
+    assert err == (
+        f"sb3-maddpg report: no run in {results} scores --metric bob_correct; the runs there score collisions, "
+        "coverage, min_dist_sum, return_mean, success_rate: give --metric one of those, or leave --metric out for "
+        "each task's main metrics.\n"
+    )
+    # Several, among metrics the runs do score: those they do not are named; a radius says why old runs lack it.
+    err = refused("--out", str(out), "--metric", "min_dist_sum", "--metric", "group_return", "--metric", "coverage_r0.2")
+    assert f"no run in {results} scores --metric group_return, coverage_r0.2 (runs written before 0.2" in err
+    # The report's directory is a file, or inside one.
+    (tmp_path / "file").write_text("")
+    for where in ("file", "file/report"):
+        err = refused("--out", str(tmp_path / where), "--metric", "min_dist_sum")
+        assert f"the report's directory {tmp_path / where} " in err and "give --out a directory (new or existing)" in err
+    # A metric --metric does not take, and a missing results directory, were refused so already.
+    assert "argument --metric: invalid choice: 'nonsense'" in refused("--metric", "nonsense")
+    assert main(["report", str(tmp_path / "missing"), "--no-plots"]) == 2
+    assert capsys.readouterr().err.startswith(f"sb3-maddpg report: no results directory {tmp_path / 'missing'}: give ")
+    # The command itself, as a shell runs it: the status and the line, no traceback.
+    done = subprocess.run(
+        [sys.executable, "-m", "sb3_maddpg.experiments", "report", str(results), "--no-plots", "--metric", "bob_correct"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert done.stderr.startswith(f"sb3-maddpg report: no run in {results} scores --metric bob_correct; ")
+    # The library's make_report raises the error as a ValueError (its text unchanged), before writing anything.
+    with pytest.raises(ValueError, match=r"Unknown metric\(s\) \['bob_correct'\]"):
+        make_report(results, out, metrics=("bob_correct",), plots=False)
+    assert not out.exists()
 
 
 def test_the_small_scale_result_is_its_config() -> None:
