@@ -4,9 +4,10 @@ import collections
 import contextlib
 import sys
 import time
-from collections.abc import Iterator
-from typing import TextIO
+from collections.abc import Iterator, Mapping, Sequence
+from typing import Any, TextIO
 
+import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
@@ -42,8 +43,15 @@ def log_line(line: str, log_path: str | None, echo: bool) -> None:
 
 class ProgressLogCallback(BaseCallback):
     """
-    Report a run's progress (steps, throughput, recent team return, time left) to stdout and a log file,
+    Report a run's progress (steps, throughput, recent return, time left) to stdout and a log file,
     every ``every`` of training or every ``every_seconds`` seconds, whichever comes first.
+
+    The return is the mean over the recent episodes (SB3's ``ep_info_buffer``, which a ``Monitor`` or ``VecMonitor``
+    fills) of the env's episode return: the team return of a cooperative task. In a competitive task (``sides``
+    given) that would add opponents' rewards, so each side's return is said instead: the mean over its agents of
+    their episode returns (as :func:`~sb3_maddpg.analysis.evaluation.evaluate_team` scores ``return_<side>``), from
+    the per-agent returns a team algorithm adds to each episode's statistics; without those, the line says that its
+    return is all agents' combined.
 
     Throughput and time left are measured over the last ``window_seconds`` (at least since the previous line), not
     since the start: when the machine's load changes, the next lines say so.
@@ -55,6 +63,9 @@ class ProgressLogCallback(BaseCallback):
     :param echo: Print the lines too.
     :param every_seconds: Also report when this many seconds have passed since the last line (``None``: never).
     :param window_seconds: The span of recent training the rate is measured over.
+    :param sides: A competitive task's sides: side -> its agents, by id or by name (as
+        :data:`~sb3_maddpg.envs.MPE_TASK_SIDES` and ``evaluate_team``'s ``sides`` give them); ``None`` or empty: the
+        agents are one cooperative team.
     """
 
     def __init__(
@@ -66,6 +77,7 @@ class ProgressLogCallback(BaseCallback):
         echo: bool = True,
         every_seconds: float | None = None,
         window_seconds: float = 30.0,
+        sides: Mapping[str, Sequence[str]] | None = None,
     ) -> None:
         super().__init__()
         if window_seconds <= 0:
@@ -80,6 +92,8 @@ class ProgressLogCallback(BaseCallback):
         self._next = self.interval
         self._start = self._last_line = time.perf_counter()
         self._marks: collections.deque[tuple[float, int]] = collections.deque()  # (time, steps) at each line
+        self.sides = {side: tuple(agents) for side, agents in (sides or {}).items()}
+        self._side_agents: dict[str, list[int]] | None = None  # each side's label -> its agents' layout indices
 
     def _on_training_start(self) -> None:
         # A continued run (learn(reset_num_timesteps=False)) reports at the next multiple of the interval.
@@ -87,6 +101,8 @@ class ProgressLogCallback(BaseCallback):
         self._start = self._last_line = time.perf_counter()
         self._marks.clear()
         self._marks.append((self._start, self.num_timesteps))
+        self._side_agents = None
+        self._sides_by_label()  # sides that do not match the team are refused now, not at the first line
 
     def recent_rate(self, now: float, steps: int) -> tuple[float, float]:
         """
@@ -118,11 +134,38 @@ class ProgressLogCallback(BaseCallback):
             )
         return True
 
+    def _sides_by_label(self) -> dict[str, list[int]]:
+        """
+        :return: Each side's label (``"adversaries' return"``) -> its agents' indices in the model's layout; empty
+            for a cooperative task, or a model without an agent layout (whose episodes have no per-agent returns).
+        """
+        if self._side_agents is None:
+            layout: Any = getattr(self.model, "agent_layout", None)
+            self._side_agents = {}
+            if self.sides and layout is not None:
+                from sb3_maddpg.analysis.evaluation import resolve_sides, side_return_label
+
+                agent_ids = list(layout.agent_ids)
+                self._side_agents = {
+                    side_return_label(side): [agent_ids.index(agent) for agent in agents]
+                    for side, agents in resolve_sides(self.sides, agent_ids).items()
+                }
+        return self._side_agents
+
     def _recent_return(self) -> str:
         episodes = getattr(self.model, "ep_info_buffer", None)  # filled by a Monitor or VecMonitor
         if not episodes:
             return ""
-        return f", team return {sum(episode['r'] for episode in episodes) / len(episodes):.1f} (last {len(episodes)} episodes)"
+        combined = sum(episode["r"] for episode in episodes) / len(episodes)
+        if not self.sides:
+            return f", team return {combined:.1f} (last {len(episodes)} episodes)"
+        per_agent = [episode["agent_returns"] for episode in episodes if "agent_returns" in episode]
+        sides = self._sides_by_label()
+        if not per_agent or not sides:
+            return f", return of all agents combined {combined:.1f} (opponents included; last {len(episodes)} episodes)"
+        means = np.mean(per_agent, axis=0)
+        returns = ", ".join(f"{label} {np.mean(means[agents]):.1f}" for label, agents in sides.items())
+        return f", {returns} (last {len(per_agent)} episodes)"
 
     def log(self, line: str) -> None:
         """

@@ -1,13 +1,18 @@
 """The entry points' torch threads (one unless the user asked), progress lines over a recent window, and Ctrl-C
 ending in one line with exit status 130."""
 
+import contextlib
+import io
 import os
 import signal
 import subprocess
 import sys
 import time
+from collections import deque
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
@@ -16,7 +21,7 @@ from sb3_maddpg import MADDPG
 from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.common.progress import INTERRUPTED_EXIT_CODE, ProgressLogCallback, ctrl_c_ends_quietly, interrupted_line
 from sb3_maddpg.common.torch_threads import THREAD_VARIABLES, threads_set_by_user, use_torch_threads
-from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.envs import MPE_TASK_SIDES, make_mpe_env, make_simple_spread
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -138,6 +143,69 @@ def test_progress_rate_is_over_the_recent_window(monkeypatch: pytest.MonkeyPatch
     # (66,000 steps in 120 s) would say 550.
     assert "100 steps/s (last 0m30s)" in lines[-1], lines[-1]
     assert "2h35m40s left" in lines[-1]  # at the recent rate: 934,000 steps at 100 steps/s
+
+
+TAG_IDS = ["adversary_0", "adversary_1", "agent_0"]
+TAG_EPISODES = [  # the env's return sums every agent's: the adversaries' catches and the prey's penalty cancel out
+    {"r": 0.0, "l": 25, "agent_returns": [10.0, 20.0, -30.0]},
+    {"r": 0.0, "l": 25, "agent_returns": [30.0, 40.0, -70.0]},
+]
+
+
+def _line(progress: ProgressLogCallback, episodes: list[dict], agent_ids: list[str] | None = None) -> str:
+    """The progress line of a model whose recent episodes are ``episodes``."""
+    layout = None if agent_ids is None else SimpleNamespace(agent_ids=agent_ids)
+    progress.model = SimpleNamespace(num_timesteps=0, ep_info_buffer=deque(episodes), agent_layout=layout)  # type: ignore[assignment]
+    progress.num_timesteps = 0
+    progress._on_training_start()
+    progress.num_timesteps = progress.total_timesteps
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer):
+        progress._on_step()
+    return buffer.getvalue()
+
+
+def test_a_competitive_task_s_progress_says_each_side_s_return_not_a_team_return() -> None:
+    """simple_tag's adversaries and prey are not one team: their summed return (0 here) is no team's. Each side's
+    return is the mean over its agents of their episode returns, as evaluate_team scores return_<side>."""
+    sides = MPE_TASK_SIDES["simple_tag"]  # by name: adversary -> adversary_0, adversary_1
+    line = _line(ProgressLogCallback("tag", 100, every=1.0, sides=sides), TAG_EPISODES, TAG_IDS)
+    assert line.rstrip().endswith(", adversaries' return 25.0, good agents' return -50.0 (last 2 episodes)"), line
+    assert "team return" not in line
+    # Sides by agent id, in any order: the same returns, in the sides' order.
+    by_id = {"good agents": ["agent_0"], "adversaries": ["adversary_1", "adversary_0"]}
+    line = _line(ProgressLogCallback("tag", 100, every=1.0, sides=by_id), TAG_EPISODES, TAG_IDS)
+    assert ", good agents' return -50.0, adversaries' return 25.0 (last 2 episodes)" in line, line
+    # Without per-agent returns (a model without an agent layout): the combined return, said to be that.
+    line = _line(ProgressLogCallback("tag", 100, every=1.0, sides=sides), [{"r": 4.0, "l": 25}], None)
+    assert ", return of all agents combined 4.0 (opponents included; last 1 episodes)" in line, line
+    assert "team return" not in line
+    # A cooperative task (no sides): the team return, as before.
+    line = _line(ProgressLogCallback("spread", 100, every=1.0), [{"r": -12.0, "l": 25}, {"r": -14.0, "l": 25}], TAG_IDS)
+    assert line.rstrip().endswith(", team return -13.0 (last 2 episodes)"), line
+    # Sides that do not match the team are refused when training starts, not at the first line.
+    with pytest.raises(ValueError, match="names no agent of the team"):
+        _line(ProgressLogCallback("tag", 100, every=1.0, sides={"wolves": ["wolf"], **sides}), TAG_EPISODES, TAG_IDS)
+
+
+def test_a_competitive_task_s_training_reports_each_side(capsys: pytest.CaptureFixture) -> None:
+    """The same with a model training on simple_tag: its episodes carry the per-agent returns the sides are read from."""
+
+    class Recorded(ProgressLogCallback):
+        def log(self, line: str) -> None:
+            self.episodes = list(self.model.ep_info_buffer)  # type: ignore[arg-type]  # those the line was made from
+            super().log(line)
+
+    env = make_mpe_env("simple_tag", max_cycles=10, num_good=1, num_adversaries=2, num_obstacles=0)
+    model = MADDPG("MlpPolicy", env, learning_starts=0, batch_size=8, seed=0)
+    progress = Recorded("tag", 100, every=1.0, sides=MPE_TASK_SIDES["simple_tag"])
+    model.learn(total_timesteps=100, callback=progress)  # episodes of 10 steps
+    (line,) = capsys.readouterr().out.strip().splitlines()
+    assert line.startswith("tag: 100/100 steps") and "team return" not in line, line
+    returns = np.mean([episode["agent_returns"] for episode in progress.episodes], axis=0)  # adversary_0, _1, agent_0
+    expected = f", adversaries' return {returns[:2].mean():.1f}, good agents' return {returns[2]:.1f} "
+    assert expected + f"(last {len(progress.episodes)} episodes)" in line, line
+    assert len(progress.episodes) >= 9
 
 
 def test_ctrl_c_in_learn_is_one_line_and_status_130(capsys: pytest.CaptureFixture) -> None:
