@@ -1,5 +1,7 @@
 """The multi-agent replay buffer: one row per joint transition, per-agent rewards and terminations, selections."""
 
+import math
+import warnings
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -78,6 +80,12 @@ class MultiAgentReplayBuffer(ReplayBuffer):
             raise ValueError("MultiAgentReplayBuffer needs the team's layout: pass replay_buffer_kwargs=dict(layout=...).")
         if optimize_memory_usage:
             raise ValueError("MultiAgentReplayBuffer does not support optimize_memory_usage=True: leave it False.")
+        k = selector.k if selector is not None else 0
+        next_stored = (
+            selector is not None and selector.needs_positions and layout.positions_in_info and selector.target == "next"
+        )
+        self.planned_bytes = replay_buffer_bytes(buffer_size, n_envs, layout, k, next_selections=next_stored)
+        check_replay_buffer_fits(self.planned_bytes, buffer_size, available_memory_bytes())
         super().__init__(buffer_size, observation_space, action_space, device, n_envs, False, handle_timeout_termination)
         self.layout = layout
         self.selector = selector
@@ -86,11 +94,29 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         self.dones = np.zeros((self.buffer_size, self.n_envs, n_agents), dtype=np.float32)
         self.selection_size = selector.k if selector is not None else 0
         self.selections = np.zeros((self.buffer_size, self.n_envs, n_agents, self.selection_size), dtype=np.int16)
+        # Positions from the env's state (in its infos, not its observations) cannot be read again at sampling: a
+        # selection the target makes from the next observation is made here, when the transition is stored.
+        self.next_selections: np.ndarray | None = None
+        if self._selects_from_info_positions() and selector is not None and selector.target == "next":
+            self.next_selections = np.zeros_like(self.selections)
 
     def nbytes(self) -> int:
         """Bytes held by the buffer's arrays (allocated lazily by the OS until rows are written)."""
         arrays = (self.observations, self.next_observations, self.actions, self.rewards, self.dones, self.timeouts)
-        return int(sum(array.nbytes for array in arrays)) + int(self.selections.nbytes)
+        extra = 0 if self.next_selections is None else self.next_selections.nbytes
+        return int(sum(array.nbytes for array in arrays)) + int(self.selections.nbytes) + int(extra)
+
+    def _selects_from_info_positions(self) -> bool:
+        return self.selector is not None and self.selector.needs_positions and self.layout.positions_in_info
+
+    def _info_positions(self, infos: list[dict[str, Any]], key: str) -> np.ndarray:
+        try:
+            return np.stack([info[key] for info in infos])
+        except KeyError:
+            raise KeyError(
+                f"The env's info has no {key!r}, though its layout says it reports positions in its infos: build it "
+                "with PettingZooToGym(parallel_env, positions=fn), which writes them at every step."
+            ) from None
 
     def add(
         self,
@@ -132,7 +158,15 @@ class MultiAgentReplayBuffer(ReplayBuffer):
                 terminations = 1.0  # SB3's meaning without timeout handling: every end of an episode is terminal
             self.dones[pos, env_index] = terminations
             self.timeouts[pos, env_index] = timeout
-        if self.selector is not None:
+        if self._selects_from_info_positions():
+            assert self.selector is not None
+            self.selections[pos] = self.selector.select(
+                obs, self.layout, self._info_positions(infos, "agent_positions_before")
+            )
+            if self.next_selections is not None:
+                next_positions = self._info_positions(infos, "agent_positions")
+                self.next_selections[pos] = self.selector.select(next_obs, self.layout, next_positions)
+        elif self.selector is not None:
             self.selections[pos] = self.selector.select(obs, self.layout)
         self.pos += 1
         if self.pos == self.buffer_size:
@@ -155,7 +189,10 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         selections = next_selections = None
         if self.selection_size > 0:
             selections = th.as_tensor(self.selections[batch_inds, env_indices].astype(np.int64), device=self.device)
-        if self.selector is not None and self.selector.target == "next":  # from the raw next observations, as stored
+        if self.next_selections is not None:  # made when stored, from the env's positions
+            chosen = self.next_selections[batch_inds, env_indices].astype(np.int64)
+            next_selections = th.as_tensor(chosen, device=self.device)
+        elif self.selector is not None and self.selector.target == "next":  # from the raw next observations, as stored
             chosen = self.selector.select(self.next_observations[batch_inds, env_indices], self.layout)
             next_selections = th.as_tensor(chosen, device=self.device)
         observations = self._normalize_obs(self.observations[batch_inds, env_indices], env)
@@ -170,6 +207,66 @@ class MultiAgentReplayBuffer(ReplayBuffer):
             selections=selections,
             next_selections=next_selections,
         )
+
+
+def replay_buffer_bytes(
+    buffer_size: int, n_envs: int, layout: AgentLayout, selection_size: int = 0, next_selections: bool = False
+) -> int:
+    """
+    The bytes a :class:`MultiAgentReplayBuffer`'s arrays take once filled (what :meth:`~MultiAgentReplayBuffer.nbytes`
+    reports after allocation), before any is allocated.
+
+    :param buffer_size: Joint transitions held (all envs counted, as SB3's ``buffer_size``).
+    :param n_envs: Envs stepped together (SB3 keeps ``buffer_size // n_envs`` rows of ``n_envs`` each).
+    :param layout: The team's agent layout.
+    :param selection_size: The selection's ``k`` (0 without one).
+    :param next_selections: Whether the next step's selection is stored too (positions from the env's state).
+    :return: Bytes.
+    """
+    rows = max(buffer_size // n_envs, 1) * n_envs
+    floats = 2 * layout.obs_dim + layout.action_dim + 2 * layout.n_agents + 1  # obs, next obs, actions, r_i, d_i, timeout
+    selections = 2 * layout.n_agents * selection_size * (2 if next_selections else 1)  # int16
+    return rows * (4 * floats + selections)
+
+
+def available_memory_bytes() -> int | None:
+    """:return: The memory the system can still give (Linux's ``MemAvailable``), or ``None`` where it cannot tell."""
+    try:
+        with open("/proc/meminfo") as meminfo:
+            for line in meminfo:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def check_replay_buffer_fits(needed: int, buffer_size: int, available: int | None) -> None:
+    """
+    Refuse a replay buffer larger than the memory available, and warn about one that takes over half of it: its
+    arrays are allocated at once but filled over training, so without this a run fails hours later.
+
+    :param needed: The buffer's bytes (:func:`replay_buffer_bytes`).
+    :param buffer_size: Its ``buffer_size``, for the message.
+    :param available: The memory available (:func:`available_memory_bytes`); ``None``: no check.
+    """
+    if available is None or needed <= available // 2:
+        return
+    per_transition = needed / max(buffer_size, 1)
+    fitting = max(10 ** int(math.log10(max(available // 2 / per_transition, 1))), 1)
+    what = (
+        f"The replay buffer would take {needed / 2**30:.1f} GiB (buffer_size={buffer_size:,} joint transitions of "
+        f"{per_transition:,.0f} bytes each)"
+    )
+    fix = f"lower buffer_size (e.g. buffer_size={fitting:_} takes {fitting * per_transition / 2**30:.2f} GiB)"
+    if needed > available:
+        raise ValueError(f"{what}, more than the {available / 2**30:.1f} GiB of memory available: {fix}.")
+    warnings.warn(
+        f"{what}, over half of the {available / 2**30:.1f} GiB of memory available; it fills as training goes: {fix} "
+        "if other work needs the memory.",
+        UserWarning,
+        stacklevel=2,
+    )
 
 
 def refuse_buffer_of_another_team(buffer: ReplayBuffer, layout: AgentLayout | None, selection_size: int, n_envs: int) -> None:

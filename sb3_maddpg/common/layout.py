@@ -25,12 +25,21 @@ class AgentLayout:
         length of the one-hot vector that stands for its choice in the joint action).
     :param discrete_actions: Which agents choose one of ``action_sizes[i]`` actions (a ``Discrete`` space) rather
         than a continuous vector; empty (the default) for none.
+    :param position_slices: Where each agent's position lies within its own flat observation, as the env declares it
+        (:class:`~sb3_maddpg.envs.PettingZooToGym`'s ``positions``; the MPE tasks declare theirs), for selection by
+        distance; ``None`` where the observations hold no declared positions.
+    :param positions_in_info: Whether the env reports positions from its state in its infos
+        (``info["agent_positions"]`` and ``info["agent_positions_before"]``) rather than in its observations.
     """
 
     agent_ids: tuple[str, ...]
     obs_sizes: tuple[int, ...]
     action_sizes: tuple[int, ...]
     discrete_actions: tuple[bool, ...] = ()
+    # Where positions are is a fact about the env, not the team's shape: layouts that differ only there compare equal
+    # (a replay buffer or a save of the same team fits either).
+    position_slices: tuple[slice, ...] | None = field(default=None, compare=False)
+    positions_in_info: bool = field(default=False, compare=False)
     obs_slices: tuple[slice, ...] = field(init=False, repr=False, compare=False)
     action_slices: tuple[slice, ...] = field(init=False, repr=False, compare=False)
 
@@ -55,6 +64,10 @@ class AgentLayout:
             raise ValueError(f"discrete_actions needs one flag per agent ({n_agents}), got {self.discrete_actions}.")
         # All-continuous is stored as (), so that layouts saved before discrete actions existed compare equal.
         object.__setattr__(self, "discrete_actions", discrete if any(discrete) else ())
+        if self.position_slices is not None:
+            object.__setattr__(self, "position_slices", _checked_position_slices(self.position_slices, self.obs_sizes))
+            if self.positions_in_info:
+                raise ValueError("A layout declares positions either in the observations or in the infos, not both.")
         object.__setattr__(self, "obs_slices", _consecutive_slices(self.obs_sizes))
         object.__setattr__(self, "action_slices", _consecutive_slices(self.action_sizes))
 
@@ -78,6 +91,28 @@ class AgentLayout:
     def action_dim(self) -> int:
         """The length of the flat joint action."""
         return sum(self.action_sizes)
+
+    @property
+    def declares_positions(self) -> bool:
+        """Whether the env declares where its agents' positions are (in the observations or in the infos)."""
+        return self.position_slices is not None or self.positions_in_info
+
+    def positions(self, observations: np.ndarray, position_slices: Sequence[slice] | None = None) -> np.ndarray:
+        """
+        Each agent's position, read from joint observations.
+
+        :param observations: Joint observations, ``[batch, obs_dim]``.
+        :param position_slices: Where each agent's position lies in its own observation (default: the env's
+            :attr:`position_slices`).
+        :return: Positions, ``[batch, n_agents, d]``.
+        """
+        slices = self.position_slices if position_slices is None else tuple(position_slices)
+        if slices is None:
+            raise ValueError(
+                "This team's observations hold no declared positions: declare them with PettingZooToGym(env, "
+                "positions=...) (a slice of each agent's observation, a Dict observation key, or a function of the env)."
+            )
+        return np.stack([observations[:, part][:, where] for part, where in zip(self.obs_slices, slices)], axis=1)
 
     @property
     def has_discrete_actions(self) -> bool:
@@ -140,25 +175,30 @@ class AgentLayout:
     def joint_observation(self, observations: Mapping[Any, Any]) -> np.ndarray:
         """
         One joint observation from one observation per agent, as PettingZoo's ``ParallelEnv`` gives them: each agent's
-        flattened, in layout order (the order of :class:`~sb3_maddpg.envs.PettingZooToGym`'s joint observation).
+        flattened, in layout order (the order of :class:`~sb3_maddpg.envs.PettingZooToGym`'s joint observation). An
+        agent that has left the episode (PettingZoo gives it no observation any more) is seen as zeros, as the adapter
+        shows it in training.
 
-        :param observations: Each agent's observation, by agent id (an id may be any object whose ``str`` is the
-            layout's id).
+        :param observations: Each present agent's observation, by agent id (an id may be any object whose ``str`` is
+            the layout's id).
         :return: The joint observation, ``[obs_dim]`` float32.
         """
         given = {str(agent): value for agent, value in observations.items()}
         missing = [agent for agent in self.agent_ids if agent not in given]
         unknown = [agent for agent in given if agent not in self.agent_ids]
-        if missing or unknown:
-            problems = [f"No observation of {missing}"] if missing else []
+        if len(missing) == self.n_agents or unknown:
+            problems = [f"No observation of {missing}"] if len(missing) == self.n_agents else []
             problems += [f"Observations of agents not in the team: {unknown}"] if unknown else []
             raise ValueError(
-                f"{'; '.join(problems)} (given: {list(given)}). The team is {self.describe()}: pass one observation "
-                "per agent of it, no more (after an episode's last step PettingZoo's env.agents is empty: reset the "
-                "env; an env whose agents leave mid-episode needs supersuit.black_death_v3(env), as in training)."
+                f"{'; '.join(problems)} (given: {list(given)}). The team is {self.describe()}: pass the observation of "
+                "each agent of it still in the episode, no more (after an episode's last step PettingZoo's env.agents "
+                "is empty: reset the env)."
             )
         parts = []
         for agent, size in zip(self.agent_ids, self.obs_sizes):
+            if agent not in given:
+                parts.append(np.zeros(size, np.float32))
+                continue
             if isinstance(given[agent], Mapping | tuple):
                 raise ValueError(
                     f"{agent}'s observation is a {type(given[agent]).__name__}: pass it flattened as the adapter flattens "
@@ -202,6 +242,27 @@ class AgentLayout:
             return self.agent_ids.index(agent_id)
         except ValueError as error:
             raise KeyError(f"Unknown agent {agent_id!r}; the layout's agents are {self.agent_ids}.") from error
+
+
+def _checked_position_slices(position_slices: Sequence[slice], obs_sizes: Sequence[int]) -> tuple[slice, ...]:
+    """Position slices that fit each agent's observation and cut positions of one length: else a ``ValueError``."""
+    slices = tuple(position_slices)
+    if len(slices) != len(obs_sizes) or not all(isinstance(part, slice) for part in slices):
+        raise ValueError(f"position_slices needs one slice per agent ({len(obs_sizes)}), got {position_slices!r}.")
+    for index, (part, size) in enumerate(zip(slices, obs_sizes)):
+        start, stop, step = part.indices(size)
+        if step != 1 or stop <= start or (part.stop is not None and part.stop > size):
+            raise ValueError(
+                f"Agent {index}'s position slice {part} does not fit its observation of size {size}: give a slice "
+                "(step 1) inside each agent's observation where its position lies."
+            )
+    lengths = {len(range(*part.indices(size))) for part, size in zip(slices, obs_sizes)}
+    if len(lengths) > 1:
+        raise ValueError(
+            f"The position slices {slices} cut positions of different lengths {sorted(lengths)} from observations of "
+            f"sizes {list(obs_sizes)}: every agent's position needs the same length."
+        )
+    return slices
 
 
 def _consecutive_slices(sizes: Sequence[int]) -> tuple[slice, ...]:

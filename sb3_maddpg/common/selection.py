@@ -59,21 +59,32 @@ class Selector(ABC):
                 f"{layout.n_agents - 1} other agents per agent: use k <= {layout.n_agents - 1}."
             )
 
-    def select(self, observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
+    def select(self, observations: np.ndarray, layout: AgentLayout, positions: np.ndarray | None = None) -> np.ndarray:
         """
         :param observations: Joint observations, shape ``[n_envs, obs_dim]`` (raw, not normalised).
         :param layout: The team's agent layout.
+        :param positions: The agents' positions at these observations, ``[n_envs, n_agents, d]``, where the env reports
+            them from its state (``layout.positions_in_info``); ``None``: read from the observations where needed.
         :return: Selected agent indices, int64 array ``[n_envs, n_agents, k]``; never the agent itself.
         """
         observations = np.asarray(observations).reshape(-1, layout.obs_dim)
-        selection = np.asarray(self._select(observations, layout))
+        selection = np.asarray(self._select(observations, layout) if positions is None else self._select_by(positions))
         if self.checks_output:
             check_selection(selection, layout, self.k, n_rows=observations.shape[0], source=type(self).__name__)
         return selection.astype(np.int64, copy=False)
 
+    @property
+    def needs_positions(self) -> bool:
+        """Whether this rule selects by the agents' positions (so the env must say where they are)."""
+        return False
+
     @abstractmethod
     def _select(self, observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
         """Return the selection for ``observations`` ``[n_envs, obs_dim]``, shape ``[n_envs, n_agents, k]``."""
+
+    def _select_by(self, positions: np.ndarray) -> np.ndarray:
+        """Return the selection for the agents' ``positions`` ``[n_envs, n_agents, d]`` (rules that use them)."""
+        raise TypeError(f"{type(self).__name__} does not select by positions.")
 
 
 class NearestAgents(Selector):
@@ -81,8 +92,11 @@ class NearestAgents(Selector):
     Each agent selects its ``k`` nearest other agents by Euclidean distance, nearest first
     (ties: lower index first).
 
-    Positions are read from each agent's own observation. In MPE (``simple_spread``) an agent's
-    observation starts with ``[velocity (2), position (2), ...]``, hence the default ``slice(2, 4)``.
+    Positions are where the env says they are (:class:`~sb3_maddpg.envs.PettingZooToGym`'s ``positions``: a slice or
+    a ``Dict`` key of each agent's observation, or a function of the env's state); every MPE task and
+    ``SimpleSpreadVecEnv`` declare theirs (in simple_spread an observation starts with ``[velocity (2), position (2),
+    ...]``). On an env that declares none, a model with this selector is refused, unless ``position_slice`` says where
+    each agent's position lies in its own observation.
 
     Agents move, so the nearest ones at the next step may be others, or the same in another order: with
     ``target="stored"`` (the paper's Algorithm 3) the next-state target sees the agents selected at the transition's
@@ -92,43 +106,80 @@ class NearestAgents(Selector):
     send training astray (``benchmarks/paper_n5``).
 
     :param k: How many other agents each agent selects (paper's partially observable setting: 2).
-    :param position_slice: Where an agent's position lies within its own observation.
+    :param position_slice: Where an agent's position lies within its own observation; ``None`` (the default): where
+        the env declares it.
     :param target: The selection the next-state target uses: ``"stored"`` or ``"next"`` (see above).
     """
 
     checks_output = False
 
-    def __init__(self, k: int = 2, position_slice: slice = slice(2, 4), target: TargetSelection = "stored") -> None:
+    def __init__(self, k: int = 2, position_slice: slice | None = None, target: TargetSelection = "stored") -> None:
         super().__init__(k)
+        if position_slice is not None and not isinstance(position_slice, slice):
+            raise TypeError(
+                f"position_slice must be a slice of each agent's observation (e.g. slice(2, 4)) or None (where the env "
+                f"declares positions), got {position_slice!r}."
+            )
         self.position_slice = position_slice
         self.target = check_target(target)
 
+    @property
+    def needs_positions(self) -> bool:
+        return True
+
     def validate(self, layout: AgentLayout) -> None:
         # The positions first: without them this selector cannot serve the team whatever k is.
-        for agent, size in zip(layout.agent_ids, layout.obs_sizes):
-            start, stop, _ = self.position_slice.indices(size)
-            if stop <= start or (self.position_slice.stop is not None and self.position_slice.stop > size):
-                raise ValueError(
-                    f"position_slice={self.position_slice} does not fit agent {agent!r}'s observation of size {size}: "
-                    "pass NearestAgents(position_slice=...) pointing at the position inside each agent's observation, "
-                    "or select by another rule (FixedGraph, CallableSelector)."
-                )
-        # An open-ended slice fits each observation but may cut positions of different lengths from unequal ones.
-        lengths = {len(range(*self.position_slice.indices(size))) for size in layout.obs_sizes}
-        if len(lengths) > 1:
+        if self.position_slice is None and not layout.declares_positions:
             raise ValueError(
-                f"position_slice={self.position_slice} cuts positions of different lengths {sorted(lengths)} from the "
-                f"agents' observations of sizes {list(layout.obs_sizes)}: give it a stop (e.g. slice(2, 4)), so that "
-                "every agent's position has the same length."
+                "NearestAgents selects by distance, but this env does not say where its agents' positions are: declare "
+                "them with PettingZooToGym(parallel_env, positions=...) (a slice of each agent's observation, a Dict "
+                "observation key, or a function of the env returning [n_agents, d] positions), or pass "
+                "NearestAgents(position_slice=...), or select by another rule (FixedGraph, CallableSelector)."
             )
+        if self.position_slice is not None:
+            for agent, size in zip(layout.agent_ids, layout.obs_sizes):
+                start, stop, _ = self.position_slice.indices(size)
+                if stop <= start or (self.position_slice.stop is not None and self.position_slice.stop > size):
+                    raise ValueError(
+                        f"position_slice={self.position_slice} does not fit agent {agent!r}'s observation of size "
+                        f"{size}: pass NearestAgents(position_slice=...) pointing at the position inside each agent's "
+                        "observation, or select by another rule (FixedGraph, CallableSelector)."
+                    )
+            # An open-ended slice fits each observation but may cut positions of different lengths from unequal ones.
+            lengths = {len(range(*self.position_slice.indices(size))) for size in layout.obs_sizes}
+            if len(lengths) > 1:
+                raise ValueError(
+                    f"position_slice={self.position_slice} cuts positions of different lengths {sorted(lengths)} from "
+                    f"the agents' observations of sizes {list(layout.obs_sizes)}: give it a stop (e.g. slice(2, 4)), "
+                    "so that every agent's position has the same length."
+                )
         super().validate(layout)
 
+    def position_slices(self, layout: AgentLayout) -> tuple[slice, ...] | None:
+        """
+        :param layout: The team's layout.
+        :return: Where each agent's position lies in its own observation: this selector's ``position_slice``, else
+            the env's declared slices; ``None`` where the env reports positions in its infos instead.
+        """
+        if self.position_slice is not None:
+            return (self.position_slice,) * layout.n_agents
+        return layout.position_slices
+
     def _select(self, observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
-        positions = np.stack([observations[:, sl][:, self.position_slice] for sl in layout.obs_slices], axis=1)
+        slices = self.position_slices(layout)
+        if slices is None and layout.positions_in_info:
+            raise ValueError(
+                "This env reports its agents' positions in its infos, not in its observations: pass them, "
+                "select(observations, layout, positions) (the replay buffer does, from info['agent_positions_before'])."
+            )
+        return self._select_by(layout.positions(observations, slices))
+
+    def _select_by(self, positions: np.ndarray) -> np.ndarray:
         offsets = positions[:, :, None, :] - positions[:, None, :, :]
         distances = np.einsum("bijk,bijk->bij", offsets, offsets)
         # An agent never selects itself.
-        distances[:, np.arange(layout.n_agents), np.arange(layout.n_agents)] = np.inf
+        n_agents = positions.shape[1]
+        distances[:, np.arange(n_agents), np.arange(n_agents)] = np.inf
         return np.argsort(distances, axis=-1, kind="stable")[:, :, : self.k]
 
 

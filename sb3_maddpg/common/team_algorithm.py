@@ -21,7 +21,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, TrainFreq
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, refuse_buffer_of_another_team
+from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, refuse_buffer_of_another_team, replay_buffer_bytes
 from sb3_maddpg.common.env_checks import check_same_layout, layout_of, refuse_env_of_another_team, refuse_reward_normalization
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.noise import add_noise, default_noise, fit_noise_to_envs
@@ -121,6 +121,9 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         # A new dict: SB3 keeps the caller's, which must not change under them.
         if self.replay_buffer_class is not None and issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
             self.replay_buffer_kwargs = {**self.replay_buffer_kwargs, "layout": self.agent_layout, "selector": self.selector}
+            if self.verbose >= 1 and self.replay_buffer is None:  # said before the arrays exist (refused if too large)
+                needed = replay_buffer_bytes(self.buffer_size, self.n_envs, self.agent_layout, self.selection_size)
+                print(f"Replay buffer: {self.buffer_size:,} joint transitions, {needed / 2**30:.2f} GiB once full")
         self.policy_kwargs = {**self.policy_kwargs, **self._team_policy_kwargs()}  # a new dict, as above
         self.train_freq = self.update_rule.train_freq(self.n_envs) or self.train_freq  # type: ignore[assignment]
         super()._setup_model()
@@ -225,8 +228,9 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         joint vectors, as SB3's envs do): ``actions = model.predict_agents(observations)``, then
         ``observations, *_ = parallel_env.step(actions)``. Agents are matched by id, in any order.
 
-        :param observations: One step's observation of every agent of the team, by agent id (a PettingZoo
-            ``ParallelEnv``'s ``reset()`` or ``step()``); an agent missing or one not in the team is refused.
+        :param observations: One step's observation of every agent of the team still in the episode, by agent id (a
+            PettingZoo ``ParallelEnv``'s ``reset()`` or ``step()``): an agent that has left is seen as zeros and gets no
+            action; an agent not in the team is refused.
         :param deterministic: As in ``predict`` (MADDPG's actors are deterministic either way).
         :return: Each agent's action in the env's units, by agent id: its slice of ``predict``'s joint action (a
             continuous agent's float32 vector, rescaled from the policy's [-1, 1] to its ``Box``), or for a discrete

@@ -7,6 +7,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
+import numpy as np
+
 from sb3_maddpg.envs.adapter import MetricsFn, PettingZooToGym
 from sb3_maddpg.envs.simple_spread import make_simple_spread
 
@@ -264,7 +266,20 @@ def make_mpe_env(
     parallel_env = module.parallel_env(
         continuous_actions=continuous_actions, max_cycles=max_cycles, render_mode=render_mode, **task_kwargs
     )
-    return PettingZooToGym(parallel_env, metrics_fn=_METRICS_FNS[task], team_reward=team_reward)
+    # Positions from the world's state: not every task's observation holds its agent's own position (an adversary of
+    # simple_adversary sees only offsets, simple_speaker_listener's speaker no position at all).
+    return PettingZooToGym(parallel_env, metrics_fn=_METRICS_FNS[task], team_reward=team_reward, positions=mpe_agent_positions)
+
+
+def mpe_agent_positions(parallel_env: Any) -> np.ndarray:
+    """
+    Every agent's position in an MPE world, from its state: the position source the MPE tasks declare.
+
+    :param parallel_env: An mpe2 parallel env (wrapped or not).
+    :return: Positions, ``[n_agents, 2]`` in ``possible_agents`` order.
+    """
+    by_name = {agent.name: agent.state.p_pos for agent in parallel_env.unwrapped.world.agents}
+    return np.array([by_name[agent] for agent in parallel_env.possible_agents], dtype=np.float32)
 
 
 def _task_module(task: str) -> str:

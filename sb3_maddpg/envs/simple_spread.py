@@ -8,6 +8,9 @@ from sb3_maddpg.envs.adapter import PettingZooToGym
 CAPTURE_RADIUS = 0.1
 """mpe2's distance within which an agent occupies a landmark (``Scenario.CAPTURE_RADIUS``)."""
 
+SIMPLE_SPREAD_POSITION_SLICE = slice(2, 4)
+"""Where an agent's position lies in its simple_spread observation (``[velocity (2), position (2), ...]``)."""
+
 
 class SimpleSpreadMetrics:
     """
@@ -141,4 +144,9 @@ def make_simple_spread(
         num_agent_neighbors=num_agent_neighbors,
         **mpe_kwargs,
     )
-    return PettingZooToGym(parallel_env, metrics_fn=SimpleSpreadMetrics(capture_radius), team_reward=team_reward)
+    return PettingZooToGym(
+        parallel_env,
+        metrics_fn=SimpleSpreadMetrics(capture_radius),
+        team_reward=team_reward,
+        positions=SIMPLE_SPREAD_POSITION_SLICE,
+    )

@@ -10,7 +10,12 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 from sb3_maddpg.common.layout import AgentLayout
-from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS, check_simple_spread_arguments, make_simple_spread
+from sb3_maddpg.envs.simple_spread import (
+    CAPTURE_RADIUS,
+    SIMPLE_SPREAD_POSITION_SLICE,
+    check_simple_spread_arguments,
+    make_simple_spread,
+)
 from sb3_maddpg.envs.simple_spread_worlds import ACTION_SIZE, SimpleSpreadWorlds, WorldDistances
 
 SETTABLE_ATTRIBUTES = ("local_ratio", "capture_radius")
@@ -89,6 +94,7 @@ class SimpleSpreadVecEnv(VecEnv):
             obs_sizes=(obs_size,) * n_agents,
             action_sizes=(ACTION_SIZE,) * n_agents,
             discrete_actions=(not continuous_actions,) * n_agents,
+            position_slices=(SIMPLE_SPREAD_POSITION_SLICE,) * n_agents,
         )
         self.continuous_actions = bool(continuous_actions)
         observation_space = spaces.Box(-np.inf, np.inf, (n_agents * obs_size,), dtype=np.float32)

@@ -219,7 +219,9 @@ def execute_run(
     model, before, pending_logs, why_not = resume_or_start(config, directory, device)
     model.set_logger(configure(str(directory), ["csv"]))
     restore_logger_values(model, pending_logs)
-    progress = ProgressLogCallback(config.run_id, config.total_timesteps, str(directory / LOG_FILE), echo=verbose >= 1)
+    progress = ProgressLogCallback(
+        config.run_id, config.total_timesteps, str(directory / LOG_FILE), echo=verbose >= 1, sides=task.sides
+    )
     saved = [(steps, directory / CHECKPOINT_DIR / name) for steps, name in before.checkpoints]
     checkpoints = CheckpointAtSteps(list(task.checkpoint_steps), directory / CHECKPOINT_DIR, saved)
     callbacks: list[BaseCallback] = [checkpoints, progress]

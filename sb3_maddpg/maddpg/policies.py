@@ -194,17 +194,17 @@ class MADDPGPolicy(BasePolicy):
         Each agent's action from each agent's observation, as PettingZoo's ``ParallelEnv`` gives and takes them:
         ``actions = model.predict_agents(observations)``, then ``parallel_env.step(actions)``.
 
-        :param observations: One step's observation of every agent of the team, by agent id (``parallel_env.reset()``
-            and ``step()``'s first value).
+        :param observations: One step's observation of every agent of the team still in the episode, by agent id
+            (``parallel_env.reset()`` and ``step()``'s first value); an agent that has left is seen as zeros.
         :param deterministic: As in :meth:`predict` (the actors are deterministic either way).
-        :return: Each agent's action in the env's units, by the given agent ids: what :meth:`predict` gives for its
+        :return: Each given agent's action in the env's units, by its id: what :meth:`predict` gives for its
             slice of the joint action (a continuous agent's float32 vector, rescaled from the policy's [-1, 1] to its
             ``Box``), or for a discrete agent the index of its choice (an ``int``, as the env's ``Discrete`` space takes).
         """
         ids = {str(agent): agent for agent in observations}  # the caller's ids back, whatever their type
         joint = self.agent_layout.joint_observation(observations)
         action, _ = self.predict(joint, deterministic=deterministic)
-        return {ids[agent]: value for agent, value in self.agent_layout.agent_actions(action).items()}
+        return {ids[agent]: value for agent, value in self.agent_layout.agent_actions(action).items() if agent in ids}
 
     def _check_joint_observation(self, observation: Any) -> None:
         """

@@ -32,7 +32,13 @@ class DeviceSelector:
         """
         selector, layout, lead = self.selector, self.layout, observations.shape[:-1]
         if isinstance(selector, NearestAgents):
-            parts = [observations[..., part][..., selector.position_slice] for part in layout.obs_slices]
+            slices = selector.position_slices(layout)
+            if slices is None:
+                raise ValueError(
+                    "This env reports its agents' positions in its infos, not its observations: a run group selects "
+                    "on the device from observations; train such an env's runs one by one (MADDPG.learn)."
+                )
+            parts = [observations[..., part][..., where] for part, where in zip(layout.obs_slices, slices)]
             positions = th.stack(parts, dim=-2)
             offsets = positions.unsqueeze(-2) - positions.unsqueeze(-3)
             distances = (offsets * offsets).sum(dim=-1)

@@ -6,7 +6,7 @@ from typing import Any, NamedTuple
 import torch as th
 
 from sb3_maddpg.common.layout import AgentLayout
-from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS
+from sb3_maddpg.envs.simple_spread import CAPTURE_RADIUS, SIMPLE_SPREAD_POSITION_SLICE
 from sb3_maddpg.envs.simple_spread_worlds import ACTION_SIZE, DIM_P
 from sb3_maddpg.envs.torch_spread_worlds import TorchSpreadWorlds
 from sb3_maddpg.run_group.streams import RunStreams
@@ -51,7 +51,12 @@ class SpreadTask:
     def layout(self, obs_size: int) -> AgentLayout:
         """:return: The agent layout of these worlds (as the numpy env's), for agents observing ``obs_size`` each."""
         agent_ids = tuple(f"agent_{i}" for i in range(self.n_agents))
-        return AgentLayout(agent_ids, (obs_size,) * self.n_agents, (ACTION_SIZE,) * self.n_agents)
+        return AgentLayout(
+            agent_ids,
+            (obs_size,) * self.n_agents,
+            (ACTION_SIZE,) * self.n_agents,
+            position_slices=(SIMPLE_SPREAD_POSITION_SLICE,) * self.n_agents,
+        )
 
 
 class RunsStep(NamedTuple):

@@ -9,12 +9,12 @@ import torch as th
 from gymnasium import spaces
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
+from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, check_replay_buffer_fits, replay_buffer_bytes
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.selection import NearestAgents
 from sb3_maddpg.envs import make_simple_spread
 
-LAYOUT = AgentLayout(("a", "b", "c"), (4, 4, 4), (2, 2, 2))
+LAYOUT = AgentLayout(("a", "b", "c"), (4, 4, 4), (2, 2, 2), position_slices=(slice(2, 4),) * 3)
 OBS_SPACE = spaces.Box(-np.inf, np.inf, (12,), np.float32)
 ACTION_SPACE = spaces.Box(-1, 1, (6,), np.float32)
 
@@ -190,3 +190,49 @@ def test_without_agent_terminations_a_truncation_is_not_terminal(
     buffer.add(np.zeros((1, 12)), np.zeros((1, 12)), np.zeros((1, 6)), np.zeros(1), np.array([done]), [row])
     assert buffer.dones[0, 0].tolist() == [expected_done] * 3
     assert buffer.timeouts[0, 0] == expected_timeout
+
+
+@pytest.mark.parametrize(("n_envs", "k", "next_stored"), [(1, 0, False), (3, 2, False), (4, 1, True)])
+def test_the_memory_planned_before_allocation_is_what_the_arrays_take(n_envs: int, k: int, next_stored: bool) -> None:
+    from sb3_maddpg.envs import PettingZooToGym
+    from tests.envs.walkers import Walkers
+
+    positions = (lambda e: e.positions()) if next_stored else slice(3, 5)
+    env = PettingZooToGym(Walkers(observe="dict" if not next_stored else "noise"), positions=positions)
+    selector = NearestAgents(k=k, target="next") if k else None
+    buffer = MultiAgentReplayBuffer(
+        101, env.observation_space, env.action_space, layout=env.agent_layout, selector=selector, n_envs=n_envs
+    )
+    assert (buffer.next_selections is not None) is next_stored
+    assert buffer.planned_bytes == buffer.nbytes() == replay_buffer_bytes(101, n_envs, env.agent_layout, k, next_stored)
+
+
+def test_a_buffer_larger_than_the_memory_is_refused_and_over_half_of_it_warned_about() -> None:
+    per = 1000
+    check_replay_buffer_fits(500 * per, 500, 1000 * per)  # exactly half: quiet
+    with pytest.warns(UserWarning, match=r"^The replay buffer would take .* over half of the"):
+        check_replay_buffer_fits(501 * per, 501, 1000 * per)
+    with pytest.warns(UserWarning):
+        check_replay_buffer_fits(1000 * per, 1000, 1000 * per)  # exactly all of it: still allowed
+    message = r"^The replay buffer would take .*\(buffer_size=1,001 joint transitions of 1,000 bytes each\), more than"
+    with pytest.raises(ValueError, match=message + r".*lower buffer_size \(e\.g\. buffer_size=100 takes"):
+        check_replay_buffer_fits(1001 * per, 1001, 1000 * per)
+    check_replay_buffer_fits(10**15, 10**12, None)  # memory unknown: no check
+
+
+def test_maddpg_with_a_buffer_that_cannot_fit_is_refused_before_allocating_it() -> None:
+    env = make_simple_spread(n_agents=5)
+    with pytest.raises(ValueError, match=r"^The replay buffer would take [\d.]+ GiB \(buffer_size=1,000,000,000 "):
+        MADDPG("MlpPolicy", env, buffer_size=10**9)
+
+
+def test_an_info_without_agent_terminations_or_a_time_limit_flag_ends_every_agent_at_the_episodes_end() -> None:
+    """A custom VecEnv's infos may carry only agent_rewards: then an episode's end is every agent's termination, and
+    a step that does not end it is none's (timeout handling on, nothing says it was a time limit)."""
+    buffer = make_buffer(n_envs=3)
+    infos = [{"agent_rewards": np.ones(3, np.float32)} for _ in range(3)]
+    infos[2]["TimeLimit.truncated"] = True  # beside it: the same end, said to be a time limit, bootstraps
+    obs = np.zeros((3, 12), dtype=np.float32)
+    buffer.add(obs, obs, np.zeros((3, 6)), np.zeros(3), np.array([True, False, True]), infos)
+    assert buffer.dones[0].tolist() == [[1, 1, 1], [0, 0, 0], [0, 0, 0]]
+    assert buffer.timeouts[0].tolist() == [0, 0, 1]

@@ -40,8 +40,10 @@ from tests.settings import NEVER_UPDATES
 
 
 def team(n_agents: int, obs_size: int = 6) -> AgentLayout:
-    """A team of ``n_agents`` equal agents: observations of ``obs_size`` (MPE-like, the position at 2:4), actions of 2."""
-    return AgentLayout(tuple("abcdefgh"[:n_agents]), (obs_size,) * n_agents, (2,) * n_agents)
+    """A team of ``n_agents`` equal agents: observations of ``obs_size`` (MPE-like, the position declared at 2:4), actions
+    of 2."""
+    positions = (slice(2, 4),) * n_agents if obs_size >= 4 else None
+    return AgentLayout(tuple("abcdefgh"[:n_agents]), (obs_size,) * n_agents, (2,) * n_agents, position_slices=positions)
 
 
 def check(build: Callable[[], object], refusal: str | None, error: type[Exception] = ValueError) -> None:

@@ -8,7 +8,8 @@ from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.selection import CallableSelector, FixedGraph, NearestAgents
 from sb3_maddpg.envs import make_simple_spread
 
-LAYOUT = AgentLayout(("a", "b", "c", "d"), (6,) * 4, (2,) * 4)
+# Positions as MPE lays them out, [vel(2), pos(2), ...], declared as the MPE tasks declare them.
+LAYOUT = AgentLayout(("a", "b", "c", "d"), (6,) * 4, (2,) * 4, position_slices=(slice(2, 4),) * 4)
 
 
 def observations_with_positions(positions: list[tuple[float, float]]) -> np.ndarray:
@@ -53,6 +54,26 @@ def test_nearest_agents_errors() -> None:
         NearestAgents(k=0)
     with pytest.raises(ValueError, match="position_slice.*does not fit"):
         NearestAgents(k=1, position_slice=slice(5, 8)).validate(LAYOUT)
+    with pytest.raises(TypeError, match=r"position_slice must be a slice .*got \(2, 4\)"):
+        NearestAgents(k=1, position_slice=(2, 4))  # type: ignore[arg-type]
+
+
+def test_nearest_agents_on_an_env_without_declared_positions_is_refused_naming_how_to_give_them() -> None:
+    """Issue 46: on a non-MPE env, obs[2:4] may be anything (waterworld's sensors): never read it unasked."""
+    undeclared = AgentLayout(("a", "b", "c", "d"), (6,) * 4, (2,) * 4)
+    with pytest.raises(
+        ValueError,
+        match=r"^NearestAgents selects by distance, but this env does not say where.*"
+        r"PettingZooToGym\(parallel_env, positions=\.\.\.\).*NearestAgents\(position_slice=\.\.\.\)",
+    ):
+        NearestAgents(k=1).validate(undeclared)
+    obs = observations_with_positions([(0, 0), (1, 0), (0, 3), (0.5, 0)])
+    with pytest.raises(ValueError, match="no declared positions"):
+        NearestAgents(k=1).select(obs, undeclared)
+    # The user's slice needs no declaration, and a declaration elsewhere is read from there.
+    assert NearestAgents(k=1, position_slice=slice(2, 4)).select(obs, undeclared)[0, :, 0].tolist() == [3, 3, 0, 0]
+    moved = AgentLayout(("a", "b", "c", "d"), (6,) * 4, (2,) * 4, position_slices=(slice(4, 6),) * 4)
+    assert NearestAgents(k=1).select(obs, moved)[0].tolist() == [[1], [0], [0], [0]]  # all at (100, 100): by index
 
 
 def test_fixed_graph_and_roles() -> None:

@@ -520,21 +520,27 @@ def test_non_flat_and_float64_agent_spaces() -> None:
         np.testing.assert_allclose(sent.ravel(), action[2 * i : 2 * i + 2], rtol=1e-6)
 
 
-def test_agents_leaving_mid_episode_raise() -> None:
-    env = PettingZooToGym(FakeParallelEnv(dying_agent="a1", die_at=2))
+def test_an_agent_that_leaves_gets_no_action_and_is_seen_as_zeros() -> None:
+    fake = FakeParallelEnv(dying_agent="a1", die_at=2, end_at=4)
+    env = PettingZooToGym(fake)
     env.reset()
-    env.step(np.zeros(6, np.float32))
-    with pytest.raises(RuntimeError, match=r"supersuit\.black_death_v3") as error:
-        env.step(np.zeros(6, np.float32))
-    assert "a1" in str(error.value)
+    results = [env.step(np.full(6, 0.5, np.float32)) for _ in range(4)]
+    gone = env.agent_layout.obs_slices[1]
+    assert ["a1" in sent for sent in fake.received] == [True, True, False, False]
+    np.testing.assert_array_equal(results[1][0][gone], [2, 2, 1.0])  # its last observation, as the env gave it
+    for obs, _, _, _, info in results[2:]:
+        np.testing.assert_array_equal(obs[gone], np.zeros(3))
+        assert info["agent_rewards"][1] == 0 and info["agent_terminations"][1]
+    assert [result[2] for result in results] == [False, False, False, True]  # every agent terminated at step 4
 
 
-def test_agents_vanishing_mid_episode_raise() -> None:
-    env = PettingZooToGym(FakeParallelEnv(vanishing_agent="a2", die_at=2))
+def test_an_agent_that_vanishes_without_a_flag_counts_as_terminated() -> None:
+    env = PettingZooToGym(FakeParallelEnv(vanishing_agent="a2", die_at=2, end_at=4, end_truncates=True))
     env.reset()
     env.step(np.zeros(6, np.float32))
-    with pytest.raises(RuntimeError, match=r"missing: \['a2'\].*supersuit\.black_death_v3"):
-        env.step(np.zeros(6, np.float32))
+    obs, _, terminated, truncated, info = env.step(np.zeros(6, np.float32))
+    np.testing.assert_array_equal(obs[env.agent_layout.obs_slices[2]], np.zeros(3))
+    assert info["agent_terminations"].tolist() == [False, False, True] and not (terminated or truncated)
 
 
 def test_reset_without_the_whole_team_raises() -> None:
@@ -563,26 +569,9 @@ def test_unknown_team_reward_raises() -> None:
         PettingZooToGym(FakeParallelEnv(), team_reward="max")  # type: ignore[arg-type]
 
 
-def test_black_death_wrapped_env_works() -> None:
-    # supersuit 3.11's black_death ends the episode only when every remaining agent reports both
-    # terminated and truncated ((terminations & truncations).all()), so the fake env does so at its end.
-    fake = FakeParallelEnv(dying_agent="a1", die_at=2, end_at=4, end_truncates=True)
-    env = PettingZooToGym(supersuit.black_death_v3(fake))
-    assert env.agent_layout.agent_ids == ("a0", "a1", "a2")
-    env.reset()
-    results = [env.step(np.full(6, 0.5, np.float32)) for _ in range(4)]
-    dead = env.agent_layout.obs_slices[1]
-    for t, (obs, _, terminated, truncated, info) in enumerate(results, start=1):
-        if t <= 2:
-            np.testing.assert_array_equal(obs[dead], [2, t, 1.0])
-        else:
-            np.testing.assert_array_equal(obs[dead], np.zeros(3))  # dead agent: zero observation, zero reward
-            assert info["agent_rewards"][1] == 0
-            assert "a1" not in fake.received[t - 1]  # and its action is not passed on
-        np.testing.assert_array_equal(info["agent_rewards"][[0, 2]], [t, 3 * t])
-        assert terminated is (t == 4)
-        assert truncated is False
-    assert "a1" in fake.received[1]
+def test_black_death_is_not_needed_and_warned_about() -> None:
+    with pytest.warns(UserWarning, match=r"^The env is wrapped in supersuit\.black_death_v3, which the adapter does not"):
+        PettingZooToGym(supersuit.black_death_v3(FakeParallelEnv()))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -79,11 +79,17 @@ def test_predict_agents_refuses_missing_and_unknown_agents_naming_the_team() -> 
     model = MADDPG("MlpPolicy", make_simple_spread(n_agents=3), seed=0, **SMALL)
     observations = {f"agent_{i}": np.zeros(18, np.float32) for i in range(3)}
     team = r"The team is 3 agents \(agent_0, agent_1, agent_2\) with observations of 18 each"
-    with pytest.raises(ValueError, match=rf"^No observation of \['agent_2'\] \(given: \['agent_0', 'agent_1'\]\)\. {team}"):
-        model.predict_agents({a: o for a, o in observations.items() if a != "agent_2"})
+    # An agent that has left the episode has no observation: the others act, it is seen as zeros, as in training.
+    present = {a: o + 1.0 for a, o in observations.items() if a != "agent_2"}
+    actions = model.predict_agents(present)
+    joint = np.concatenate([present["agent_0"], present["agent_1"], np.zeros(18, np.float32)])
+    expected = model.agent_layout.agent_actions(model.predict(joint, deterministic=True)[0])
+    assert list(actions) == ["agent_0", "agent_1"]
+    for agent in actions:
+        np.testing.assert_array_equal(actions[agent], expected[agent])
     with pytest.raises(ValueError, match=rf"^Observations of agents not in the team: \['agent_3'\] .*{team}"):
         model.predict_agents({**observations, "agent_3": np.zeros(18, np.float32)})
-    with pytest.raises(ValueError, match=r"^No observation of \['agent_0', 'agent_1', 'agent_2'\]; .*black_death_v3"):
+    with pytest.raises(ValueError, match=r"^No observation of \['agent_0', 'agent_1', 'agent_2'\]; .*still in the episode"):
         model.predict_agents({f"agent_{i}": np.zeros(30, np.float32) for i in range(3, 5)})
     with pytest.raises(ValueError, match=r"^agent_1's observation has 30 numbers \(shape \(30,\)\), but the team's agent_1"):
         model.predict_agents({**observations, "agent_1": np.zeros(30, np.float32)})

@@ -20,7 +20,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNorm
 
 from sb3_maddpg import MADDPG, MATD3, AgentLayout
 from sb3_maddpg.common.selection import CallableSelector, FixedGraph, NearestAgents
-from sb3_maddpg.envs import SIMPLE_SPREAD_ID, PettingZooToGym, SimpleSpreadVecEnv, make_simple_spread
+from sb3_maddpg.envs import SIMPLE_SPREAD_ID, PettingZooToGym, SimpleSpreadVecEnv, make_mpe_env, make_simple_spread
 from sb3_maddpg.sharing import SCHEME_ALIASES, SHARING_SCHEMES, CriticFeaturesExtractor
 from tests.settings import N_AGENTS, TRAINS_QUICKLY, make_team
 
@@ -408,13 +408,20 @@ def test_heterogeneous_team():
     assert actions.shape == (2, 8)
 
 
-@pytest.mark.parametrize("selection", [None, 1])
-def test_selected_sharing_on_a_heterogeneous_team_names_the_cause_first(selection):
-    # The first error is the real cause, whatever k is: NearestAgents finds no position in the speaker's
-    # 3-component observation (not the default k=2, too many for a team of two).
-    message = "position_slice=slice(2, 4, None) does not fit agent 'speaker_0''s observation of size 3"
-    with pytest.raises(ValueError, match=re.escape(message) + r".*FixedGraph, CallableSelector"):
-        MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selector=selection, **TRAINS_QUICKLY)
+def test_selected_sharing_by_distance_on_a_heterogeneous_team_reads_the_worlds_positions():
+    # mpe2 through the bare adapter declares no positions (the speaker observes none at all: 3 numbers): selection by
+    # distance is refused, naming how to declare them, rather than reading obs[2:4] of whatever is there.
+    with pytest.raises(ValueError, match=r"^NearestAgents selects by distance, but this env does not say where"):
+        MADDPG("MlpPolicy", make_speaker_listener(), critic_sharing="selected", selector=1, **TRAINS_QUICKLY)
+    # make_mpe_env declares positions from the world's state, so it works on any MPE team; what is refused there is
+    # k=2, too many for a team of two.
+    listener = lambda: make_mpe_env("simple_speaker_listener", max_cycles=25)  # noqa: E731
+    with pytest.raises(ValueError, match=r"selects k=2 other agents, but the team has only 1 other agents"):
+        MADDPG("MlpPolicy", listener(), critic_sharing="selected", **TRAINS_QUICKLY)
+    model = MADDPG("MlpPolicy", listener(), critic_sharing="selected", selector=1, **TRAINS_QUICKLY)
+    assert model.agent_layout.positions_in_info
+    model.learn(total_timesteps=200)
+    assert model._n_updates > 0
 
 
 def test_selected_sharing_pads_heterogeneous_slots_and_updates():

@@ -1,0 +1,121 @@
+"""Where agents' positions are, as the env declares them: a Dict key wherever gymnasium's flattening puts it, or the
+env's state through its infos; selection by distance reads them there and nowhere else (issue 46)."""
+
+import numpy as np
+import pytest
+from pettingzoo.test import parallel_api_test
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.common.selection import NearestAgents
+from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
+from tests.envs.walkers import Walkers
+
+
+def nearest(positions: np.ndarray, k: int) -> np.ndarray:
+    """Each agent's k nearest others by hand: ``positions`` ``[batch, n, d]`` -> ``[batch, n, k]``."""
+    out = []
+    for row in positions:
+        distances = np.linalg.norm(row[:, None] - row[None], axis=-1)
+        np.fill_diagonal(distances, np.inf)
+        out.append(np.argsort(distances, axis=1, kind="stable")[:, :k])
+    return np.array(out)
+
+
+@pytest.mark.parametrize("observe", ["dict", "nested", "noise"])
+def test_walkers_is_a_real_parallel_env(observe: str) -> None:
+    parallel_api_test(Walkers(observe=observe), num_cycles=20)
+
+
+@pytest.mark.parametrize(("observe", "key", "where"), [("dict", "pos", slice(3, 5)), ("nested", ("self", "pos"), slice(3, 5))])
+def test_a_dict_key_is_found_wherever_gymnasiums_flattening_puts_it(observe: str, key: str | tuple, where: slice) -> None:
+    """Flattening sorts the keys (landmarks, pos, vel): MPE's 2:4 would read a landmark and the velocity."""
+    walkers = Walkers(observe=observe)
+    env = PettingZooToGym(walkers, positions=key)
+    assert env.agent_layout.position_slices == (where,) * 4
+    obs, _ = env.reset(seed=3)
+    layout = env.agent_layout
+    np.testing.assert_array_equal(layout.positions(obs[None])[0], walkers.positions())
+    selection = NearestAgents(k=2).select(obs[None], layout)
+    assert selection.tolist() == nearest(walkers.positions()[None], 2).tolist()
+
+
+def test_positions_from_the_envs_state_select_in_the_buffer_for_the_stored_and_the_next_step() -> None:
+    walkers = Walkers(observe="noise", max_cycles=5)
+    env = PettingZooToGym(walkers, positions=lambda parallel_env: parallel_env.positions())
+    assert env.agent_layout.positions_in_info and env.agent_layout.position_slices is None
+    _, info = env.reset(seed=0)
+    before = walkers.positions()
+    np.testing.assert_array_equal(info["agent_positions"], before)
+    for _ in range(5):
+        *_, info = env.step(np.full(8, 0.5, np.float32))
+        np.testing.assert_array_equal(info["agent_positions_before"], before)
+        before = walkers.positions()
+        np.testing.assert_array_equal(info["agent_positions"], before)
+
+    model = MADDPG(
+        "MlpPolicy",
+        PettingZooToGym(Walkers(observe="noise", max_cycles=5), positions=lambda e: e.positions()),
+        critic_sharing="selected",
+        selector=NearestAgents(k=2, target="next"),
+        learning_starts=20,
+        batch_size=8,
+        transitions_per_update=10,
+        buffer_size=200,
+        seed=0,
+        policy_kwargs={"net_arch": [8, 8]},
+    )
+    recorded: list[tuple[np.ndarray, np.ndarray]] = []
+    add = model.replay_buffer.add
+
+    def spy(obs, next_obs, action, reward, done, infos):  # type: ignore[no-untyped-def]
+        recorded.append((infos[0]["agent_positions_before"], infos[0]["agent_positions"]))
+        add(obs, next_obs, action, reward, done, infos)
+
+    model.replay_buffer.add = spy  # type: ignore[method-assign]
+    model.learn(total_timesteps=100)
+    buffer, n = model.replay_buffer, len(recorded)
+    assert buffer.next_selections is not None and n == buffer.pos == 100
+    before = np.stack([row[0] for row in recorded])
+    after = np.stack([row[1] for row in recorded])
+    assert (nearest(after, 2) != nearest(before, 2)).any()  # agents moved: the next step's nearest differ somewhere
+    np.testing.assert_array_equal(buffer.selections[:n, 0], nearest(before, 2))
+    np.testing.assert_array_equal(buffer.next_selections[:n, 0], nearest(after, 2))
+    batch = buffer.sample(16)
+    assert batch.next_selections is not None and batch.selections is not None
+    assert model._n_updates > 0
+
+
+def test_an_env_with_positions_nowhere_refuses_selection_by_distance_but_not_other_rules() -> None:
+    env = PettingZooToGym(Walkers(observe="noise"))
+    with pytest.raises(ValueError, match=r"^NearestAgents selects by distance, but this env does not say where"):
+        MADDPG("MlpPolicy", env, critic_sharing="selected", selector=2)
+    MADDPG("MlpPolicy", env, critic_sharing="full")  # nothing else needs positions
+
+
+@pytest.mark.parametrize(
+    ("positions", "error", "message"),
+    [
+        ("pos", ValueError, r"positions='pos' names a Dict observation key, but agent 'walker_0'.*is a Box: give a slice"),
+        (("self", "place"), None, None),  # checked on a Dict below
+        (3, TypeError, r"positions=3 is not a position source: give a slice"),
+        ({"walker_0": slice(0, 2)}, ValueError, r"positions maps agents \['walker_0'\], but the env's agents are"),
+        (slice(3, 6), ValueError, r"Agent 0's position slice slice\(3, 6, None\) does not fit its observation of size 4"),
+    ],
+)
+def test_a_position_source_that_does_not_fit_is_refused_naming_the_fix(positions, error, message) -> None:  # type: ignore[no-untyped-def]
+    if error is None:
+        with pytest.raises(
+            ValueError, match=r"agent 'walker_0''s Dict observation has no key 'place' \(its keys: \['pos', 'vel'\]\)"
+        ):
+            PettingZooToGym(Walkers(observe="nested"), positions=positions)
+        return
+    with pytest.raises(error, match=message):
+        PettingZooToGym(Walkers(observe="noise"), positions=positions)
+
+
+def test_the_mpe_tasks_declare_their_positions() -> None:
+    env = make_simple_spread(n_agents=3)
+    assert env.agent_layout.position_slices == (slice(2, 4),) * 3
+    obs, _ = env.reset(seed=0)
+    world = [agent.state.p_pos for agent in env.parallel_env.unwrapped.world.agents]
+    np.testing.assert_allclose(env.agent_layout.positions(obs[None])[0], world, rtol=1e-6)
