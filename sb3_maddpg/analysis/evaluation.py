@@ -88,10 +88,10 @@ def side_returns(result: dict[str, Any]) -> dict[str, float]:
 def scores_simple_spread(task_metrics: Sequence["DeclaredMetric"]) -> bool:
     """
     :param task_metrics: The task metrics an evaluation declares.
-    :return: Whether it scores simple_spread's metrics (none declared, or simple_spread's own four among them): then
+    :return: Whether it scores simple_spread's metrics (simple_spread's own four among those declared): then
         :data:`EVAL_KEYS` apply; else only the declared metrics, the returns and the episode length do.
     """
-    return not task_metrics or set(TASK_METRICS) <= {metric.key for metric in task_metrics}
+    return set(TASK_METRICS) <= {metric.key for metric in task_metrics}
 
 
 def _metric_label(metric: "DeclaredMetric") -> str:
@@ -109,7 +109,8 @@ def describe_result(result: dict[str, Any], task_metrics: Sequence["DeclaredMetr
     """
     :param result: What :func:`evaluate_team` returned.
     :param task_metrics: The task metrics to describe, with their directions (e.g. ``MPE_TASK_METRICS["simple_tag"]``);
-        ``None``: those the evaluation declared (``result["task_metrics"]``), else simple_spread's.
+        ``None``: those the evaluation declared (``result["task_metrics"]``), else simple_spread's where the result
+        holds them (a stored score), else none.
     :return: Its headline numbers on one line, each with its direction. simple_spread: ``"success 12.0% (higher is
         better), coverage 55.3% (higher), collisions/episode 1.25 (lower), min-dist sum 0.38 (lower), return -30.73
         (std 5.21, higher)"``. Another task: its own metrics with their directions and for whom, then each side's
@@ -118,8 +119,9 @@ def describe_result(result: dict[str, Any], task_metrics: Sequence["DeclaredMetr
         -20.10 (per agent, higher is better for them)"``. Metrics that do not apply (NaN) are left out.
     """
     declared = tuple(result.get("task_metrics", ()) if task_metrics is None else task_metrics)
+    simple_spread = scores_simple_spread(declared) or (task_metrics is None and not declared and "success_rate" in result)
     parts = []
-    if scores_simple_spread(declared):
+    if simple_spread:
         if not np.isnan(result.get("success_rate", np.nan)):
             parts.append(f"success {100 * result['success_rate']:.1f}% (higher is better)")
         if not np.isnan(result.get("coverage", np.nan)):
@@ -137,7 +139,7 @@ def describe_result(result: dict[str, Any], task_metrics: Sequence["DeclaredMetr
     for side, value in sides.items():
         parts.append(f"{side_return_label(side)} {value:.2f} (per agent, higher is better for them)")
     if not sides and "return_mean" in result:
-        team = "return" if scores_simple_spread(declared) else "team return"
+        team = "return" if simple_spread else "team return"
         parts.append(f"{team} {result['return_mean']:.2f} (std {result['return_std']:.2f}, higher)")
     if "group_return" in result:
         parts.append(f"group return {result['group_return']:.2f} (higher is better for the scored agents)")
@@ -163,7 +165,7 @@ def eval_keys(
         base[at : at + 2] = [side_return_key(side) for side in sides]
     if "episode_length" not in base:
         base.append("episode_length")
-    extra = [key for key in declared if key not in base]
+    extra = [key for key in declared if key not in base and not (scores_simple_spread(task_metrics) and key in TASK_METRICS)]
     return (*base, *extra, *(("group_return",) if score_agents else ()))
 
 
@@ -199,20 +201,22 @@ def evaluate_team(
     n_episodes: int = 100,
     deterministic: bool = True,
     seed: int | None = None,
-    task_metrics: Sequence[DeclaredMetric] = (),
+    task_metrics: Sequence[DeclaredMetric] | None = None,
     score_agents: Sequence[str] = (),
     sides: Mapping[str, Sequence[str]] | None = None,
 ) -> dict[str, Any]:
     """
     Run a team for ``n_episodes`` episodes and measure the task, as the paper's evaluation does.
 
-    The task metrics come from the env's ``info`` at the **last step** of each episode
-    (``success``, ``coverage``, ``min_dist_sum``), except ``collisions``, which is **summed over the
-    episode** (agent pairs in contact, counted at every step). Per-agent returns are summed from
-    ``info["agent_rewards"]``. Success and coverage at each radius of :data:`SUCCESS_RADII` come from
-    ``info["landmark_distances"]`` at the last step (each landmark's distance to its nearest agent; a landmark is
-    covered when that distance is below the radius, as in mpe2). An env without these keys (any env but
-    simple_spread's) gives ``nan`` for the missing metrics, with a warning.
+    It scores the task metrics the env declares (its ``task_metrics``: simple_spread's envs, every MPE task of
+    :func:`~sb3_maddpg.envs.make_mpe_env`, or your own through ``PettingZooToGym(env, metrics_fn=...,
+    task_metrics=[TaskMetric(...)])``), and only those: an env that declares none gets its returns and episode length.
+    Each metric comes from the env's ``info`` at the **last step** of each episode or **summed over the episode**, as
+    its :class:`~sb3_maddpg.envs.TaskMetric` says (simple_spread: ``success``, ``coverage``, ``min_dist_sum`` at the
+    last step, ``collisions`` summed). Per-agent returns are summed from ``info["agent_rewards"]``. On simple_spread,
+    success and coverage at each radius of :data:`SUCCESS_RADII` come from ``info["landmark_distances"]`` at the last
+    step (each landmark's distance to its nearest agent; a landmark is covered when that distance is below the radius,
+    as in mpe2). A declared metric the env's info never holds is ``nan``, with a warning.
 
     With a ``VecEnv`` of ``n`` envs the episodes are spread evenly over the envs, as in SB3's
     ``evaluate_policy``, so that the result does not favour short episodes.
@@ -225,9 +229,9 @@ def evaluate_team(
         of that noise added in the [-1, 1] action space and clipped there, as in the model's data collection (the
         model's own noise process is not advanced). As in a MADDPG model's training, no noise is added to discrete
         agents' one-hots, so their actions stay the most likely ones here (in training they are sampled).
-    :param task_metrics: Other task metrics to score from ``info``, e.g. ``MPE_TASK_METRICS["simple_tag"]`` for an
-        env of :func:`~sb3_maddpg.envs.make_mpe_env`: each is returned under its key, the mean over episodes of its
-        last-step value or of its sum over the episode. When given, only their absence is warned about.
+    :param task_metrics: The task metrics to score from ``info`` (each is returned under its key, the mean over
+        episodes of its last-step value or of its sum over the episode); ``None`` (the default): those the env
+        declares (its ``task_metrics`` attribute; none if it has none); ``()``: none.
     :param score_agents: Agent ids (of the env's ``agent_layout``) whose summed mean return is returned as
         ``group_return``, e.g. the adversaries of ``simple_tag``.
     :param sides: The sides of a competitive task, e.g. ``MPE_TASK_SIDES["simple_tag"]``: side -> its agents, each an
@@ -251,12 +255,28 @@ def evaluate_team(
     if n_episodes < 1:
         raise ValueError(f"n_episodes must be at least 1, got {n_episodes}.")
     vec_env: VecEnv = env if isinstance(env, VecEnv) else DummyVecEnv([lambda: env])  # type: ignore[list-item, return-value]
+    if task_metrics is None:
+        task_metrics = declared_task_metrics(vec_env)
     if seed is not None:
         vec_env.seed(seed)
     tally = EpisodeTally(vec_env.num_envs, n_episodes, task_metrics)
     _play(model, vec_env, tally, deterministic)
     _warn_missing_metrics(tally)
     return _summarise(tally, vec_env, task_metrics, score_agents, sides)
+
+
+def declared_task_metrics(env: gym.Env | VecEnv) -> tuple[DeclaredMetric, ...]:
+    """
+    :param env: An env or a VecEnv.
+    :return: The task metrics it declares (its ``task_metrics``; of a VecEnv's first env); none if it declares none.
+    """
+    try:
+        declared = (
+            env.get_attr("task_metrics", indices=[0])[0] if isinstance(env, VecEnv) else env.get_wrapper_attr("task_metrics")
+        )
+    except AttributeError:
+        return ()
+    return tuple(declared or ())
 
 
 class EpisodeTally:
@@ -266,7 +286,7 @@ class EpisodeTally:
 
     :param n_envs: Number of envs.
     :param n_episodes: Number of episodes in all.
-    :param task_metrics: Task metrics declared besides simple_spread's.
+    :param task_metrics: The task metrics declared.
     """
 
     def __init__(self, n_envs: int, n_episodes: int, task_metrics: Sequence[DeclaredMetric]) -> None:
@@ -282,6 +302,11 @@ class EpisodeTally:
         self.declared = {metric.key: metric.per_episode for metric in task_metrics}
         self.declared_values: dict[str, list[float]] = {key: [] for key in self.declared}
         self.declared_sums = {key: np.zeros(n_envs) for key, per_episode in self.declared.items() if per_episode == "sum"}
+
+    @property
+    def scores_simple_spread(self) -> bool:
+        """Whether simple_spread's metrics are declared (then success and coverage are scored at every radius too)."""
+        return set(TASK_METRICS) <= set(self.declared)
 
     @property
     def done(self) -> bool:
@@ -350,20 +375,16 @@ def _play(model: PredictsActions, vec_env: VecEnv, tally: EpisodeTally, determin
 
 
 def _warn_missing_metrics(tally: EpisodeTally) -> None:
-    """Warn about the metrics the env's info never held (they are ``nan``), saying where they come from."""
-    if tally.declared:
-        missing = [key for key, values in tally.declared_values.items() if np.isnan(values).all()]
-        hint = "the task_metrics given are not in the env's info"
-    else:
-        missing = [key for key in TASK_METRICS if np.isnan(tally.episodes[key]).all()]
-        missing += ["landmark_distances"] if np.isnan(tally.episodes[RADIUS_KEYS[0]]).all() else []
-        hint = (
-            "simple_spread's envs give them; for another MPE task pass its task_metrics=MPE_TASK_METRICS[task], "
-            "or read return_mean and agent_returns"
-        )
+    """Warn about declared metrics the env's info never held (they are ``nan``), saying how to give them."""
+    missing = [key for key, values in tally.declared_values.items() if np.isnan(values).all()]
+    if tally.scores_simple_spread and np.isnan(tally.episodes[RADIUS_KEYS[0]]).all():
+        missing.append("landmark_distances")
     if missing:
         warnings.warn(
-            f"evaluate_team: the env's info has no task metrics for {missing}, so they are nan: {hint}.",
+            f"evaluate_team: the env's info has no values for the task metrics {missing}, so they are nan: return them "
+            "from the env's metrics function, e.g. PettingZooToGym(env, metrics_fn=lambda e: {'food_eaten': ...}, "
+            "task_metrics=[TaskMetric('food_eaten', 'sum', 'higher', 'team', 'food eaten')]), or score only what it "
+            "declares (task_metrics=None, the default).",
             stacklevel=user_stacklevel(),
         )
 
@@ -396,7 +417,7 @@ def _summarise(
     result: dict[str, Any] = {key: everything[key] for key in keys}
     result["agent_returns"] = np.mean(per_agent, axis=0).tolist() if len(per_agent) == len(returns) else []
     result["n_episodes"] = len(returns)
-    if task_metrics:
+    if task_metrics and not scores_simple_spread(task_metrics):  # simple_spread's result reads as it always has
         result["task_metrics"] = tuple(task_metrics)
     return result
 
@@ -511,7 +532,8 @@ class TeamEvalCallback(BaseCallback):
     :param log_prefix: The logger key prefix.
     :param eval_at_start: Also evaluate the untrained team when training starts (timestep 0).
     :param verbose: 1 to print each evaluation.
-    :param task_metrics: Other task metrics to score and log (see :func:`evaluate_team`).
+    :param task_metrics: The task metrics to score and log; ``None``: those ``eval_env`` declares (see
+        :func:`evaluate_team`).
     :param score_agents: Agent ids whose summed return to log as ``group_return`` (see :func:`evaluate_team`).
     :param sides: The sides of a competitive task, each side's return logged as ``return_<side>`` instead of the team
         return (see :func:`evaluate_team`).
@@ -528,7 +550,7 @@ class TeamEvalCallback(BaseCallback):
         log_prefix: str = "eval",
         eval_at_start: bool = False,
         verbose: int = 0,
-        task_metrics: Sequence[DeclaredMetric] = (),
+        task_metrics: Sequence[DeclaredMetric] | None = None,
         score_agents: Sequence[str] = (),
         sides: Mapping[str, Sequence[str]] | None = None,
     ) -> None:
@@ -543,7 +565,7 @@ class TeamEvalCallback(BaseCallback):
         self.log_path = log_path
         self.log_prefix = log_prefix
         self.eval_at_start = eval_at_start
-        self.task_metrics = tuple(task_metrics)
+        self.task_metrics = declared_task_metrics(eval_env) if task_metrics is None else tuple(task_metrics)
         self.score_agents = tuple(score_agents)
         self.sides = {side: tuple(agents) for side, agents in (sides or {}).items()}
         self.keys = eval_keys(self.task_metrics, self.score_agents, tuple(self.sides))

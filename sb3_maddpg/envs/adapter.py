@@ -1,7 +1,7 @@
 """A gymnasium view of a PettingZoo ParallelEnv: one flat joint observation, one flat joint action."""
 
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Literal, SupportsFloat
 
 import gymnasium as gym
@@ -9,6 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.envs.task_metric import TaskMetric
 
 MetricsFn = Callable[[Any], dict[str, float]]
 """A per-environment hook: called with the PettingZoo env after every reset and step, returns task metrics."""
@@ -80,6 +81,7 @@ class PettingZooToGym(gym.Env):
         metrics_fn: MetricsFn | None = None,
         team_reward: Literal["sum", "mean"] = "sum",
         positions: PositionSource | None = None,
+        task_metrics: Sequence[TaskMetric] = (),
     ) -> None:
         super().__init__()
         if team_reward not in ("sum", "mean"):
@@ -89,6 +91,12 @@ class PettingZooToGym(gym.Env):
         self.parallel_env = parallel_env
         self.metrics_fn = metrics_fn
         self.team_reward = team_reward
+        self.task_metrics = tuple(task_metrics)
+        if self.task_metrics and metrics_fn is None:
+            raise ValueError(
+                f"task_metrics declares {[metric.key for metric in self.task_metrics]}, but no metrics_fn adds them to "
+                "info: pass metrics_fn=fn, fn(parallel_env) -> {key: value}, beside them."
+            )
         agent_ids = tuple(parallel_env.possible_agents)
         self._structured_obs = {  # Dict / Tuple observation spaces, flattened as gymnasium flattens them
             agent: space

@@ -4,13 +4,13 @@ import importlib
 import inspect
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
 from sb3_maddpg.envs.adapter import MetricsFn, PettingZooToGym
-from sb3_maddpg.envs.simple_spread import make_simple_spread
+from sb3_maddpg.envs.simple_spread import SIMPLE_SPREAD_TASK_METRICS, make_simple_spread
+from sb3_maddpg.envs.task_metric import TaskMetric
 
 MPE_TASKS: dict[str, str] = {
     "simple": "mpe2.simple_v3",
@@ -24,27 +24,6 @@ MPE_TASKS: dict[str, str] = {
     "simple_world_comm": "mpe2.simple_world_comm_v3",
 }
 """The nine MPE tasks that :func:`make_mpe_env` builds, each mapped to the mpe2 module that defines it."""
-
-
-@dataclass(frozen=True)
-class TaskMetric:
-    """
-    One task metric that an env built by :func:`make_mpe_env` adds to ``info`` at every reset and step.
-
-    :param key: The key in ``info``.
-    :param per_episode: How an episode is scored: ``"last"``, the value at the episode's last step, or ``"sum"``,
-        the sum over the episode's steps (as :func:`~sb3_maddpg.analysis.evaluation.evaluate_team` does for ``collisions``).
-    :param better: ``"lower"`` or ``"higher"``: which way is better for ``team``.
-    :param team: Whose objective ``better`` refers to: ``"team"`` (every agent, a cooperative task),
-        ``"good agents"`` or ``"adversaries"``.
-    :param description: What the number measures.
-    """
-
-    key: str
-    per_episode: Literal["last", "sum"]
-    better: Literal["lower", "higher"]
-    team: Literal["team", "good agents", "adversaries"]
-    description: str
 
 
 def _distance(entity_a: Any, entity_b: Any) -> float:
@@ -177,12 +156,7 @@ MPE_TASK_METRICS: dict[str, tuple[TaskMetric, ...]] = {
     "simple_speaker_listener": (
         TaskMetric("goal_distance", "last", "lower", "team", "the listener's distance to the goal landmark"),
     ),
-    "simple_spread": (
-        TaskMetric("success", "last", "higher", "team", "1 when every landmark is covered, else 0"),
-        TaskMetric("coverage", "last", "higher", "team", "fraction of landmarks with an agent within the capture radius"),
-        TaskMetric("collisions", "sum", "lower", "team", "agent pairs in contact"),
-        TaskMetric("min_dist_sum", "last", "lower", "team", "sum over landmarks of the nearest agent's distance"),
-    ),
+    "simple_spread": SIMPLE_SPREAD_TASK_METRICS,
     "simple_tag": _CATCHES,
     "simple_world_comm": _CATCHES,
 }

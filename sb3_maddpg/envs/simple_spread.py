@@ -4,9 +4,19 @@ import math
 from typing import Any, Literal
 
 from sb3_maddpg.envs.adapter import PettingZooToGym
+from sb3_maddpg.envs.task_metric import TaskMetric
 
 CAPTURE_RADIUS = 0.1
 """mpe2's distance within which an agent occupies a landmark (``Scenario.CAPTURE_RADIUS``)."""
+
+SIMPLE_SPREAD_TASK_METRICS = (
+    TaskMetric("success", "last", "higher", "team", "1 when every landmark is covered, else 0"),
+    TaskMetric("coverage", "last", "higher", "team", "fraction of landmarks with an agent within the capture radius"),
+    TaskMetric("collisions", "sum", "lower", "team", "agent pairs in contact"),
+    TaskMetric("min_dist_sum", "last", "lower", "team", "sum over landmarks of the nearest agent's distance"),
+)
+"""The metrics simple_spread's envs add to ``info`` (and ``landmark_distances``, a list: see
+:class:`SimpleSpreadMetrics`)."""
 
 SIMPLE_SPREAD_POSITION_SLICE = slice(2, 4)
 """Where an agent's position lies in its simple_spread observation (``[velocity (2), position (2), ...]``)."""
@@ -149,4 +159,5 @@ def make_simple_spread(
         metrics_fn=SimpleSpreadMetrics(capture_radius),
         team_reward=team_reward,
         positions=SIMPLE_SPREAD_POSITION_SLICE,
+        task_metrics=SIMPLE_SPREAD_TASK_METRICS,
     )

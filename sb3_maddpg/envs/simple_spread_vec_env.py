@@ -13,6 +13,7 @@ from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.envs.simple_spread import (
     CAPTURE_RADIUS,
     SIMPLE_SPREAD_POSITION_SLICE,
+    SIMPLE_SPREAD_TASK_METRICS,
     check_simple_spread_arguments,
     make_simple_spread,
 )
@@ -96,6 +97,7 @@ class SimpleSpreadVecEnv(VecEnv):
             discrete_actions=(not continuous_actions,) * n_agents,
             position_slices=(SIMPLE_SPREAD_POSITION_SLICE,) * n_agents,
         )
+        self.task_metrics = SIMPLE_SPREAD_TASK_METRICS  # what its infos hold, as make_simple_spread's env declares
         self.continuous_actions = bool(continuous_actions)
         observation_space = spaces.Box(-np.inf, np.inf, (n_agents * obs_size,), dtype=np.float32)
         action_space = spaces.Box(0.0, 1.0, (n_agents * ACTION_SIZE,), dtype=np.float32)

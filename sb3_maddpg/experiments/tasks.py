@@ -25,12 +25,12 @@ def declared_metrics(env: str) -> tuple["TaskMetric", ...]:
     The one place the experiments read a task's metrics from its name.
 
     :param env: A task (an experiment's ``env``).
-    :return: The metrics an MPE task declares besides simple_spread's (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`); none
-        for simple_spread, whose scores every evaluation gives, or for a task that declares none.
+    :return: The metrics an MPE task declares (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`, simple_spread's among them);
+        none for any other task (its evaluations score its returns and episode length).
     """
     from sb3_maddpg.envs import MPE_TASK_METRICS
 
-    return () if env == DEFAULT_ENV else tuple(MPE_TASK_METRICS.get(env, ()))
+    return tuple(MPE_TASK_METRICS.get(env, ()))
 
 
 def declared_sides(env: str) -> dict[str, tuple[str, ...]]:
@@ -50,7 +50,7 @@ class RunTask:
     training, evaluation and progress lines need, so that no module derives it again from the env's name.
 
     :param config: The run.
-    :param metrics: The task metrics its evaluations score besides simple_spread's (an MPE task's own; none otherwise).
+    :param metrics: The task metrics its evaluations score (an MPE task's, simple_spread's among them; none otherwise).
     :param sides: The sides its evaluations score each return of (:data:`~sb3_maddpg.envs.MPE_TASK_SIDES`, for a
         competitive MPE task), so that no return adds opponents' rewards; empty for a cooperative task or any other.
     :param keys: The scores each evaluation gives (:func:`~sb3_maddpg.analysis.evaluation.eval_keys`), in order.

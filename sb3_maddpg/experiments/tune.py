@@ -257,11 +257,11 @@ def objective_value(row: dict[str, float], objective: str, references: dict[str,
     :param row: One evaluation (:class:`~sb3_maddpg.analysis.evaluation.TeamEvalCallback`'s history row).
     :param objective: A key of :func:`task_objectives`.
     :param references: The task's references, for ``"normalised"``.
-    :return: The evaluation's objective: its value in the row, or for ``"normalised"`` the mean of the min-dist sum's
-        and the team return's normalised scores.
+    :return: The evaluation's objective: its value in the row (NaN when the evaluations do not score it), or for
+        ``"normalised"`` the mean of the min-dist sum's and the team return's normalised scores.
     """
     if objective != "normalised":
-        return float(row[objective])
+        return float(row.get(objective, math.nan))
     from sb3_maddpg.analysis.normalised_score import normalised_scores
 
     assert references is not None

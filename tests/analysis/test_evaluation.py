@@ -17,6 +17,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 from sb3_maddpg import MADDPG
 from sb3_maddpg.analysis.evaluation import EVAL_KEYS, RADIUS_KEYS, SUCCESS_RADII, TeamEvalCallback, evaluate_team, radius_key
 from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.envs.simple_spread import SIMPLE_SPREAD_TASK_METRICS
 
 TINY = dict(
     learning_starts=50, batch_size=32, buffer_size=2_000, train_freq=25, policy_kwargs=dict(net_arch=dict(pi=[8], qf=[8]))
@@ -31,11 +32,13 @@ class ScriptedEnv(gym.Env):
     """
     A two-agent env with scripted episodes: episode e lasts ``lengths[e % len(lengths)]`` steps, gives
     reward e + 1 per step split 1:3 between the agents, and reports metrics that depend on the step
-    (so that last-step and summed metrics differ from any other reading).
+    (so that last-step and summed metrics differ from any other reading). It declares simple_spread's metrics, as
+    simple_spread's envs do (``with_metrics=False``: declared, but its infos lack them).
     """
 
     observation_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
     action_space = spaces.Box(0.0, 1.0, (2,), np.float32)
+    task_metrics = SIMPLE_SPREAD_TASK_METRICS
 
     def __init__(self, lengths: tuple[int, ...] = (3, 5), with_metrics: bool = True) -> None:
         self.lengths = lengths
@@ -110,12 +113,13 @@ def test_evaluate_team_scores_success_and_coverage_at_each_radius() -> None:
     assert set(RADIUS_KEYS) <= set(EVAL_KEYS)
 
 
-def test_evaluate_team_without_metrics_gives_nan_and_says_so() -> None:
+def test_evaluate_team_without_the_declared_metrics_gives_nan_and_says_how_to_give_them() -> None:
+    metrics = r"\['success', 'coverage', 'collisions', 'min_dist_sum', 'landmark_distances'\]"
     with pytest.warns(
-        UserWarning, match=r"no task metrics for \['success', 'coverage', 'collisions', 'min_dist_sum', 'landmark_distances'\]"
+        UserWarning, match=rf"no values for the task metrics {metrics}, so they are nan: .*TaskMetric\("
     ) as caught:
         result = evaluate_team(ConstantModel(np.zeros(2, np.float32)), ScriptedEnv(with_metrics=False), n_episodes=2)
-    assert {w.filename for w in caught if "no task metrics" in str(w.message)} == {__file__}  # the caller's line
+    assert {w.filename for w in caught if "task metrics" in str(w.message)} == {__file__}  # the caller's line
     for key in ("success_rate", "coverage", "collisions", "min_dist_sum", *RADIUS_KEYS):
         assert math.isnan(result[key])
     assert result["return_mean"] == pytest.approx((3 * 1 + 5 * 2) / 2)
@@ -287,5 +291,46 @@ def test_evaluate_team_scores_declared_task_metrics() -> None:
         warnings.simplefilter("error")
         tag = evaluate_team(model, env, n_episodes=2, task_metrics=MPE_TASK_METRICS["simple_tag"])
     assert tag["collisions"] >= 0.0 and not math.isnan(tag["collisions"])
-    with pytest.warns(UserWarning, match=r"no task metrics for \['goal_distance'\].*not in the env's info"):
+    with pytest.warns(UserWarning, match=r"no values for the task metrics \['goal_distance'\]"):
         evaluate_team(model, env, n_episodes=1, task_metrics=MPE_TASK_METRICS["simple"])
+
+
+def test_on_an_env_that_declares_no_metrics_only_returns_and_lengths_are_scored_without_a_warning() -> None:
+    """Issue 46: a non-MPE env used to get eleven NaN simple_spread keys and a warning."""
+    from sb3_maddpg.envs import PettingZooToGym
+    from tests.envs.walkers import Walkers
+
+    env = PettingZooToGym(Walkers(observe="noise", max_cycles=4))
+    model = ConstantModel(np.zeros(env.action_space.shape, np.float32))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = evaluate_team(model, env, n_episodes=3, seed=0)
+    assert set(result) == {"return_mean", "return_std", "episode_length", "agent_returns", "n_episodes"}
+    assert result["episode_length"] == 4.0 and len(result["agent_returns"]) == 4
+
+
+def test_an_env_of_your_own_declares_a_task_metric_and_gets_it_scored_as_declared() -> None:
+    from sb3_maddpg.envs import PettingZooToGym, TaskMetric
+    from tests.envs.walkers import Walkers
+
+    steps = TaskMetric("spread", "sum", "higher", "team", "the agents' spread, summed over the episode")
+    last = TaskMetric("spread_now", "last", "higher", "team", "the agents' spread at the last step")
+
+    def spread(parallel_env: Any) -> dict[str, float]:
+        return {"spread": float(parallel_env.positions().std()), "spread_now": float(parallel_env.positions().std())}
+
+    walkers = Walkers(observe="noise", max_cycles=3)
+    env = PettingZooToGym(walkers, metrics_fn=spread, task_metrics=[steps, last])
+    model = ConstantModel(np.full(env.action_space.shape, 0.5, np.float32))
+    seen: list[float] = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = evaluate_team(model, env, n_episodes=1, seed=0)
+    walkers.reset(seed=0)  # the same episode by hand: the spread after each of its 3 steps
+    for _ in range(3):
+        walkers.step({agent: np.full(2, 0.5, np.float32) for agent in walkers.possible_agents})
+        seen.append(float(walkers.positions().std()))
+    assert result["spread"] == pytest.approx(sum(seen)) and result["spread_now"] == pytest.approx(seen[-1])
+    assert "success_rate" not in result and result["task_metrics"] == (steps, last)
+    with pytest.raises(ValueError, match=r"task_metrics declares \['spread', 'spread_now'\], but no metrics_fn"):
+        PettingZooToGym(Walkers(), task_metrics=[steps, last])

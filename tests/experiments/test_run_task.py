@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 
 from sb3_maddpg.common.selection import NearestAgents
+from sb3_maddpg.envs.simple_spread import SIMPLE_SPREAD_TASK_METRICS
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import SMOKE, load_experiment
 from sb3_maddpg.experiments.runner import build_model, execute_run
@@ -45,7 +46,7 @@ def test_the_task_is_kept_on_the_config_and_a_copy_sent_away_derives_its_own() -
 
 def test_the_task_holds_its_metrics_their_directions_and_sides() -> None:
     spread = run_task(SMOKE.runs()[0])
-    assert spread.metrics == () and spread.sides == {} and spread.scores_behaviour
+    assert spread.metrics == SIMPLE_SPREAD_TASK_METRICS and spread.sides == {} and spread.scores_behaviour
     assert spread.higher_is_better["success_rate"] and not spread.higher_is_better["min_dist_sum"]
     assert "simple_spread" in spread.description
     tag = run_task(SMOKE.replace(env="simple_tag", schemes=("full",)).runs()[0])
