@@ -92,7 +92,7 @@ class _ListeningExtractor(CriticFeaturesExtractor):
         features_dim: int,
         embed_dim: int,
         selection_size: int = 0,
-        position_slice: slice | None = DEFAULT_POSITION_SLICE,
+        position_slice: slice | None = None,
     ) -> None:
         if embed_dim < 1:
             raise ValueError(f"embed_dim must be positive, got {embed_dim}.")
@@ -180,10 +180,12 @@ class _ListeningExtractor(CriticFeaturesExtractor):
 
     def _distance_ranks(self, observations: th.Tensor) -> th.Tensor | None:
         """Each other agent's distance rank from agent i (1 = nearest), ``[batch, n - 1]``, or ``None`` without positions."""
-        position_slice, layout = self.position_slice, self.layout
-        if position_slice is None or any(len(range(*position_slice.indices(size))) != 2 for size in layout.obs_sizes):
+        layout = self.layout
+        # The user's slice, else where the env declares positions (never MPE's layout assumed on another env).
+        slices = layout.position_slices if self.position_slice is None else (self.position_slice,) * layout.n_agents
+        if slices is None or any(len(range(*where.indices(size))) != 2 for where, size in zip(slices, layout.obs_sizes)):
             return None
-        positions = th.stack([observations[:, layout.obs_slices[j]][:, position_slice] for j in range(layout.n_agents)], 1)
+        positions = th.stack([observations[:, part][:, where] for part, where in zip(layout.obs_slices, slices)], 1)
         own = positions[:, self.agent_index : self.agent_index + 1]
         distances = (positions[:, self.encoder.others] - own).norm(dim=-1)
         # Stable order (ties to the lower index), as NearestAgents.
@@ -201,7 +203,8 @@ class AttentionCriticFeatures(_ListeningExtractor):
     :param selection_size: Unused (every agent is attended to).
     :param embed_dim: Size of each agent's encoding (the features are twice this).
     :param n_heads: Attention heads (``embed_dim`` must be a multiple).
-    :param position_slice: Where each observation holds its agent's position, for the diagnostics (``None``: none).
+    :param position_slice: Where each observation holds its agent's position, for the diagnostics (``None``: where
+        the env declares positions, :attr:`AgentLayout.position_slices`; none declared: no such diagnostics).
     """
 
     scheme_name = "attention"
@@ -213,7 +216,7 @@ class AttentionCriticFeatures(_ListeningExtractor):
         selection_size: int = 0,
         embed_dim: int = 64,
         n_heads: int = 4,
-        position_slice: slice | None = DEFAULT_POSITION_SLICE,
+        position_slice: slice | None = None,
     ) -> None:
         self.check_layout(layout)
         if n_heads < 1 or embed_dim % n_heads:
@@ -260,7 +263,8 @@ class LearnedSelectionCriticFeatures(_ListeningExtractor):
     :param embed_dim: Size of the encodings the scores are computed from.
     :param temperature: The scores lie in ``[-1 / temperature, 1 / temperature]``. Lower makes the softmax the
         gradient comes from closer to the hard choice, higher keeps its gradient larger.
-    :param position_slice: Where each observation holds its agent's position, for the diagnostics (``None``: none).
+    :param position_slice: Where each observation holds its agent's position, for the diagnostics (``None``: where
+        the env declares positions, :attr:`AgentLayout.position_slices`; none declared: no such diagnostics).
     """
 
     scheme_name = "learned_selection"
@@ -273,7 +277,7 @@ class LearnedSelectionCriticFeatures(_ListeningExtractor):
         k: int | None = None,
         embed_dim: int = 64,
         temperature: float = 0.5,
-        position_slice: slice | None = DEFAULT_POSITION_SLICE,
+        position_slice: slice | None = None,
     ) -> None:
         self.check_layout(layout)  # first: k's range would read "up to 0"
         check_agent_index(layout, agent_index)  # before the sizes below index the layout with it
