@@ -20,7 +20,9 @@ from sb3_maddpg.sharing import AttentionCriticFeatures, LearnedSelectionCriticFe
 
 N_AGENTS, BATCH = 4, 32
 # MPE-like observations: [velocity (2), position (2), rest]; agent 3 is larger, so the team is heterogeneous.
-LAYOUT = AgentLayout(tuple(f"agent_{i}" for i in range(N_AGENTS)), (6, 6, 6, 8), (2, 2, 2, 3))
+LAYOUT = AgentLayout(
+    tuple(f"agent_{i}" for i in range(N_AGENTS)), (6, 6, 6, 8), (2, 2, 2, 3), position_slices=(slice(2, 4),) * N_AGENTS
+)
 SCHEMES = {"attention": AttentionCriticFeatures, "learned_selection": LearnedSelectionCriticFeatures}
 FAST = dict(
     learning_starts=200, batch_size=64, buffer_size=5_000, transitions_per_update=20, policy_kwargs=dict(net_arch=[16, 16])
@@ -326,7 +328,12 @@ def test_distance_ranks_follow_positions() -> None:
     for agent, x in enumerate([0.0, 3.0, 1.0, 2.0]):  # agent 0 at the origin; agent 2 nearest, then 3, then 1
         obs[0, LAYOUT.obs_slices[agent].start + 2] = x
     assert extractor._distance_ranks(obs).tolist() == [[3, 1, 2]]  # others in ascending index: 1, 2, 3
-    assert LearnedSelectionCriticFeatures(LAYOUT, 0, k=1, position_slice=None)._distance_ranks(obs) is None
+    # An env that declares no positions gets no distance diagnostics (not MPE's 2:4 read from whatever is there)...
+    undeclared = AgentLayout(LAYOUT.agent_ids, LAYOUT.obs_sizes, LAYOUT.action_sizes)
+    assert LearnedSelectionCriticFeatures(undeclared, 0, k=1, embed_dim=8)._distance_ranks(obs) is None
+    # ...unless the extractor is told where they are.
+    told = LearnedSelectionCriticFeatures(undeclared, 0, k=1, embed_dim=8, position_slice=slice(2, 4))
+    assert told._distance_ranks(obs).tolist() == [[3, 1, 2]]
 
 
 def test_diagnostics_are_computed_less_than_every_other_update(monkeypatch: pytest.MonkeyPatch) -> None:
