@@ -4,15 +4,13 @@ import torch as th
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.common.losses import ActorLossTerms, actor_loss_terms, critic_losses, critic_targets, one_member
+from sb3_maddpg.common.losses import ActorLossTerms, actor_loss_terms, critic_losses
 
 
 def critic_losses_by_critic(model: MADDPG, data: MultiAgentReplayBufferSamples) -> th.Tensor:
     """:return: Each critic's loss, ``[critics per agent, n_agents]`` (1 for MADDPG, 2 for MATD3), as ``train()``
     computes it (its hooks)."""
-    batch = one_member(data)
-    team = model._team
-    losses = critic_losses(team.trained_q, batch, critic_targets(team.target_actions, team.target_q, batch, model.gamma))
+    losses = critic_losses(model._trained_q, data, model._critic_targets(data))
     return losses.reshape(-1, losses.shape[-1])
 
 
@@ -25,6 +23,6 @@ def team_critic_losses(model: MADDPG, data: MultiAgentReplayBufferSamples) -> th
 
 def team_actor_terms(model: MADDPG, data: MultiAgentReplayBufferSamples) -> ActorLossTerms:
     """:return: The actor loss terms, ``[n_agents]`` each, as ``train()`` computes them."""
-    team = model._team
-    terms = actor_loss_terms(team.policy, team.q, one_member(data), model._action_parts, model.actor_reg_coef)
-    return ActorLossTerms(*(term[0] for term in terms))
+    return actor_loss_terms(
+        model.actor.forward_with_preactivation, model.critic, data, model._action_parts, model.actor_reg_coef
+    )

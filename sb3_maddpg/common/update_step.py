@@ -1,11 +1,11 @@
 """
-One gradient step of ``M`` teams at once, written once for every trainer: ``MADDPG.train`` and ``MATD3.train`` (one
-team, ``M = 1``) and the run group (``M = R`` runs, :mod:`sb3_maddpg.run_group`).
+One gradient step of a run group's ``M`` teams at once (:mod:`sb3_maddpg.run_group`), on the losses of
+:mod:`sb3_maddpg.common.losses`, which ``MADDPG.train`` and ``MATD3.train`` run on one team's modules directly.
 
 A step is: the critic targets, every critic's loss and its optimiser step (gradients clipped per member and agent),
 then, when the actors are due, the actors' losses and step and the Polyak updates of every target. Two things vary and
-are passed in: how ``M`` teams' modules are evaluated (:class:`MemberModules`: one model's modules, or the runs' stacked
-parameters under ``vmap``) and what the algorithm makes of them (:class:`UpdateNetworks`: MADDPG's critic and target
+are passed in: how ``M`` teams' modules are evaluated (:class:`MemberModules`: the runs' stacked parameters under
+``vmap``) and what the algorithm makes of them (:class:`UpdateNetworks`: MADDPG's critic and target
 actor, MATD3's twins and smoothed targets).
 """
 
@@ -16,8 +16,8 @@ from typing import Any, NamedTuple, Protocol
 import torch as th
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.common.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
-from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
+from sb3_maddpg.common.gradient_step import polyak_update_foreach as polyak_update_foreach  # its path of 0.3.0.dev
+from sb3_maddpg.common.losses import ActionParts, ActorLossTerms, actor_loss_terms, critic_losses, critic_targets
 
 MODULE_NAMES = ("actor", "critic", "actor_target", "critic_target")
 """The four modules of a team, as :class:`MemberModules` names them."""
@@ -143,11 +143,23 @@ def update_step(
     # Per member and agent, the mean over the agent's critics (MATD3's twins are stacked in front).
     critic_log = critic_loss.detach().reshape(-1, *critic_loss.shape[-2:]).mean(0)
     if not actor_due:
-        return StepLosses(critic_log, None, None, None)
+        return step_losses(critic_log, None)
     terms = actor_loss_terms(networks.policy, networks.q, batch, settings.parts, settings.actor_reg_coef)
     _optimise(modules, "actor", actor_optimizer, terms.total.sum(), settings.max_grad_norm)
     modules.update_targets(settings.tau)
-    return StepLosses(critic_log, terms.policy_loss.detach(), terms.reg_loss.detach(), terms.saturation)
+    return step_losses(critic_log, terms)
+
+
+def step_losses(critic_loss: th.Tensor, actor_terms: ActorLossTerms | None) -> StepLosses:
+    """
+    :param critic_loss: Each agent's critic loss (the mean over its critics).
+    :param actor_terms: The actors' loss terms, or None when the actors were not due.
+    :return: What the step reports, detached.
+    """
+    if actor_terms is None:
+        return StepLosses(critic_loss.detach(), None, None, None)
+    policy_loss, reg_loss = actor_terms.policy_loss.detach(), actor_terms.reg_loss.detach()
+    return StepLosses(critic_loss.detach(), policy_loss, reg_loss, actor_terms.saturation)
 
 
 def _optimise(
@@ -162,61 +174,6 @@ def _optimise(
     if max_norm is not None:
         modules.clip_gradients(module, max_norm)
     optimizer.step()
-
-
-class TeamModules:
-    """
-    One model's actors, critics and targets as :class:`MemberModules` of ``M = 1``: ``MADDPG.train``'s view.
-
-    :param actor: The team's actor.
-    :param critic: The team's critic.
-    :param actor_target: Its target.
-    :param critic_target: Its target.
-    """
-
-    def __init__(
-        self, actor: MultiAgentActor, critic: MultiAgentCritic, actor_target: MultiAgentActor, critic_target: MultiAgentCritic
-    ) -> None:
-        self.modules: dict[str, MultiAgentActor | MultiAgentCritic] = dict(
-            zip(MODULE_NAMES, (actor, critic, actor_target, critic_target))
-        )
-
-    def call(self, module: str, method: str, *args: th.Tensor | None) -> Any:
-        output = getattr(self.modules[module], method)(*(None if arg is None else arg[0] for arg in args))
-        return tuple(out.unsqueeze(0) for out in output) if isinstance(output, tuple) else output.unsqueeze(0)
-
-    def parameters(self, module: str) -> list[th.Tensor]:
-        return list(self.modules[module].parameters())
-
-    def clip_gradients(self, module: str, max_norm: float) -> None:
-        self.modules[module].clip_grad_norm_per_agent(max_norm)
-
-    def update_targets(self, tau: float) -> None:
-        pairs = (("critic", "critic_target"), ("actor", "actor_target"))
-        polyak_update_foreach(
-            [p for name, _ in pairs for p in self.modules[name].parameters()],
-            [p for _, target in pairs for p in self.modules[target].parameters()],
-            tau,
-        )
-
-    def normal_like(self, tensor: th.Tensor) -> th.Tensor:
-        return th.randn_like(tensor)  # torch's global generator, which SB3's set_random_seed seeds
-
-
-def polyak_update_foreach(params: Sequence[th.Tensor], targets: Sequence[th.Tensor], tau: float) -> None:
-    """
-    ``target = (1 - tau) * target + tau * param`` for every pair, in two multi-tensor operations (SB3's
-    ``polyak_update`` does the same arithmetic in two operations per pair).
-
-    :param params: The trained parameters.
-    :param targets: Their targets, in the same order.
-    :param tau: The Polyak coefficient.
-    """
-    if len(params) != len(targets):
-        raise ValueError(f"{len(params)} parameters but {len(targets)} targets: pair each parameter with its target.")
-    with th.no_grad():
-        th._foreach_mul_(list(targets), 1.0 - tau)
-        th._foreach_add_(list(targets), list(params), alpha=tau)
 
 
 def summarise_steps(steps: Sequence[StepLosses]) -> dict[str, th.Tensor]:

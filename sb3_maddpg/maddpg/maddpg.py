@@ -12,8 +12,9 @@ from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.common.env_checks import refuse_unsupported_env
+from sb3_maddpg.common.gradient_step import gradient_step, polyak_update_foreach
 from sb3_maddpg.common.losses import SATURATION_THRESHOLD as SATURATION_THRESHOLD  # import paths of 0.2.0.dev
-from sb3_maddpg.common.losses import ActionParts, check_loss_settings, critic_targets, one_member
+from sb3_maddpg.common.losses import ActionParts, actor_loss_terms, check_loss_settings, critic_losses, critic_targets
 from sb3_maddpg.common.losses import ActorLossTerms as ActorLossTerms
 from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.common.selection import Selector
@@ -21,14 +22,7 @@ from sb3_maddpg.common.team_algorithm import LOG_INTERVAL as LOG_INTERVAL  # imp
 from sb3_maddpg.common.team_algorithm import TeamOffPolicyAlgorithm
 from sb3_maddpg.common.train_logs import record_critic_diagnostics, record_losses
 from sb3_maddpg.common.update_schedule import UpdateSchedule
-from sb3_maddpg.common.update_step import (
-    MemberModules,
-    StepSettings,
-    TeamModules,
-    UpdateNetworks,
-    summarise_steps,
-    update_step,
-)
+from sb3_maddpg.common.update_step import MemberModules, StepLosses, StepSettings, UpdateNetworks, step_losses, summarise_steps
 from sb3_maddpg.compat import renamed_argument
 from sb3_maddpg.maddpg.policies import MADDPGPolicy, MlpPolicy
 from sb3_maddpg.sharing import CriticSharing, validate_critic_sharing
@@ -104,6 +98,8 @@ class MADDPG(TeamOffPolicyAlgorithm):
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"MlpPolicy": MlpPolicy}
+    policy_delay: int = 1
+    """Critic updates per actor and target update: 1 for MADDPG (MATD3 delays its actors)."""
     policy: MADDPGPolicy
     replay_buffer: MultiAgentReplayBuffer
     actor: MultiAgentActor
@@ -199,45 +195,70 @@ class MADDPG(TeamOffPolicyAlgorithm):
         self.actor_target = self.policy.actor_target
         self.critic = self.policy.critic
         self.critic_target = self.policy.critic_target
-        # The losses' view of the networks: a member dimension of 1 in front
-        modules = TeamModules(self.actor, self.critic, self.actor_target, self.critic_target)
-        self._team = self._update_networks(modules, self._action_parts)
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         # Switch to train mode (this affects batch norm / dropout)
         self.policy.set_training_mode(True)
         # Update learning rate according to lr schedule
         self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
-        settings, optimizers = self._step_settings(), (self.actor.optimizer, self.critic.optimizer)
-        # The networks read the settings as they are now too (e.g. MATD3's target_policy_noise set after building).
-        self._team = self._update_networks(self._team.modules, self._action_parts)
-        steps = []
+        losses: list[StepLosses] = []
         for _ in range(gradient_steps):
             self._n_updates += 1
             # Sample replay buffer: one joint batch, the same rows for every agent (and every critic of one)
-            replay_data = one_member(self.replay_buffer.sample(batch_size, env=self._vec_normalize_env))
-            # The critics (their extractors recording their diagnostics on this batch, as replayed), then the actors
-            # and the targets when due: the one step every trainer shares (sb3_maddpg.common.update_step)
-            due = settings.actor_due(self._n_updates)
-            steps.append(update_step(self._team, optimizers, replay_data, settings, due, self.critic.recording_diagnostics))
+            replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
+
+            # y_i = r_i + gamma * (1 - done_i) * Q_i'(o', mu'(o')), every agent's target action on its next observation
+            target_q_values = self._critic_targets(replay_data)
+            # Each critic's loss on the batch, its extractor recording its diagnostics (e.g. attention weights)
+            with self.critic.recording_diagnostics():
+                critic_loss = critic_losses(self._trained_q, replay_data, target_q_values)
+            gradient_step(self.critic, critic_loss.sum(), self.max_grad_norm)
+            critic_log = critic_loss.detach().reshape(-1, critic_loss.shape[-1]).mean(0)  # mean over an agent's critics
+
+            # Delayed policy updates (MATD3's; MADDPG updates the actors at every critic update)
+            actor_terms = None
+            if self._n_updates % self.policy_delay == 0:
+                # -Q_i with a_i replaced by mu_i(o_i), the others' actions as sampled, plus the regulariser
+                actor_terms = actor_loss_terms(
+                    self.actor.forward_with_preactivation, self.critic, replay_data, self._action_parts, self.actor_reg_coef
+                )
+                gradient_step(self.actor, actor_terms.total.sum(), self.max_grad_norm)
+                polyak_update_foreach(
+                    [*self.critic.parameters(), *self.actor.parameters()],
+                    [*self.critic_target.parameters(), *self.actor_target.parameters()],
+                    self.tau,
+                )
+            losses.append(step_losses(critic_log, actor_terms))
         # Kept on the device until here: one transfer per train() call, not one per gradient step.
-        self._log_losses(**{name: value[0] for name, value in summarise_steps(steps).items()})
+        self._log_losses(**summarise_steps(losses))
+
+    def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
+        """The team's critic targets on a replay batch (no gradient), ``[batch, n_agents]``."""
+        return critic_targets(self._target_actions, self._target_q, data, self.gamma)
+
+    def _target_actions(self, observations: th.Tensor) -> th.Tensor:
+        """Every target actor on its agent's observation (a discrete agent's: a Gumbel-max sample)."""
+        return self.actor_target.sample(observations)
+
+    def _target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        """The target critics, ``[batch, n_agents]``."""
+        return self.critic_target(observations, actions, selections)
+
+    def _trained_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        """Every critic a step trains (MADDPG: one per agent), ``[..., batch, n_agents]``."""
+        return self.critic(observations, actions, selections)
 
     def _update_networks(self, modules: MemberModules, parts: ActionParts) -> UpdateNetworks:
         """
-        :param modules: The modules of ``M`` teams of this model's configuration (this model's own, or a run group's).
+        :param modules: The modules of a run group's ``M`` teams of this model's configuration.
         :param parts: The layout's action parts on the modules' device.
-        :return: The algorithm's networks over them, as the update step and the losses use them.
+        :return: The algorithm's networks over them, as the group's update step and the losses use them.
         """
         return UpdateNetworks(modules)
 
     def _step_settings(self) -> StepSettings:
-        """:return: The update step's hyperparameters, as they are now (a user may change ``gamma`` between calls)."""
+        """:return: A run group's update step's hyperparameters, as they are now."""
         return StepSettings(self.gamma, self.tau, self.actor_reg_coef, self.max_grad_norm, self._action_parts)
-
-    def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
-        """The team's critic targets on a replay batch (no gradient), ``[batch, n_agents]``."""
-        return critic_targets(self._team.target_actions, self._team.target_q, one_member(data), self.gamma)[0]
 
     def _log_losses(self, **losses: th.Tensor) -> None:
         """Record the train call's per-agent means (``[n_agents]`` each, by name), each agent's and the team's."""
@@ -256,7 +277,6 @@ class MADDPG(TeamOffPolicyAlgorithm):
             "critic",
             "actor_target",
             "critic_target",
-            "_team",
             "_action_parts",
         ]
 

@@ -76,8 +76,8 @@ class MATD3(MADDPG):
     https://arxiv.org/abs/1910.01465. Each agent i has two critics, each with its own instance of agent i's sharing
     scheme's extractor; critic i's target is ``r_i + gamma * (1 - done_i) * min(Q_i1', Q_i2')`` at the target actors'
     actions plus clipped smoothing noise; the actors ascend their first critic, and the actors and every target network
-    move once every ``policy_delay`` critic updates. The update is MADDPG's step
-    (:func:`~sb3_maddpg.common.update_step.update_step`) with MATD3's networks (:class:`TwinUpdateNetworks`).
+    move once every ``policy_delay`` critic updates. The update is MADDPG's ``train`` with MATD3's target actions,
+    target critics and trained critics (a run group's: :class:`TwinUpdateNetworks`).
     TD3's parameters have SB3's names and defaults; every other parameter is :class:`~sb3_maddpg.MADDPG`'s, with the
     paper's defaults (Lowe et al.).
 
@@ -128,7 +128,6 @@ class MATD3(MADDPG):
     policy: MATD3Policy
     critic: TwinMultiAgentCritic
     critic_target: TwinMultiAgentCritic
-    _team: TwinUpdateNetworks
 
     def __init__(
         self,
@@ -206,8 +205,29 @@ class MATD3(MADDPG):
             _init_setup_model=_init_setup_model,
         )
 
+    def _target_actions(self, observations: th.Tensor) -> th.Tensor:
+        """Every target actor on its next observation, plus the clipped smoothing noise (continuous agents only)."""
+        actions = self.actor_target.sample(observations)
+        noise = self._smoothing_noise(actions)
+        return smooth_target_actions(
+            actions, self.target_policy_noise, self.target_noise_clip, self._action_parts.continuous, noise
+        )
+
+    def _smoothing_noise(self, actions: th.Tensor) -> th.Tensor:
+        """Standard normal noise shaped as ``actions``, from torch's global generator (which SB3's seeding seeds)."""
+        return th.randn_like(actions)
+
+    def _target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        """The minimum of the two target critics, agent by agent, ``[batch, n_agents]``."""
+        return self.critic_target.twins(observations, actions, selections).amin(dim=0)
+
+    def _trained_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        """Both twin critics stacked in front, ``[2, batch, n_agents]`` (what :func:`critic_losses` broadcasts over)."""
+        return self.critic.twins(observations, actions, selections)
+
     def _update_networks(self, modules: MemberModules, parts: ActionParts) -> UpdateNetworks:
-        """:return: MATD3's networks over ``modules``: twin critics, smoothed targets (continuous agents only)."""
+        """:return: MATD3's networks over a run group's ``modules``: twin critics, smoothed targets (continuous agents
+        only)."""
         return TwinUpdateNetworks(modules, self.target_policy_noise, self.target_noise_clip, parts.continuous)
 
     def _step_settings(self) -> StepSettings:

@@ -15,9 +15,9 @@ import torch as th
 from torch import nn
 from torch.func import functional_call, vmap
 
+from sb3_maddpg.common.gradient_step import polyak_update_foreach
 from sb3_maddpg.common.networks import clip_coefficients
 from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
-from sb3_maddpg.common.update_step import polyak_update_foreach
 from sb3_maddpg.run_group.streams import RunStreams
 
 

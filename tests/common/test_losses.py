@@ -1,5 +1,8 @@
 """The losses with a member dimension: M teams evaluated at once give each team's own losses, independently."""
 
+from collections.abc import Callable
+from typing import Any
+
 import pytest
 import torch as th
 
@@ -25,29 +28,27 @@ def stack(batches: list[MultiAgentReplayBufferSamples]) -> MultiAgentReplayBuffe
 
 
 class Members:
-    """The networks of several models as member networks, each member on its own slice (a many-runs trainer's view)."""
+    """The networks of several models as member networks, each member on its own slice (a many-runs trainer's view),
+    each model's own functions applied to its slice."""
 
     def __init__(self, models: list[MADDPG]) -> None:
-        self.teams = [model._team for model in models]
+        self.models = models
 
-    def _each(self, name: str, *tensors: th.Tensor | None) -> th.Tensor:
-        outs = [
-            getattr(team, name)(*(None if t is None else t[m : m + 1] for t in tensors)) for m, team in enumerate(self.teams)
-        ]
-        return th.cat(outs)
+    def _each(self, function: Callable[[MADDPG], Callable[..., Any]], *tensors: th.Tensor | None) -> Any:
+        outs = [function(model)(*(None if t is None else t[m] for t in tensors)) for m, model in enumerate(self.models)]
+        return tuple(th.stack(parts) for parts in zip(*outs)) if isinstance(outs[0], tuple) else th.stack(outs)
 
     def policy(self, obs: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        outs = [team.policy(obs[m : m + 1]) for m, team in enumerate(self.teams)]
-        return th.cat([a for a, _ in outs]), th.cat([p for _, p in outs])
+        return self._each(lambda model: model.actor.forward_with_preactivation, obs)  # type: ignore[no-any-return]
 
     def q(self, obs: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        return self._each("q", obs, actions, selections)
+        return self._each(lambda model: model.critic, obs, actions, selections)  # type: ignore[no-any-return]
 
     def target_actions(self, obs: th.Tensor) -> th.Tensor:
-        return self._each("target_actions", obs)
+        return self._each(lambda model: model._target_actions, obs)  # type: ignore[no-any-return]
 
     def target_q(self, obs: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        return self._each("target_q", obs, actions, selections)
+        return self._each(lambda model: model._target_q, obs, actions, selections)  # type: ignore[no-any-return]
 
 
 @pytest.mark.parametrize("scheme", ["full", "selected"])
@@ -85,17 +86,17 @@ def test_members_get_their_own_losses_and_nothing_of_the_others(scheme: str) -> 
 
 def test_twin_critics_broadcast_over_the_targets() -> None:
     model = trained(0, "full")
-    batch, team = one_member(model.replay_buffer.sample(32)), model._team
-    targets = critic_targets(team.target_actions, team.target_q, batch, model.gamma)
+    batch = model.replay_buffer.sample(32)
+    targets = model._critic_targets(batch)
 
     def twins(obs: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        q = team.q(obs, actions, selections)
-        return th.stack((q, q + 1.0))  # [2, M, batch, n_agents]
+        q = model.critic(obs, actions, selections)
+        return th.stack((q, q + 1.0))  # [2, batch, n_agents]
 
     both = critic_losses(twins, batch, targets)
-    assert both.shape == (2, 1, 3)
-    th.testing.assert_close(both[0], critic_losses(team.q, batch, targets))
-    th.testing.assert_close(both[1], critic_losses(lambda *args: team.q(*args) + 1.0, batch, targets))
+    assert both.shape == (2, 3)
+    th.testing.assert_close(both[0], critic_losses(model.critic, batch, targets))
+    th.testing.assert_close(both[1], critic_losses(lambda *args: model.critic(*args) + 1.0, batch, targets))
 
 
 def test_total_is_the_sum_of_the_parts() -> None:

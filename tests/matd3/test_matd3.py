@@ -12,7 +12,7 @@ import torch as th
 
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.analysis.evaluation import evaluate_team
-from sb3_maddpg.common.losses import critic_losses, critic_targets, one_member
+from sb3_maddpg.common.losses import critic_losses
 from sb3_maddpg.common.policies import AgentCritic
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
 from sb3_maddpg.matd3 import smooth_target_actions
@@ -98,7 +98,7 @@ def test_the_critic_update_descends_both_twins_losses_at_that_target(scheme: str
     data = model.replay_buffer.sample(BATCH)
     th.manual_seed(7)
     targets = model._critic_targets(data)
-    losses = critic_losses(model._team.trained_q, one_member(data), targets.unsqueeze(0))
+    losses = critic_losses(model._trained_q, data, targets)
     params = list(model.critic.parameters())
     grads = th.autograd.grad(losses.sum(), params, allow_unused=True)
     expected = [p.detach() - (0 if g is None else g) for p, g in zip(params, grads)]
@@ -146,11 +146,11 @@ def test_smoothing_noise_is_clipped_and_absent_on_discrete_one_hots() -> None:
 def test_a_mixed_teams_target_actions_keep_the_one_hot_and_smooth_the_continuous_agent() -> None:
     model = MATD3("MlpPolicy", PettingZooToGym(MixedTeam()), learning_starts=1_000, target_policy_noise=1.0, seed=0)
     model.learn(40)
-    next_obs = th.as_tensor(model.replay_buffer.next_observations[:40, 0]).unsqueeze(0)
-    smoothed = model._team.target_actions(next_obs)[0]
+    next_obs = th.as_tensor(model.replay_buffer.next_observations[:40, 0])
+    smoothed = model._target_actions(next_obs)
     assert is_one_hot(smoothed[:, 1:])
     with th.no_grad():
-        offset = smoothed[:, 0] - model.actor_target(next_obs[0])[:, 0]
+        offset = smoothed[:, 0] - model.actor_target(next_obs)[:, 0]
     assert offset.abs().max() <= 0.5 + 1e-6 and offset.abs().max() > 0.1
 
 
@@ -226,23 +226,22 @@ def test_each_critics_loss_reaches_exactly_the_inputs_its_scheme_allows(
     model = collected_model(scheme, algorithm=ALGORITHMS[algorithm])
     layout = model.agent_layout
     assert layout is not None
-    data = one_member(replay_batch(model))
+    data = replay_batch(model)
     obs, actions = data.observations.clone().requires_grad_(True), data.actions.clone().requires_grad_(True)
     # As train() computes them: its hooks give MATD3's smoothed min target and both twins' losses
-    team = model._team
-    targets = critic_targets(team.target_actions, team.target_q, data, model.gamma)
-    losses = critic_losses(team.trained_q, data._replace(observations=obs, actions=actions), targets)
+    targets = model._critic_targets(data)
+    losses = critic_losses(model._trained_q, data._replace(observations=obs, actions=actions), targets)
     twins = losses.reshape(-1, N_AGENTS)  # [n_twins, n_agents]: 1 for MADDPG, 2 for MATD3
     assert twins.shape[0] == (2 if algorithm == "MATD3" else 1)
-    selections = None if data.selections is None else data.selections[0]
+    selections = data.selections
     for twin in range(twins.shape[0]):
         for i in range(N_AGENTS):
             obs_grad, action_grad = th.autograd.grad(twins[twin, i], (obs, actions), retain_graph=True)
             seen_obs, seen_actions = visible(scheme, i, selections)
             for b in range(BATCH):
                 for j in range(N_AGENTS):
-                    sees_obs = bool(obs_grad[0, b, layout.obs_slices[j]].abs().sum() > 0)
-                    sees_action = bool(action_grad[0, b, layout.action_slices[j]].abs().sum() > 0)
+                    sees_obs = bool(obs_grad[b, layout.obs_slices[j]].abs().sum() > 0)
+                    sees_action = bool(action_grad[b, layout.action_slices[j]].abs().sum() > 0)
                     assert sees_obs == (j in seen_obs[b]), (twin, i, b, j, "observation")
                     assert sees_action == (j in seen_actions[b]), (twin, i, b, j, "action")
 
@@ -250,14 +249,13 @@ def test_each_critics_loss_reaches_exactly_the_inputs_its_scheme_allows(
 @pytest.mark.parametrize("scheme", ["full", "attention"])
 def test_each_twins_loss_moves_only_its_own_agents_own_twin(scheme: str, collected_model: Any, replay_batch: Any) -> None:
     model = collected_model(scheme)
-    data = one_member(replay_batch(model))
-    team = model._team
-    losses = critic_losses(team.trained_q, data, critic_targets(team.target_actions, team.target_q, data, model.gamma))
+    data = replay_batch(model)
+    losses = critic_losses(model._trained_q, data, model._critic_targets(data))
     critics = (model.critic, model.critic.twin)
     for twin in range(2):
         for i in range(N_AGENTS):
             model.critic.zero_grad()
-            losses[twin, 0, i].backward(retain_graph=True)
+            losses[twin, i].backward(retain_graph=True)
             for other, critic in enumerate(critics):
                 for weight in critic.mlp.weights:
                     grad = th.zeros_like(weight) if weight.grad is None else weight.grad
@@ -378,11 +376,16 @@ def test_the_experiments_runner_trains_matd3_with_algo(tmp_path: Path, capsys: p
     assert "| smoke_matd3 (MATD3, N=3" in (tmp_path / "report" / "table_min_dist_sum.md").read_text()
 
 
-def test_train_rebuilds_the_team_with_the_current_target_policy_noise() -> None:
-    """MATD3's train() reads target_policy_noise as it is at the call, as every other setting (the networks are
-    rebuilt from the model's attributes per call)."""
+def test_the_target_actions_read_the_current_target_policy_noise() -> None:
+    """MATD3's train() reads target_policy_noise as it is at the call, as every other setting."""
     model = MATD3("MlpPolicy", make_simple_spread(n_agents=2), learning_starts=10, batch_size=8, seed=0)
     model.learn(20)
     model.target_policy_noise = 0.7
-    model.train(gradient_steps=1, batch_size=8)
-    assert model._team.noise_std == 0.7  # type: ignore[attr-defined]
+    obs = th.as_tensor(model.replay_buffer.next_observations[:8, 0])
+    th.manual_seed(3)
+    smoothed = model._target_actions(obs)
+    with th.no_grad():
+        raw = model.actor_target.sample(obs)
+    th.manual_seed(3)
+    expected = smooth_target_actions(raw, 0.7, model.target_noise_clip, model._action_parts.continuous)
+    assert th.equal(smoothed, expected) and not th.equal(smoothed, raw)
