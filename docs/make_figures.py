@@ -65,6 +65,7 @@ def probe(scheme: str) -> Seen:
         agent_ids=tuple(f"agent_{j}" for j in range(N_AGENTS)),
         obs_sizes=(OBS_SIZE,) * N_AGENTS,
         action_sizes=(ACTION_SIZE,) * N_AGENTS,
+        position_slices=(slice(2, 4),) * N_AGENTS,  # MPE's layout, as simple_spread declares it
     )
     extractor_class = resolve_scheme(scheme)
     selector = NearestAgents(k=2) if extractor_class.uses_selection else None

@@ -271,10 +271,13 @@ def declared_task_metrics(env: gym.Env | VecEnv) -> tuple[DeclaredMetric, ...]:
     :return: The task metrics it declares (its ``task_metrics``; of a VecEnv's first env); none if it declares none.
     """
     try:
-        declared = (
-            env.get_attr("task_metrics", indices=[0])[0] if isinstance(env, VecEnv) else env.get_wrapper_attr("task_metrics")
-        )
-    except AttributeError:
+        if isinstance(env, VecEnv):
+            if not env.has_attr("task_metrics"):  # asked first: a SubprocVecEnv's worker dies on a missing attribute
+                return ()
+            declared = env.get_attr("task_metrics", indices=[0])[0]
+        else:
+            declared = env.get_wrapper_attr("task_metrics")
+    except (AttributeError, NotImplementedError):
         return ()
     return tuple(declared or ())
 

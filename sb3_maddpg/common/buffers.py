@@ -1,7 +1,10 @@
 """The multi-agent replay buffer: one row per joint transition, per-agent rewards and terminations, selections."""
 
+import contextlib
+import contextvars
 import math
 import warnings
+from collections.abc import Iterator
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -12,6 +15,9 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.selection import Selector
+from sb3_maddpg.common.user_code import user_stacklevel
+
+_LOADING = contextvars.ContextVar("loading_a_saved_model", default=False)
 
 
 class MultiAgentReplayBufferSamples(NamedTuple):
@@ -33,6 +39,9 @@ class MultiAgentReplayBufferSamples(NamedTuple):
     next_selections: th.Tensor | None = None
     """The selection the next-state target uses when it is not the stored one (a selector with ``target="next"``:
     made from the next observation at sampling), like :attr:`selections`; None: the target uses :attr:`selections`."""
+    active: th.Tensor | None = None
+    """1.0 where agent i was in the episode when the transition began, 0.0 after it left, ``[batch, n_agents]``: the
+    losses average agent i's terms over its active rows only; None: every agent was active in every row."""
 
 
 class MultiAgentReplayBuffer(ReplayBuffer):
@@ -44,9 +53,9 @@ class MultiAgentReplayBuffer(ReplayBuffer):
     Per-agent rewards are read from ``info["agent_rewards"]`` and per-agent terminations from
     ``info["agent_terminations"]`` (both written by :class:`~sb3_maddpg.envs.PettingZooToGym`).
 
-    Memory: ``4 * (2 * obs_dim + action_dim + 2 * n_agents + 1) + 2 * n_agents * k`` bytes per row
-    (:meth:`nbytes` tells), e.g. for 1e6 transitions of simple_spread with N=5: 1.36 GB with full
-    observability (obs_dim 150, action_dim 25, k=2), 1.04 GB with two observed neighbours (obs_dim 110).
+    Memory: ``4 * (2 * obs_dim + action_dim + 2 * n_agents + 1) + 2 * n_agents * k`` bytes per row, and ``n_agents``
+    more once an agent leaves mid-episode (:meth:`nbytes` tells), e.g. for 1e6 transitions of simple_spread with N=5:
+    1.36 GB with full observability (obs_dim 150, action_dim 25, k=2), 1.04 GB with two observed neighbours (obs_dim 110).
 
     :param buffer_size: Max number of joint transitions.
     :param observation_space: The joint observation space.
@@ -63,6 +72,11 @@ class MultiAgentReplayBuffer(ReplayBuffer):
     rewards: np.ndarray
     dones: np.ndarray
     selections: np.ndarray
+    next_selections: np.ndarray | None = None
+    """Selections of the next step, made when stored (positions from the env's state); None otherwise (class default:
+    buffers saved before it existed have none)."""
+    active: np.ndarray | None = None
+    """Which agents were in the episode when each transition began, allocated when an agent first leaves (bool)."""
 
     def __init__(
         self,
@@ -81,9 +95,7 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         if optimize_memory_usage:
             raise ValueError("MultiAgentReplayBuffer does not support optimize_memory_usage=True: leave it False.")
         k = selector.k if selector is not None else 0
-        next_stored = (
-            selector is not None and selector.needs_positions and layout.positions_in_info and selector.target == "next"
-        )
+        next_stored = selector is not None and selector.stores_next_selection(layout)
         self.planned_bytes = replay_buffer_bytes(buffer_size, n_envs, layout, k, next_selections=next_stored)
         check_replay_buffer_fits(self.planned_bytes, buffer_size, available_memory_bytes())
         super().__init__(buffer_size, observation_space, action_space, device, n_envs, False, handle_timeout_termination)
@@ -96,14 +108,15 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         self.selections = np.zeros((self.buffer_size, self.n_envs, n_agents, self.selection_size), dtype=np.int16)
         # Positions from the env's state (in its infos, not its observations) cannot be read again at sampling: a
         # selection the target makes from the next observation is made here, when the transition is stored.
-        self.next_selections: np.ndarray | None = None
-        if self._selects_from_info_positions() and selector is not None and selector.target == "next":
+        self.next_selections = None
+        self.active = None
+        if selector is not None and selector.stores_next_selection(layout):
             self.next_selections = np.zeros_like(self.selections)
 
     def nbytes(self) -> int:
         """Bytes held by the buffer's arrays (allocated lazily by the OS until rows are written)."""
         arrays = (self.observations, self.next_observations, self.actions, self.rewards, self.dones, self.timeouts)
-        extra = 0 if self.next_selections is None else self.next_selections.nbytes
+        extra = sum(array.nbytes for array in (self.next_selections, self.active) if array is not None)
         return int(sum(array.nbytes for array in arrays)) + int(self.selections.nbytes) + int(extra)
 
     def _selects_from_info_positions(self) -> bool:
@@ -143,6 +156,11 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         self.next_observations[pos] = np.asarray(next_obs).reshape(n_envs, self.obs_shape[0])
         self.actions[pos] = np.asarray(action).reshape(n_envs, self.action_dim)
         for env_index, info in enumerate(infos):
+            active = info.get("agent_active")
+            if active is not None and (self.active is not None or not np.all(active)):
+                if self.active is None:  # the first agent that leaves: every row before had the whole team
+                    self.active = np.ones((self.buffer_size, self.n_envs, self.layout.n_agents), dtype=bool)
+                self.active[pos, env_index] = active
             try:
                 self.rewards[pos, env_index] = info["agent_rewards"]
             except KeyError:
@@ -195,6 +213,7 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         elif self.selector is not None and self.selector.target == "next":  # from the raw next observations, as stored
             chosen = self.selector.select(self.next_observations[batch_inds, env_indices], self.layout)
             next_selections = th.as_tensor(chosen, device=self.device)
+        active = None if self.active is None else self.to_torch(self.active[batch_inds, env_indices].astype(np.float32))
         observations = self._normalize_obs(self.observations[batch_inds, env_indices], env)
         next_observations = self._normalize_obs(self.next_observations[batch_inds, env_indices], env)
         assert isinstance(observations, np.ndarray) and isinstance(next_observations, np.ndarray)
@@ -206,6 +225,7 @@ class MultiAgentReplayBuffer(ReplayBuffer):
             rewards=self.to_torch(self.rewards[batch_inds, env_indices]),
             selections=selections,
             next_selections=next_selections,
+            active=active,
         )
 
 
@@ -241,10 +261,22 @@ def available_memory_bytes() -> int | None:
     return None
 
 
+@contextlib.contextmanager
+def loading_a_saved_model() -> Iterator[None]:
+    """Within: a replay buffer too large for this machine is warned about, not refused (a saved model is often loaded
+    only to act, and its buffer, allocated lazily, is never filled)."""
+    token = _LOADING.set(True)
+    try:
+        yield
+    finally:
+        _LOADING.reset(token)
+
+
 def check_replay_buffer_fits(needed: int, buffer_size: int, available: int | None) -> None:
     """
     Refuse a replay buffer larger than the memory available, and warn about one that takes over half of it: its
-    arrays are allocated at once but filled over training, so without this a run fails hours later.
+    arrays are allocated at once but filled over training, so without this a run fails hours later. While a saved
+    model is loaded (:func:`loading_a_saved_model`) a buffer larger than the memory is warned about only.
 
     :param needed: The buffer's bytes (:func:`replay_buffer_bytes`).
     :param buffer_size: Its ``buffer_size``, for the message.
@@ -259,14 +291,19 @@ def check_replay_buffer_fits(needed: int, buffer_size: int, available: int | Non
         f"{per_transition:,.0f} bytes each)"
     )
     fix = f"lower buffer_size (e.g. buffer_size={fitting:_} takes {fitting * per_transition / 2**30:.2f} GiB)"
-    if needed > available:
+    if needed > available and not _LOADING.get():
         raise ValueError(f"{what}, more than the {available / 2**30:.1f} GiB of memory available: {fix}.")
-    warnings.warn(
-        f"{what}, over half of the {available / 2**30:.1f} GiB of memory available; it fills as training goes: {fix} "
-        "if other work needs the memory.",
-        UserWarning,
-        stacklevel=2,
-    )
+    if needed > available:
+        message = (
+            f"{what}, more than the {available / 2**30:.1f} GiB of memory available: fine to act, but training would "
+            f"run out of memory; load(..., custom_objects={{'buffer_size': {fitting}}}) to train this model here."
+        )
+    else:
+        message = (
+            f"{what}, over half of the {available / 2**30:.1f} GiB of memory available; it fills as training goes: "
+            f"{fix} if other work needs the memory."
+        )
+    warnings.warn(message, UserWarning, stacklevel=user_stacklevel())
 
 
 def refuse_buffer_of_another_team(buffer: ReplayBuffer, layout: AgentLayout | None, selection_size: int, n_envs: int) -> None:

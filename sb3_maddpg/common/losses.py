@@ -2,12 +2,14 @@
 MADDPG's losses as functions of the networks and a batch: the critics' targets, the critics' losses and the actors'
 loss terms.
 
-Every tensor has a leading member dimension ``M``: the networks of ``M`` teams (runs trained together, each with its
-own batch) are evaluated at once, and each member's losses depend on its own networks and batch only. One team is
-``M = 1`` (:func:`one_member`). The networks are passed as functions
-(:class:`~sb3_maddpg.common.update_step.UpdateNetworks`), so that a sibling algorithm changes them, not the math: MATD3's
-target actor adds its smoothing noise, its target critic returns the minimum of its twins, and its critic returns both
-twins stacked in front (``[2, M, batch, n_agents]``), which :func:`critic_losses` broadcasts over.
+They are written over any leading dimensions: ``MADDPG.train`` applies them to one team's batch, a run group to a
+member dimension ``M`` in front (the networks of ``M`` teams, each with its own batch, evaluated at once; each
+member's losses depend on its own networks and batch only; :func:`one_member` adds ``M = 1``). The networks are passed
+as functions (the model's own methods, or :class:`~sb3_maddpg.common.update_step.UpdateNetworks`), so that a sibling
+algorithm changes them, not the math: MATD3's target actor adds its smoothing noise, its target critic returns the
+minimum of its twins, and its critic returns both twins stacked in front (``[2, ..., batch, n_agents]``), which
+:func:`critic_losses` broadcasts over. A batch that says which agents were still in the episode (``active``) averages
+each agent's terms over its active rows only.
 """
 
 import math
@@ -126,7 +128,14 @@ def critic_losses(critic: QValues, batch: MultiAgentReplayBufferSamples, targets
     :return: One loss per member and agent, ``[..., M, n_agents]``.
     """
     current_q = critic(batch.observations, batch.actions, batch.selections)
-    return F.mse_loss(current_q, targets.expand_as(current_q), reduction="none").mean(dim=-2)
+    return _mean_over_rows(F.mse_loss(current_q, targets.expand_as(current_q), reduction="none"), batch.active)
+
+
+def _mean_over_rows(values: th.Tensor, active: th.Tensor | None) -> th.Tensor:
+    """The mean over the batch (``dim=-2``) of each agent's values, over the rows where it was active when given."""
+    if active is None:
+        return values.mean(dim=-2)
+    return (values * active).sum(dim=-2) / active.sum(dim=-2).clamp(min=1.0)
 
 
 def actor_loss_terms(
@@ -152,7 +161,14 @@ def actor_loss_terms(
     """
     policy_actions, preactivations = policy(batch.observations)
     per_critic_actions = th.where(parts.own, policy_actions.unsqueeze(-3), batch.actions.unsqueeze(-3))
-    policy_loss = -critic(batch.observations, per_critic_actions, batch.selections).mean(dim=-2)
+    policy_loss = -_mean_over_rows(critic(batch.observations, per_critic_actions, batch.selections), batch.active)
+    if batch.active is not None:  # each agent's terms over its active rows (its own components' mean per row first)
+        reg = reg_coef * _mean_over_rows(preactivations.pow(2) @ parts.own_mean.T, batch.active)
+        reg_loss = reg if isinstance(reg_coef, th.Tensor) or reg_coef > 0 else th.zeros_like(policy_loss)
+        with th.no_grad():
+            saturated = ((policy_actions.abs() > SATURATION_THRESHOLD) & parts.continuous).float()
+            saturation = _mean_over_rows(saturated @ parts.own_mean.T, batch.active)
+        return ActorLossTerms(policy_loss, reg_loss, saturation)
     if isinstance(reg_coef, th.Tensor) or reg_coef > 0:
         reg_loss = reg_coef * (preactivations.pow(2).mean(dim=-2) @ parts.own_mean.T)
     else:

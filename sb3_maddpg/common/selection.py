@@ -78,6 +78,14 @@ class Selector(ABC):
         """Whether this rule selects by the agents' positions (so the env must say where they are)."""
         return False
 
+    def stores_next_selection(self, layout: AgentLayout) -> bool:
+        """
+        :param layout: The team's layout.
+        :return: Whether the replay buffer stores the next step's selection with each row: a ``target="next"`` rule
+            by positions the env reports in its infos, which cannot be read again at sampling.
+        """
+        return self.target == "next" and self.needs_positions and layout.positions_in_info
+
     @abstractmethod
     def _select(self, observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
         """Return the selection for ``observations`` ``[n_envs, obs_dim]``, shape ``[n_envs, n_agents, k]``."""

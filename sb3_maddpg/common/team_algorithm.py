@@ -21,7 +21,12 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, TrainFreq
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, refuse_buffer_of_another_team, replay_buffer_bytes
+from sb3_maddpg.common.buffers import (
+    MultiAgentReplayBuffer,
+    loading_a_saved_model,
+    refuse_buffer_of_another_team,
+    replay_buffer_bytes,
+)
 from sb3_maddpg.common.env_checks import check_same_layout, layout_of, refuse_env_of_another_team, refuse_reward_normalization
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.noise import add_noise, default_noise, fit_noise_to_envs
@@ -122,7 +127,9 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         if self.replay_buffer_class is not None and issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
             self.replay_buffer_kwargs = {**self.replay_buffer_kwargs, "layout": self.agent_layout, "selector": self.selector}
             if self.verbose >= 1 and self.replay_buffer is None:  # said before the arrays exist (refused if too large)
-                needed = replay_buffer_bytes(self.buffer_size, self.n_envs, self.agent_layout, self.selection_size)
+                selector, layout = self.selector, self.agent_layout
+                next_stored = selector is not None and selector.stores_next_selection(layout)
+                needed = replay_buffer_bytes(self.buffer_size, self.n_envs, layout, self.selection_size, next_stored)
                 print(f"Replay buffer: {self.buffer_size:,} joint transitions, {needed / 2**30:.2f} GiB once full")
         self.policy_kwargs = {**self.policy_kwargs, **self._team_policy_kwargs()}  # a new dict, as above
         self.train_freq = self.update_rule.train_freq(self.n_envs) or self.train_freq  # type: ignore[assignment]
@@ -385,7 +392,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             if old in kwargs:
                 kwargs[new] = renamed_argument(kwargs.get(new), kwargs.pop(old), old, new)
         attributes = {**missing, **renamed, **kwargs}
-        with moved_paths_quiet():
+        with moved_paths_quiet(), loading_a_saved_model():
             return super().load(path, env, device, custom_objects, print_system_info, force_reset, **attributes)
 
     def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
@@ -400,10 +407,20 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             super().load_replay_buffer(path, truncate_last_traj)
         try:
             refuse_buffer_of_another_team(self.replay_buffer, self.agent_layout, self.selection_size, self.n_envs)
+            assert self.agent_layout is not None
+            needs_next = self.selector is not None and self.selector.stores_next_selection(self.agent_layout)
+            if needs_next and getattr(self.replay_buffer, "next_selections", None) is None:
+                raise ValueError(
+                    "The replay buffer holds no next-step selections, and this model's selector (target='next') needs "
+                    "them from the env's positions, which only the env had when the rows were stored: load a buffer "
+                    "saved by a model with the same selector, or start with an empty one."
+                )
         except (TypeError, ValueError):
             self.replay_buffer = current  # a refused buffer must not stay in the model
             raise
         self.replay_buffer.selector = self.selector  # new rows: the model's rule, of the same size k
+        if not needs_next:
+            self.replay_buffer.next_selections = None  # a buffer's own; this model selects again at sampling
 
     def _excluded_save_params(self) -> list[str]:
         # The running returns belong to the env's episodes under way, which a loaded model's env starts again.

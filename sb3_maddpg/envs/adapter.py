@@ -35,12 +35,14 @@ class PettingZooToGym(gym.Env):
       (``team_reward="sum"``, the default) or their mean (``team_reward="mean"``). The per-agent
       rewards are in ``info["agent_rewards"]`` (float32 array, layout order).
     - Agents that leave: the team stays fixed for the whole episode. An agent that has left (PettingZoo drops it from
-      ``env.agents`` after it terminates or is truncated) is seen as a zero observation with zero reward, gets no
-      action, and counts as terminated in every later transition (nothing more follows for it, so its critic does not
-      bootstrap there). No ``supersuit.black_death_v3`` is needed: it changes how episodes end (below).
+      ``env.agents`` after it terminates or is truncated) is seen as a zero observation with zero reward and gets no
+      action; ``info["agent_active"]`` says which agents were in the episode when the step was taken, and the replay
+      buffer keeps it, so that the transitions after an agent left train neither its critic nor its actor (a
+      truncated agent's last transition bootstraps, and nothing then teaches its critic that the state after it is
+      worth 0). No ``supersuit.black_death_v3`` is needed: it changes how episodes end (below).
     - Termination: the episode ends when no agent is left. It is terminated when every agent terminated, and
       truncated otherwise (e.g. at the env's time limit), so that SB3 bootstraps there; no extra step follows. The
-      per-agent flags are in ``info["agent_terminations"]`` (terminated at this step or left before it) and
+      per-agent flags are in ``info["agent_terminations"]`` (terminated at this step or before it) and
       ``info["agent_truncations"]`` (truncated at this step), the agents' own infos in ``info["agent_infos"]``.
     - Positions (for selection by distance, :class:`~sb3_maddpg.common.selection.NearestAgents`): where each agent's
       position is, if the env says so (``positions``): in each agent's observation, as a slice or as a ``Dict``
@@ -68,7 +70,8 @@ class PettingZooToGym(gym.Env):
     :param metrics_fn: Optional hook that returns task metrics from the wrapped env.
     :param team_reward: How the agents' rewards are combined into the scalar reward, ``"sum"`` or ``"mean"``.
     :param positions: Where each agent's position is, for selection by distance: a ``slice`` of each agent's flat
-        observation (MPE: ``slice(2, 4)``, which the MPE tasks declare themselves); the key of each agent's ``Dict``
+        observation (simple_spread: ``slice(2, 4)``, which its envs declare themselves; the other MPE tasks of
+        :func:`~sb3_maddpg.envs.make_mpe_env` declare their world's positions); the key of each agent's ``Dict``
         observation (a ``str``, or a tuple of keys for a nested ``Dict``), found wherever gymnasium's flattening puts
         it; a mapping of agent id to either, for agents of different layouts; or a function ``fn(parallel_env)`` that
         returns every agent's position, ``[n_agents, d]`` in ``possible_agents`` order, from the env's state. ``None``
@@ -195,8 +198,7 @@ class PettingZooToGym(gym.Env):
         vanished = present & ~terminated_now & ~agent_truncations & ~self._observed(observations)
         self._terminated |= (terminated_now & present) | vanished
         self._present &= ~(terminated_now | agent_truncations | vanished)
-        # Terminated: this step or before it (an agent gone has no future to bootstrap from).
-        agent_terminations = self._terminated | ~present
+        agent_terminations = self._terminated.copy()  # terminated at this step or before it
         remaining = getattr(self.parallel_env, "agents", None)
         self._episode_over = not self._present.any() or (remaining is not None and len(remaining) == 0)
         terminated = self._episode_over and bool(agent_terminations.all())
@@ -204,12 +206,16 @@ class PettingZooToGym(gym.Env):
         if self._episode_over:
             agent_truncations |= self._present  # agents the env dropped without a flag: the episode stopped for them
 
-        agent_rewards = np.array([rewards.get(agent, 0.0) for agent in layout.agent_ids], dtype=np.float32)
+        # An agent that left before this step has no reward and no observation here, whatever the env still sends.
+        agent_rewards = np.array([rewards.get(agent, 0.0) for agent in layout.agent_ids], dtype=np.float32) * present
+        if not present.all():
+            observations = {agent: obs for agent, obs in observations.items() if present[layout.index_of(agent)]}
         team = float(agent_rewards.sum()) if self.team_reward == "sum" else float(agent_rewards.mean())
         info: dict[str, Any] = {
             "agent_rewards": agent_rewards,
             "agent_terminations": agent_terminations,
             "agent_truncations": agent_truncations,
+            "agent_active": present,
             "agent_infos": [agent_infos.get(agent, {}) for agent in layout.agent_ids],
         }
         if self._positions_fn is not None:

@@ -242,7 +242,13 @@ def make_mpe_env(
     )
     # Positions from the world's state: not every task's observation holds its agent's own position (an adversary of
     # simple_adversary sees only offsets, simple_speaker_listener's speaker no position at all).
-    return PettingZooToGym(parallel_env, metrics_fn=_METRICS_FNS[task], team_reward=team_reward, positions=mpe_agent_positions)
+    return PettingZooToGym(
+        parallel_env,
+        metrics_fn=_METRICS_FNS[task],
+        team_reward=team_reward,
+        positions=mpe_agent_positions,
+        task_metrics=MPE_TASK_METRICS[task],
+    )
 
 
 def mpe_agent_positions(parallel_env: Any) -> np.ndarray:

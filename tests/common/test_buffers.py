@@ -220,10 +220,20 @@ def test_a_buffer_larger_than_the_memory_is_refused_and_over_half_of_it_warned_a
     check_replay_buffer_fits(10**15, 10**12, None)  # memory unknown: no check
 
 
-def test_maddpg_with_a_buffer_that_cannot_fit_is_refused_before_allocating_it() -> None:
-    env = make_simple_spread(n_agents=5)
-    with pytest.raises(ValueError, match=r"^The replay buffer would take [\d.]+ GiB \(buffer_size=1,000,000,000 "):
-        MADDPG("MlpPolicy", env, buffer_size=10**9)
+def test_maddpg_with_a_buffer_that_cannot_fit_is_refused_before_allocating_it_but_a_saved_one_loads(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Any
+) -> None:
+    env = make_simple_spread(n_agents=3)
+    saved = MADDPG("MlpPolicy", env, buffer_size=10_000, policy_kwargs={"net_arch": [8]})
+    saved.save(tmp_path / "team")
+    monkeypatch.setattr("sb3_maddpg.common.buffers.available_memory_bytes", lambda: 2**20)  # a machine of 1 MiB free
+    with pytest.raises(ValueError, match=r"^The replay buffer would take [\d.]+ GiB \(buffer_size=10,000 joint "):
+        MADDPG("MlpPolicy", env, buffer_size=10_000)
+    # A saved model is often loaded only to act: its buffer is allocated lazily and never filled, so it loads with a
+    # warning that says how to train it here.
+    with pytest.warns(UserWarning, match=r"fine to act, but training would run out of memory; .*custom_objects"):
+        loaded = MADDPG.load(tmp_path / "team")
+    assert loaded.predict(env.reset(seed=0)[0])[0].shape == env.action_space.shape
 
 
 def test_an_info_without_agent_terminations_or_a_time_limit_flag_ends_every_agent_at_the_episodes_end() -> None:

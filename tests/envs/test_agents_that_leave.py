@@ -5,6 +5,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+import torch as th
 from stable_baselines3.common.env_checker import check_env
 
 from sb3_maddpg import MADDPG
@@ -85,3 +86,47 @@ def test_maddpg_trains_on_kaz_through_departures() -> None:
     assert model._n_updates > 0
     rows = model.replay_buffer.dones[: model.replay_buffer.pos, 0]
     assert rows.any(axis=1).any()  # some agent left within the 300 steps (seed 0), and training went on
+
+
+def test_an_agent_truncated_alone_bootstraps_and_its_later_rows_train_nothing() -> None:
+    """A lone truncation mid-episode (a real ParallelEnv): the row where the agent leaves bootstraps; the rows after it
+    are marked inactive for that agent, and the losses average each agent's terms over its active rows only."""
+    from sb3_maddpg.common.losses import actor_loss_terms, critic_losses
+    from tests.envs.walkers import Walkers
+
+    env = PettingZooToGym(Walkers(n_agents=3, observe="noise", max_cycles=6, leaves={"walker_1": (2, "truncation")}))
+    env.reset(seed=0)
+    steps = [env.step(np.zeros(6, np.float32)) for _ in range(6)]
+    assert [info["agent_active"].tolist() for *_, info in steps] == [[True] * 3] * 2 + [[True, False, True]] * 4
+    assert [bool(info["agent_truncations"][1]) for *_, info in steps] == [False, True, False, False, False, False]
+    assert not any(info["agent_terminations"].any() for *_, info in steps)  # nobody terminated: nothing stops a bootstrap
+    assert (steps[-1][2], steps[-1][3]) == (False, True)  # the time limit, a truncation
+    assert all(info["agent_rewards"][1] == 0 for *_, info in steps[2:])
+
+    model = MADDPG(
+        "MlpPolicy",
+        PettingZooToGym(Walkers(n_agents=3, observe="noise", max_cycles=6, leaves={"walker_1": (2, "truncation")})),
+        learning_starts=30,
+        batch_size=16,
+        buffer_size=200,
+        seed=0,
+        policy_kwargs={"net_arch": [8, 8]},
+    )
+    model.learn(60)
+    buffer = model.replay_buffer
+    assert buffer.active is not None
+    assert buffer.active[:60, 0, 1].tolist() == ([True] * 2 + [False] * 4) * 10  # per episode: 2 rows active, 4 after
+    batch = buffer.sample(64)
+    assert batch.active is not None and batch.active[:, [0, 2]].eq(1).all() and (batch.active[:, 1] == 0).any()
+    targets = model._critic_targets(batch)
+    losses = critic_losses(model.critic, batch, targets)
+    with th.no_grad():
+        errors = (model.critic(batch.observations, batch.actions, batch.selections) - targets).pow(2)
+    by_hand = (errors * batch.active).sum(0) / batch.active.sum(0)
+    th.testing.assert_close(losses, by_hand)
+    # Rows after the departure reach nothing of agent 1's critic or actor.
+    after = batch._replace(active=batch.active * (batch.active[:, 1:2] == 0))  # only the rows where agent 1 is gone
+    loss = critic_losses(model.critic, after, targets)[1]
+    assert loss == 0 and th.autograd.grad(loss, list(model.critic.parameters()), allow_unused=True)
+    terms = actor_loss_terms(model.actor.forward_with_preactivation, model.critic, after, model._action_parts, 1e-3)
+    assert terms.total[1] == 0

@@ -95,7 +95,7 @@ def test_declared_metrics_in_info_at_reset_and_every_step(task: str) -> None:
     assert truncated  # max_cycles reached mpe2
     for info in infos:
         keys = set(info) - {"agent_rewards", "agent_terminations", "agent_truncations", "agent_infos"}
-        keys -= {"agent_positions", "agent_positions_before"}  # the world's positions, for selection by distance
+        keys -= {"agent_positions", "agent_positions_before", "agent_active"}  # positions for selection; who is there
         assert keys == declared | extra
         assert all(isinstance(info[key], float) and math.isfinite(info[key]) for key in declared)
 

@@ -7,7 +7,7 @@ from pettingzoo.test import parallel_api_test
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.common.selection import NearestAgents
-from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
+from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASKS, PettingZooToGym, make_mpe_env, make_simple_spread
 from tests.envs.walkers import Walkers
 
 
@@ -113,9 +113,47 @@ def test_a_position_source_that_does_not_fit_is_refused_naming_the_fix(positions
         PettingZooToGym(Walkers(observe="noise"), positions=positions)
 
 
+@pytest.mark.parametrize("task", sorted(MPE_TASKS))
+def test_every_mpe_task_declares_its_positions_and_metrics(task: str) -> None:
+    env = make_mpe_env(task)
+    layout = env.agent_layout
+    assert layout.declares_positions and env.task_metrics == MPE_TASK_METRICS[task]
+    _, info = env.reset(seed=0)
+    if layout.positions_in_info:  # every task but simple_spread: the world's positions, whatever the agents observe
+        world = {agent.name: agent.state.p_pos for agent in env.parallel_env.unwrapped.world.agents}
+        np.testing.assert_allclose(info["agent_positions"], [world[a] for a in layout.agent_ids], rtol=1e-6)
+
+
 def test_the_mpe_tasks_declare_their_positions() -> None:
     env = make_simple_spread(n_agents=3)
     assert env.agent_layout.position_slices == (slice(2, 4),) * 3
     obs, _ = env.reset(seed=0)
     world = [agent.state.p_pos for agent in env.parallel_env.unwrapped.world.agents]
     np.testing.assert_allclose(env.agent_layout.positions(obs[None])[0], world, rtol=1e-6)
+
+
+def test_a_replay_buffer_without_the_next_selections_a_model_needs_is_refused(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    def build(target: str) -> MADDPG:
+        env = PettingZooToGym(Walkers(observe="noise", max_cycles=5), positions=lambda e: e.positions())
+        selector = NearestAgents(k=1, target=target)  # type: ignore[arg-type]
+        return MADDPG(
+            "MlpPolicy",
+            env,
+            critic_sharing="selected",
+            selector=selector,
+            learning_starts=50,
+            buffer_size=100,
+            seed=0,
+            policy_kwargs={"net_arch": [8]},
+        )
+
+    stored, following = build("stored"), build("next")
+    stored.learn(20)
+    stored.save_replay_buffer(tmp_path / "stored")
+    with pytest.raises(ValueError, match=r"^The replay buffer holds no next-step selections"):
+        following.load_replay_buffer(tmp_path / "stored")
+    assert following.replay_buffer.next_selections is not None  # the refused buffer did not stay
+    following.learn(20)
+    following.save_replay_buffer(tmp_path / "next")
+    stored.load_replay_buffer(tmp_path / "next")  # more than it needs: its own rule at sampling
+    assert stored.replay_buffer.next_selections is None and stored.replay_buffer.sample(4).next_selections is None

@@ -20,15 +20,19 @@ class Walkers(ParallelEnv):
     :param n_agents: The team's size.
     :param observe: What each agent observes (above).
     :param max_cycles: Steps per episode.
+    :param leaves: Agents that leave before the end: agent -> (step, ``"termination"`` or ``"truncation"``).
     """
 
     metadata = {"name": "walkers_v0", "render_modes": []}
 
-    def __init__(self, n_agents: int = 4, observe: str = "dict", max_cycles: int = 10) -> None:
+    def __init__(
+        self, n_agents: int = 4, observe: str = "dict", max_cycles: int = 10, leaves: dict[str, tuple[int, str]] | None = None
+    ) -> None:
         self.possible_agents = [f"walker_{i}" for i in range(n_agents)]
         self.agents: list[str] = []
         self.observe = observe
         self.max_cycles = max_cycles
+        self.leaves = dict(leaves or {})
         box = lambda n: spaces.Box(-np.inf, np.inf, (n,), np.float32)  # noqa: E731
         if observe == "dict":
             self._obs_space: spaces.Space = spaces.Dict({"vel": box(2), "pos": box(2), "landmarks": box(3)})
@@ -71,15 +75,18 @@ class Walkers(ParallelEnv):
 
     def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
         self.t += 1
-        for i, agent in enumerate(self.possible_agents):
-            self.vel[i] = 0.1 * np.clip(np.asarray(actions[agent], np.float32), -1, 1)
-        self.pos += self.vel
+        index = {agent: i for i, agent in enumerate(self.possible_agents)}
+        for agent in self.agents:
+            self.vel[index[agent]] = 0.1 * np.clip(np.asarray(actions[agent], np.float32), -1, 1)
+            self.pos[index[agent]] += self.vel[index[agent]]
         ending = self.t >= self.max_cycles
-        observations = {agent: self._observe(i) for i, agent in enumerate(self.agents)}
-        rewards = {agent: -float(np.linalg.norm(self.pos[i])) for i, agent in enumerate(self.agents)}
-        terminations = dict.fromkeys(self.agents, False)
-        truncations = dict.fromkeys(self.agents, ending)
+        observations = {agent: self._observe(index[agent]) for agent in self.agents}
+        rewards = {agent: -float(np.linalg.norm(self.pos[index[agent]])) for agent in self.agents}
+        leaving = {agent: how for agent, (at, how) in self.leaves.items() if at == self.t and agent in self.agents}
+        terminations = {agent: leaving.get(agent) == "termination" for agent in self.agents}
+        truncations = {agent: ending or leaving.get(agent) == "truncation" for agent in self.agents}
         infos: dict[str, dict] = {agent: {} for agent in self.agents}
+        self.agents = [agent for agent in self.agents if not (terminations[agent] or truncations[agent])]
         if ending:
             self.agents = []
         return observations, rewards, terminations, truncations, infos

@@ -75,7 +75,7 @@ def test_predict_agents_with_a_mixed_team_and_ids_of_any_order() -> None:
         assert actions["chooser"] == expected["chooser"] and -2.0 <= actions["mover"][0] <= 3.0
 
 
-def test_predict_agents_refuses_missing_and_unknown_agents_naming_the_team() -> None:
+def test_predict_agents_acts_for_the_agents_present_and_refuses_unknown_ones_naming_the_team() -> None:
     model = MADDPG("MlpPolicy", make_simple_spread(n_agents=3), seed=0, **SMALL)
     observations = {f"agent_{i}": np.zeros(18, np.float32) for i in range(3)}
     team = r"The team is 3 agents \(agent_0, agent_1, agent_2\) with observations of 18 each"
