@@ -1,12 +1,15 @@
 """What a team's training writes to SB3's logger: per-agent values and the team's mean, under ``train/``; each agent's
-episode return beside SB3's team return, under ``rollout/``."""
+episode return beside SB3's team return, under ``rollout/``; and what a gradient step reports (:class:`StepLosses`),
+summarised over a train call."""
 
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch as th
 from stable_baselines3.common.logger import Logger
+
+from sb3_maddpg.common.losses import ActorLossTerms
 
 
 def record_per_agent(logger: Logger, agent_ids: Sequence[str], values: Mapping[str, Sequence[float | None]]) -> None:
@@ -67,3 +70,43 @@ def record_agent_returns(logger: Logger, agent_ids: Sequence[str], episodes: Ite
         return
     for agent, mean in zip(agent_ids, np.mean(returns, axis=0).tolist()):
         logger.record(f"rollout/{agent}/ep_rew_mean", mean)
+
+
+LOSS_NAMES = ("critic_loss", "actor_loss", "actor_reg_loss", "action_saturation")
+"""What a step reports, ``[M, n_agents]`` each (the last three only when the actors were updated)."""
+
+
+class StepLosses(NamedTuple):
+    """What a step reports, ``[M, n_agents]`` each, detached; the actors' parts None when the actors were not due."""
+
+    critic_loss: th.Tensor
+    """The critics' losses (MATD3: the mean of the twins')."""
+    actor_loss: th.Tensor | None
+    actor_reg_loss: th.Tensor | None
+    action_saturation: th.Tensor | None
+
+
+def step_losses(critic_loss: th.Tensor, actor_terms: ActorLossTerms | None) -> StepLosses:
+    """
+    :param critic_loss: Each agent's critic loss (the mean over its critics).
+    :param actor_terms: The actors' loss terms, or None when the actors were not due.
+    :return: What the step reports, detached.
+    """
+    if actor_terms is None:
+        return StepLosses(critic_loss.detach(), None, None, None)
+    policy_loss, reg_loss = actor_terms.policy_loss.detach(), actor_terms.reg_loss.detach()
+    return StepLosses(critic_loss.detach(), policy_loss, reg_loss, actor_terms.saturation)
+
+
+def summarise_steps(steps: Sequence[StepLosses]) -> dict[str, th.Tensor]:
+    """
+    :param steps: The losses of a train call's steps.
+    :return: Each of :data:`LOSS_NAMES`' mean over the steps that have it, ``[M, n_agents]`` each (the actors' parts
+        only when some step updated the actors: a delayed one, as TD3's, records none).
+    """
+    means: dict[str, th.Tensor] = {}
+    for index, name in enumerate(LOSS_NAMES):
+        values: list[th.Tensor] = [value for step in steps if (value := step[index]) is not None]
+        if values:
+            means[name] = th.stack(values).mean(0)
+    return means

@@ -10,20 +10,21 @@ actor, MATD3's twins and smoothed targets).
 """
 
 import contextlib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any, NamedTuple, Protocol
 
 import torch as th
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.gradient_step import polyak_update_foreach as polyak_update_foreach  # its path of 0.3.0.dev
-from sb3_maddpg.common.losses import ActionParts, ActorLossTerms, actor_loss_terms, critic_losses, critic_targets
+from sb3_maddpg.common.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
+from sb3_maddpg.common.train_logs import LOSS_NAMES as LOSS_NAMES  # its path of 0.3.0.dev
+from sb3_maddpg.common.train_logs import StepLosses as StepLosses
+from sb3_maddpg.common.train_logs import step_losses
+from sb3_maddpg.common.train_logs import summarise_steps as summarise_steps
 
 MODULE_NAMES = ("actor", "critic", "actor_target", "critic_target")
 """The four modules of a team, as :class:`MemberModules` names them."""
-
-LOSS_NAMES = ("critic_loss", "actor_loss", "actor_reg_loss", "action_saturation")
-"""What a step reports, ``[M, n_agents]`` each (the last three only when the actors were updated)."""
 
 
 class MemberModules(Protocol):
@@ -103,16 +104,6 @@ class StepSettings(NamedTuple):
         return n_updates % self.policy_delay == 0
 
 
-class StepLosses(NamedTuple):
-    """What a step reports, ``[M, n_agents]`` each, detached; the actors' parts None when the actors were not due."""
-
-    critic_loss: th.Tensor
-    """The critics' losses (MATD3: the mean of the twins')."""
-    actor_loss: th.Tensor | None
-    actor_reg_loss: th.Tensor | None
-    action_saturation: th.Tensor | None
-
-
 def update_step(
     networks: UpdateNetworks,
     optimizers: tuple[th.optim.Optimizer, th.optim.Optimizer],
@@ -150,18 +141,6 @@ def update_step(
     return step_losses(critic_log, terms)
 
 
-def step_losses(critic_loss: th.Tensor, actor_terms: ActorLossTerms | None) -> StepLosses:
-    """
-    :param critic_loss: Each agent's critic loss (the mean over its critics).
-    :param actor_terms: The actors' loss terms, or None when the actors were not due.
-    :return: What the step reports, detached.
-    """
-    if actor_terms is None:
-        return StepLosses(critic_loss.detach(), None, None, None)
-    policy_loss, reg_loss = actor_terms.policy_loss.detach(), actor_terms.reg_loss.detach()
-    return StepLosses(critic_loss.detach(), policy_loss, reg_loss, actor_terms.saturation)
-
-
 def _optimise(
     modules: MemberModules, module: str, optimizer: th.optim.Optimizer, loss: th.Tensor, max_norm: float | None
 ) -> None:
@@ -174,17 +153,3 @@ def _optimise(
     if max_norm is not None:
         modules.clip_gradients(module, max_norm)
     optimizer.step()
-
-
-def summarise_steps(steps: Sequence[StepLosses]) -> dict[str, th.Tensor]:
-    """
-    :param steps: The losses of a train call's steps.
-    :return: Each of :data:`LOSS_NAMES`' mean over the steps that have it, ``[M, n_agents]`` each (the actors' parts
-        only when some step updated the actors: a delayed one, as TD3's, records none).
-    """
-    means: dict[str, th.Tensor] = {}
-    for index, name in enumerate(LOSS_NAMES):
-        values: list[th.Tensor] = [value for step in steps if (value := step[index]) is not None]
-        if values:
-            means[name] = th.stack(values).mean(0)
-    return means

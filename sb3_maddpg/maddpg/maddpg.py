@@ -20,9 +20,9 @@ from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.common.selection import Selector
 from sb3_maddpg.common.team_algorithm import LOG_INTERVAL as LOG_INTERVAL  # import path of 0.2
 from sb3_maddpg.common.team_algorithm import TeamOffPolicyAlgorithm
-from sb3_maddpg.common.train_logs import record_critic_diagnostics, record_losses
+from sb3_maddpg.common.train_logs import StepLosses, record_critic_diagnostics, record_losses, step_losses, summarise_steps
 from sb3_maddpg.common.update_schedule import UpdateSchedule
-from sb3_maddpg.common.update_step import MemberModules, StepLosses, StepSettings, UpdateNetworks, step_losses, summarise_steps
+from sb3_maddpg.common.update_step import MemberModules, StepSettings, UpdateNetworks
 from sb3_maddpg.compat import renamed_argument
 from sb3_maddpg.maddpg.policies import MADDPGPolicy, MlpPolicy
 from sb3_maddpg.sharing import CriticSharing, validate_critic_sharing
