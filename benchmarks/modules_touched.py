@@ -13,8 +13,9 @@ from collections import defaultdict
 from types import FrameType
 from typing import Any
 
-import sb3_maddpg
 import stable_baselines3
+
+import sb3_maddpg
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.envs import make_simple_spread
 
