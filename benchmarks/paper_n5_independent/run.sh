@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Issue 43, step 2: the paper's question with independent actors and critics at N=5, both settings (exp1.json,
+# exp2.json, written by make_configs.py at the budget curve_summary.md chose), 5 seeds first. Seeds outermost: a partial
+# sweep stays balanced across schemes; exp1's runs come first, then exp2's (full, selected, selected_next first).
+#
+# Run it from a worktree pinned to a commit, writing results into the main checkout:
+#   git worktree add --detach ../sweep-indep-study <commit>
+#   cd ../sweep-indep-study && RESULTS_ROOT=/work/main/benchmarks WORKERS=2 nohup bash benchmarks/paper_n5_independent/run.sh &
+# Resumable: run it again and finished runs are skipped; a run killed with its session goes on from its last snapshot.
+# Each start appends its commit to results/commits.log.
+set -u
+cd "$(dirname "$0")/../.."
+RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
+WORKERS="${WORKERS:-2}"
+SEEDS="${SEEDS:-0,1,2,3,4}"
+RESULTS="$RESULTS_ROOT/paper_n5_independent/results"
+for setting in exp1 exp2; do
+  [ -f "benchmarks/paper_n5_independent/$setting.json" ] || {
+    echo "benchmarks/paper_n5_independent/$setting.json is missing: run make_configs.py --steps <the budget> first" >&2
+    exit 2
+  }
+done
+mkdir -p "$RESULTS"
+echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) study seeds $SEEDS workers $WORKERS" >>"$RESULTS/commits.log"
+export SDL_VIDEODRIVER=dummy
+nice -n 19 python -m sb3_maddpg.experiments run --config benchmarks/paper_n5_independent/exp1.json \
+    --config benchmarks/paper_n5_independent/exp2.json --seed-list "$SEEDS" \
+    --results "$RESULTS" --workers "$WORKERS" --threads 1 --quiet
