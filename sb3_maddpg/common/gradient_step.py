@@ -1,6 +1,7 @@
 """One optimiser step of a team's actors or critics, and the Polyak update of its targets."""
 
-from collections.abc import Sequence
+import functools
+from collections.abc import Callable, Sequence
 
 import torch as th
 
@@ -19,14 +20,28 @@ def gradient_step(module: MultiAgentActor | MultiAgentCritic, loss: th.Tensor, m
     :param loss: The sum of its agents' losses.
     :param max_grad_norm: The largest norm of each agent's gradient, or None for no clipping.
     """
-    params = list(module.parameters())
-    module.optimizer.zero_grad()
+    clip = None if max_grad_norm is None else functools.partial(module.clip_grad_norm_per_agent, max_grad_norm)
+    optimiser_step(list(module.parameters()), module.optimizer, loss, clip)
+
+
+def optimiser_step(
+    params: Sequence[th.Tensor], optimizer: th.optim.Optimizer, loss: th.Tensor, clip: Callable[[], None] | None
+) -> None:
+    """
+    One step of ``optimizer`` on ``loss``, the gradients of ``params`` only (clipped by ``clip`` before the step).
+
+    :param params: The parameters the step moves.
+    :param optimizer: Their optimiser.
+    :param loss: The loss.
+    :param clip: Clips the gradients in place (per agent, or per run and agent), or None.
+    """
+    optimizer.zero_grad()
     # allow_unused: a parameter outside this loss's graph keeps no gradient, as backward() would leave it.
-    for param, grad in zip(params, th.autograd.grad(loss, params, allow_unused=True)):
+    for param, grad in zip(params, th.autograd.grad(loss, list(params), allow_unused=True)):
         param.grad = grad
-    if max_grad_norm is not None:
-        module.clip_grad_norm_per_agent(max_grad_norm)
-    module.optimizer.step()
+    if clip is not None:
+        clip()
+    optimizer.step()
 
 
 def polyak_update_foreach(params: Sequence[th.Tensor], targets: Sequence[th.Tensor], tau: float) -> None:

@@ -10,12 +10,14 @@ actor, MATD3's twins and smoothed targets).
 """
 
 import contextlib
+import functools
 from collections.abc import Callable
 from typing import Any, NamedTuple, Protocol
 
 import torch as th
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.gradient_step import optimiser_step
 from sb3_maddpg.common.gradient_step import polyak_update_foreach as polyak_update_foreach  # its path of 0.3.0.dev
 from sb3_maddpg.common.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
 from sb3_maddpg.common.train_logs import LOSS_NAMES as LOSS_NAMES  # its path of 0.3.0.dev
@@ -145,11 +147,5 @@ def _optimise(
     modules: MemberModules, module: str, optimizer: th.optim.Optimizer, loss: th.Tensor, max_norm: float | None
 ) -> None:
     """One optimiser step of ``module`` on ``loss``: only its own parameters' gradients are computed."""
-    params = modules.parameters(module)
-    optimizer.zero_grad()
-    # allow_unused: a parameter outside this loss's graph keeps no gradient, as backward() would leave it.
-    for param, grad in zip(params, th.autograd.grad(loss, params, allow_unused=True)):
-        param.grad = grad
-    if max_norm is not None:
-        modules.clip_gradients(module, max_norm)
-    optimizer.step()
+    clip = None if max_norm is None else functools.partial(modules.clip_gradients, module, max_norm)
+    optimiser_step(modules.parameters(module), optimizer, loss, clip)
