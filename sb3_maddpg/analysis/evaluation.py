@@ -297,11 +297,8 @@ class EpisodeTally:
         self.counts = np.zeros(n_envs, dtype=int)
         self.team_returns = np.zeros(n_envs)
         self.lengths = np.zeros(n_envs, dtype=int)
-        self.collisions = np.zeros(n_envs)
         self.agent_returns: list[np.ndarray | None] = [None] * n_envs
-        self.episodes: dict[str, list[Any]] = {
-            key: [] for key in ("return", "length", "agent_returns", *TASK_METRICS, *RADIUS_KEYS)
-        }
+        self.episodes: dict[str, list[Any]] = {key: [] for key in ("return", "length", "agent_returns", *RADIUS_KEYS)}
         self.declared = {metric.key: metric.per_episode for metric in task_metrics}
         self.declared_values: dict[str, list[float]] = {key: [] for key in self.declared}
         self.declared_sums = {key: np.zeros(n_envs) for key, per_episode in self.declared.items() if per_episode == "sum"}
@@ -325,7 +322,6 @@ class EpisodeTally:
         self.team_returns += rewards
         self.lengths += 1
         for i, info in enumerate(infos):
-            self.collisions[i] += float(info.get("collisions", np.nan))
             for key, sums in self.declared_sums.items():
                 sums[i] += float(info.get(key, np.nan))
             if "agent_rewards" in info:
@@ -341,17 +337,15 @@ class EpisodeTally:
             self.episodes["return"].append(float(self.team_returns[i]))
             self.episodes["length"].append(int(self.lengths[i]))
             self.episodes["agent_returns"].append(self.agent_returns[i])
-            self.episodes["collisions"].append(float(self.collisions[i]))
-            for key in ("success", "coverage", "min_dist_sum"):
-                self.episodes[key].append(float(info.get(key, np.nan)))
-            for key, value in _radius_metrics(info.get("landmark_distances")).items():
-                self.episodes[key].append(value)
+            if self.scores_simple_spread:  # success and coverage at every radius, from the landmarks' distances
+                for key, value in _radius_metrics(info.get("landmark_distances")).items():
+                    self.episodes[key].append(value)
             for key, per_episode in self.declared.items():
                 self.declared_values[key].append(
                     self.declared_sums[key][i] if per_episode == "sum" else float(info.get(key, np.nan))
                 )
             self.counts[i] += 1
-        self.team_returns[i], self.lengths[i], self.collisions[i], self.agent_returns[i] = 0.0, 0, 0.0, None
+        self.team_returns[i], self.lengths[i], self.agent_returns[i] = 0.0, 0, None
         for sums in self.declared_sums.values():
             sums[i] = 0.0
 
@@ -403,16 +397,16 @@ def _summarise(
     episodes = tally.episodes
     returns = np.asarray(episodes["return"])
     per_agent = [r for r in episodes["agent_returns"] if r is not None]
+    declared = {key: float(np.mean(values)) for key, values in tally.declared_values.items()}
+    spread: dict[str, float] = {}
+    if tally.scores_simple_spread:  # simple_spread's own names: success_rate for success, and each radius
+        spread = {"success_rate": declared["success"], **{key: float(np.mean(episodes[key])) for key in RADIUS_KEYS}}
     everything = {
-        "success_rate": float(np.mean(episodes["success"])),
-        "coverage": float(np.mean(episodes["coverage"])),
-        "collisions": float(np.mean(episodes["collisions"])),
-        "min_dist_sum": float(np.mean(episodes["min_dist_sum"])),
+        **declared,
+        **spread,
         "return_mean": float(returns.mean()),
         "return_std": float(returns.std()),
         "episode_length": float(np.mean(episodes["length"])),
-        **{key: float(np.mean(episodes[key])) for key in RADIUS_KEYS},
-        **{key: float(np.mean(values)) for key, values in tally.declared_values.items()},
         **({"group_return": _group_return(vec_env, per_agent, score_agents)} if score_agents else {}),
         **_side_returns(vec_env, per_agent, len(returns), sides or {}),
     }
