@@ -85,7 +85,7 @@ def test_the_algorithm_packages_keep_the_names_their_modules_of_0_2_exported() -
     from sb3_maddpg.maddpg import LOG_INTERVAL as log_interval
     from sb3_maddpg.maddpg import SATURATION_THRESHOLD as threshold
     from sb3_maddpg.maddpg import ActorLossTerms as terms
-    from sb3_maddpg.matd3 import MATD3, TwinUpdateNetworks, smooth_target_actions  # noqa: F401
+    from sb3_maddpg.matd3 import MATD3, smooth_target_actions  # noqa: F401
 
     assert (log_interval, threshold, terms) == (LOG_INTERVAL, SATURATION_THRESHOLD, ActorLossTerms)
 

@@ -5,7 +5,7 @@ loss terms.
 They are written over any leading dimensions: ``MADDPG.train`` applies them to one team's batch, a run group to a
 member dimension ``M`` in front (the networks of ``M`` teams, each with its own batch, evaluated at once; each
 member's losses depend on its own networks and batch only; :func:`one_member` adds ``M = 1``). The networks are passed
-as functions (the model's own methods, or :class:`~sb3_maddpg.common.update_step.UpdateNetworks`), so that a sibling
+as functions (the model's own methods, which a run group applies to every run), so that a sibling
 algorithm changes them, not the math: MATD3's target actor adds its smoothing noise, its target critic returns the
 minimum of its twins, and its critic returns both twins stacked in front (``[2, ..., batch, n_agents]``), which
 :func:`critic_losses` broadcasts over. A batch that says which agents were still in the episode (``active``) averages

@@ -1,44 +1,42 @@
 """
-One gradient step of a run group's ``M`` teams at once (:mod:`sb3_maddpg.run_group`), on the losses of
-:mod:`sb3_maddpg.common.losses`, which ``MADDPG.train`` and ``MATD3.train`` run on one team's modules directly.
+One gradient step of a run group's ``M`` teams at once (:mod:`sb3_maddpg.run_group`), with the losses and the
+algorithm's own functions that ``MADDPG.train`` and ``MATD3.train`` run for one team.
 
-A step is: the critic targets, every critic's loss and its optimiser step (gradients clipped per member and agent),
-then, when the actors are due, the actors' losses and step and the Polyak updates of every target. Two things vary and
-are passed in: how ``M`` teams' modules are evaluated (:class:`MemberModules`: the runs' stacked parameters under
-``vmap``) and what the algorithm makes of them (:class:`UpdateNetworks`: MADDPG's critic and target
-actor, MATD3's twins and smoothed targets).
+The one team's functions (the model's ``_target_actions``, ``_target_q`` and ``_trained_q``, its actors' and critics'
+forward passes, and the losses of :mod:`sb3_maddpg.common.losses`) are evaluated for every member at once:
+:class:`TeamFunctions` binds them to one team's networks, and :class:`GroupFunctions` applies them to each member's
+parameters with ``torch.func.functional_call``, ``vmap``-ed over the members. No second copy of the math: what a
+subclass of MADDPG changes in its functions (MATD3's twins, minimum and smoothed targets) reaches the group as it is.
+A step is: every critic's loss and its optimiser step (gradients clipped per member and agent), then, when the actors
+are due, the actors' losses and step and the Polyak updates of every target.
 """
 
-import contextlib
 import functools
 from collections.abc import Callable
 from typing import Any, NamedTuple, Protocol
 
 import torch as th
+from torch import nn
+from torch.func import functional_call, vmap
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.gradient_step import optimiser_step
 from sb3_maddpg.common.gradient_step import polyak_update_foreach as polyak_update_foreach  # its path of 0.3.0.dev
-from sb3_maddpg.common.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
+from sb3_maddpg.common.losses import ActionParts, ActorLossTerms, actor_loss_terms, critic_losses, critic_targets
 from sb3_maddpg.common.train_logs import LOSS_NAMES as LOSS_NAMES  # its path of 0.3.0.dev
 from sb3_maddpg.common.train_logs import StepLosses as StepLosses
 from sb3_maddpg.common.train_logs import step_losses
 from sb3_maddpg.common.train_logs import summarise_steps as summarise_steps
 
 MODULE_NAMES = ("actor", "critic", "actor_target", "critic_target")
-"""The four modules of a team, as :class:`MemberModules` names them."""
+"""The four modules of a team."""
 
 
 class MemberModules(Protocol):
-    """How ``M`` teams' actors, critics and targets are evaluated and updated, every tensor ``[M, ...]``."""
+    """``M`` teams' stacked actors, critics and targets: their parameters, clipping, targets and random streams."""
 
-    def call(self, module: str, method: str, *args: th.Tensor | None) -> Any:
-        """
-        :param module: One of :data:`MODULE_NAMES`.
-        :param method: The method of the package's module (``"forward"``, ``"sample"``, ``"twins"``...).
-        :param args: Its arguments with the member dimension in front (None is passed as None).
-        :return: What it returns, with the member dimension in front.
-        """
+    def stacked_parameters(self) -> dict[str, th.Tensor]:
+        """:return: Every parameter of the four modules, ``[M, ...]`` each, by ``<module>.<parameter name>``."""
         ...
 
     def parameters(self, module: str) -> list[th.Tensor]:
@@ -55,39 +53,112 @@ class MemberModules(Protocol):
         ...
 
     def normal_like(self, tensor: th.Tensor) -> th.Tensor:
-        """:return: Standard normal noise shaped as ``tensor``, each member's from its own stream."""
+        """:return: Standard normal noise shaped as ``tensor`` (``[M, ...]``), each member's from its own stream."""
         ...
 
 
-class UpdateNetworks:
+class TeamFunctions(nn.Module):
     """
-    MADDPG's networks as the functions of :mod:`sb3_maddpg.common.losses`, over :class:`MemberModules`.
+    One team's four networks (templates, whose parameters :class:`GroupFunctions` replaces by one member's) and the
+    algorithm's own functions over them: ``algorithm._target_actions(self, ...)`` and the others run here as they run
+    on a model, reading the same attributes (the networks, ``_action_parts``, MATD3's noise settings), except that the
+    smoothing noise is the member's own, drawn before and passed in (:meth:`_smoothing_noise`).
 
-    :param modules: The members' modules.
+    :param algorithm: The model's class (MADDPG, MATD3 or a subclass).
+    :param modules: The four networks, by :data:`MODULE_NAMES`.
+    :param parts: The layout's action parts, on the networks' device.
+    :param settings: The model's attributes its functions read beyond the networks (e.g. ``target_policy_noise``).
     """
 
-    def __init__(self, modules: MemberModules) -> None:
-        self.modules = modules
+    def __init__(self, algorithm: type, modules: dict[str, nn.Module], parts: ActionParts, settings: dict[str, Any]) -> None:
+        super().__init__()
+        for name in MODULE_NAMES:
+            self.add_module(name, modules[name])
+        self.algorithm = algorithm
+        self._action_parts = parts
+        for name, value in settings.items():
+            setattr(self, name, value)
+        self._noise: th.Tensor | None = None
 
-    def policy(self, observations: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        """The actors' actions and pre-activations (a discrete agent's: straight-through Gumbel-softmax)."""
-        return self.modules.call("actor", "forward_with_preactivation", observations)
+    def _smoothing_noise(self, actions: th.Tensor) -> th.Tensor:
+        """The member's own smoothing noise (MATD3), set by :meth:`critic_losses` for its call."""
+        assert self._noise is not None, "the smoothing noise is drawn per member and passed in"
+        return self._noise
 
-    def q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """The critics the actors ascend, ``[M, batch, n_agents]``."""
-        return self.modules.call("critic", "forward", observations, actions, selections)
+    def critic_losses(self, batch: MultiAgentReplayBufferSamples, gamma: float, noise: th.Tensor | None) -> th.Tensor:
+        """One member's critic losses on its batch, as ``train`` computes them (``[n_agents]``; MATD3 ``[2, n_agents]``)."""
+        self._noise = noise
+        algorithm: Any = self.algorithm
+        targets = critic_targets(
+            functools.partial(algorithm._target_actions, self), functools.partial(algorithm._target_q, self), batch, gamma
+        )
+        return critic_losses(functools.partial(algorithm._trained_q, self), batch, targets)
 
-    def trained_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """Every critic trained at a step (MADDPG: one per agent), ``[..., M, batch, n_agents]``."""
-        return self.q(observations, actions, selections)
+    def actor_loss_terms(self, batch: MultiAgentReplayBufferSamples, reg_coef: float) -> ActorLossTerms:
+        """One member's actor loss terms on its batch, as ``train`` computes them (``[n_agents]`` each)."""
+        actor: Any = self.actor
+        critic: Any = self.critic
+        return actor_loss_terms(actor.forward_with_preactivation, critic, batch, self._action_parts, reg_coef)
 
-    def target_actions(self, observations: th.Tensor) -> th.Tensor:
-        """The target actors (a discrete agent's: a Gumbel-max sample)."""
-        return self.modules.call("actor_target", "sample", observations)
 
-    def target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """The target critics, ``[M, batch, n_agents]``."""
-        return self.modules.call("critic_target", "forward", observations, actions, selections)
+class _Bound(nn.Module):
+    """Calls one function of :class:`TeamFunctions` as ``forward``: ``functional_call`` calls only ``forward``."""
+
+    def __init__(self, team: TeamFunctions, function: Callable[..., Any]) -> None:
+        super().__init__()
+        self.team = team
+        self.function = function
+
+    def forward(self, *args: Any) -> Any:
+        return self.function(self.team, *args)
+
+
+class GroupFunctions:
+    """
+    :class:`TeamFunctions` applied to every member at once: each member's parameters swapped in with
+    ``functional_call``, ``vmap``-ed over the members; the smoothing noise drawn from each member's own stream.
+
+    :param model: The group's first model (its class and settings are every member's: checked by the group).
+    :param members: The members' stacked modules.
+    :param templates: One team's four networks on the group's device, by :data:`MODULE_NAMES`.
+    :param parts: The layout's action parts on that device.
+    """
+
+    def __init__(self, model: Any, members: MemberModules, templates: dict[str, nn.Module], parts: ActionParts) -> None:
+        algorithm = type(model)
+        # MATD3's functions draw smoothing noise; MADDPG's draw none.
+        self.smooths = getattr(algorithm, "_smoothing_noise", None) is not None
+        settings = {name: getattr(model, name) for name in ("target_policy_noise", "target_noise_clip") if self.smooths}
+        self.team = TeamFunctions(algorithm, templates, parts, settings)
+        self.members = members
+        prefixed = lambda function: _Bound(self.team, function)  # noqa: E731
+
+        def member_call(function: Callable[..., Any]) -> Callable[..., Any]:
+            bound = prefixed(function)
+
+            def call(params: dict[str, th.Tensor], *args: Any) -> Any:
+                return functional_call(bound, {f"team.{name}": value for name, value in params.items()}, args)
+
+            return call
+
+        self._critic = member_call(TeamFunctions.critic_losses)
+        self._actor = member_call(TeamFunctions.actor_loss_terms)
+
+    def critic_losses(self, batch: MultiAgentReplayBufferSamples, gamma: float) -> th.Tensor:
+        """Every member's critic losses, ``[M, n_agents]`` (MATD3: ``[M, 2, n_agents]``)."""
+        noise = self.members.normal_like(batch.actions) if self.smooths else None
+        calls = vmap(self._critic, in_dims=(0, _batch_dims(batch), None, None if noise is None else 0))
+        return calls(self.members.stacked_parameters(), batch, gamma, noise)  # type: ignore[no-any-return]
+
+    def actor_loss_terms(self, batch: MultiAgentReplayBufferSamples, reg_coef: float) -> ActorLossTerms:
+        """Every member's actor loss terms, ``[M, n_agents]`` each."""
+        calls = vmap(self._actor, in_dims=(0, _batch_dims(batch), None))
+        return calls(self.members.stacked_parameters(), batch, reg_coef)  # type: ignore[no-any-return]
+
+
+def _batch_dims(batch: MultiAgentReplayBufferSamples) -> MultiAgentReplayBufferSamples:
+    """``vmap``'s ``in_dims`` of a batch: the member dimension of each field, None for a field that is None."""
+    return MultiAgentReplayBufferSamples(*(None if field is None else 0 for field in batch))  # type: ignore[arg-type]
 
 
 class StepSettings(NamedTuple):
@@ -107,39 +178,34 @@ class StepSettings(NamedTuple):
 
 
 def update_step(
-    networks: UpdateNetworks,
+    functions: GroupFunctions,
     optimizers: tuple[th.optim.Optimizer, th.optim.Optimizer],
     batch: MultiAgentReplayBufferSamples,
     settings: StepSettings,
     actor_due: bool,
-    recording: Callable[[], contextlib.AbstractContextManager[Any]] = contextlib.nullcontext,
 ) -> StepLosses:
     """
     One gradient step of every member on its batch: the critics, then (when due) the actors against the updated
-    critics, then the targets.
+    critics, then the targets; each member's losses are those ``train`` computes for one team.
 
-    :param networks: The algorithm's networks over the members' modules.
+    :param functions: The algorithm's functions over the members.
     :param optimizers: The actors' and the critics' optimisers.
     :param batch: Each member's replay batch, ``[M, batch, ...]`` each field.
     :param settings: The algorithm's hyperparameters.
     :param actor_due: Whether the actors and targets are updated at this step (:meth:`StepSettings.actor_due`).
-    :param recording: A context in which the critics' forward pass on the replayed batch runs (e.g. the extractors
-        recording their diagnostics).
-    :return: The step's losses.
+    :return: The step's losses, ``[M, n_agents]`` each.
     """
-    modules = networks.modules
+    members = functions.members
     actor_optimizer, critic_optimizer = optimizers
-    target_q = critic_targets(networks.target_actions, networks.target_q, batch, settings.gamma)
-    with recording():
-        critic_loss = critic_losses(networks.trained_q, batch, target_q)
-    _optimise(modules, "critic", critic_optimizer, critic_loss.sum(), settings.max_grad_norm)
-    # Per member and agent, the mean over the agent's critics (MATD3's twins are stacked in front).
-    critic_log = critic_loss.detach().reshape(-1, *critic_loss.shape[-2:]).mean(0)
+    critic_loss = functions.critic_losses(batch, settings.gamma)
+    _optimise(members, "critic", critic_optimizer, critic_loss.sum(), settings.max_grad_norm)
+    # Per member and agent, the mean over the agent's critics (MATD3's twins come after the member dimension).
+    critic_log = critic_loss.detach().reshape(critic_loss.shape[0], -1, critic_loss.shape[-1]).mean(1)
     if not actor_due:
         return step_losses(critic_log, None)
-    terms = actor_loss_terms(networks.policy, networks.q, batch, settings.parts, settings.actor_reg_coef)
-    _optimise(modules, "actor", actor_optimizer, terms.total.sum(), settings.max_grad_norm)
-    modules.update_targets(settings.tau)
+    terms = functions.actor_loss_terms(batch, settings.actor_reg_coef)
+    _optimise(members, "actor", actor_optimizer, terms.total.sum(), settings.max_grad_norm)
+    members.update_targets(settings.tau)
     return step_losses(critic_log, terms)
 
 

@@ -22,7 +22,7 @@ from sb3_maddpg.common.team_algorithm import LOG_INTERVAL as LOG_INTERVAL  # imp
 from sb3_maddpg.common.team_algorithm import TeamOffPolicyAlgorithm
 from sb3_maddpg.common.train_logs import StepLosses, record_critic_diagnostics, record_losses, step_losses, summarise_steps
 from sb3_maddpg.common.update_schedule import UpdateSchedule
-from sb3_maddpg.common.update_step import MemberModules, StepSettings, UpdateNetworks
+from sb3_maddpg.common.update_step import StepSettings
 from sb3_maddpg.compat import renamed_argument
 from sb3_maddpg.maddpg.policies import MADDPGPolicy, MlpPolicy
 from sb3_maddpg.sharing import CriticSharing, validate_critic_sharing
@@ -247,14 +247,6 @@ class MADDPG(TeamOffPolicyAlgorithm):
     def _trained_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
         """Every critic a step trains (MADDPG: one per agent), ``[..., batch, n_agents]``."""
         return self.critic(observations, actions, selections)
-
-    def _update_networks(self, modules: MemberModules, parts: ActionParts) -> UpdateNetworks:
-        """
-        :param modules: The modules of a run group's ``M`` teams of this model's configuration.
-        :param parts: The layout's action parts on the modules' device.
-        :return: The algorithm's networks over them, as the group's update step and the losses use them.
-        """
-        return UpdateNetworks(modules)
 
     def _step_settings(self) -> StepSettings:
         """:return: A run group's update step's hyperparameters, as they are now."""

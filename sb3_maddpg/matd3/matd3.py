@@ -9,9 +9,8 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
-from sb3_maddpg.common.losses import ActionParts
 from sb3_maddpg.common.selection import Selector
-from sb3_maddpg.common.update_step import MemberModules, StepSettings, UpdateNetworks
+from sb3_maddpg.common.update_step import StepSettings
 from sb3_maddpg.compat import renamed_argument
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.matd3.policies import MATD3Policy, MlpPolicy, TwinMultiAgentCritic
@@ -30,42 +29,13 @@ def smooth_target_actions(
     :param noise_std: The noise's standard deviation (TD3's ``target_policy_noise``).
     :param noise_clip: The largest noise magnitude (TD3's ``target_noise_clip``).
     :param continuous: The continuous agents' components, ``[action_dim]`` (bool).
-    :param noise: Standard normal noise shaped as ``actions`` (it is scaled in place), each member's from its own stream;
+    :param noise: Standard normal noise shaped as ``actions``, each member's from its own stream;
         None: drawn from torch's global generator.
     :return: The smoothed actions, the shape of ``actions``.
     """
-    noise = (th.randn_like(actions) if noise is None else noise).mul_(noise_std).clamp_(-noise_clip, noise_clip)
+    # Out of place: under a run group's vmap an in-place clamp has no batching rule (a slow per-run fallback).
+    noise = ((th.randn_like(actions) if noise is None else noise) * noise_std).clamp(-noise_clip, noise_clip)
     return th.where(continuous, (actions + noise).clamp(-1.0, 1.0), actions)
-
-
-class TwinUpdateNetworks(UpdateNetworks):
-    """
-    MATD3's networks as the functions of the losses, over :class:`~sb3_maddpg.common.update_step.MemberModules`: both twins
-    trained, the minimum of the target twins, target actions with clipped smoothing noise.
-
-    :param modules: The members' modules (their critics :class:`~sb3_maddpg.matd3.policies.TwinMultiAgentCritic`).
-    :param noise_std: The smoothing noise's standard deviation (``target_policy_noise``).
-    :param noise_clip: Its clip (``target_noise_clip``).
-    :param continuous: The continuous agents' action components, ``[action_dim]`` (bool).
-    """
-
-    def __init__(self, modules: MemberModules, noise_std: float, noise_clip: float, continuous: th.Tensor) -> None:
-        super().__init__(modules)
-        self.noise_std, self.noise_clip, self.continuous = noise_std, noise_clip, continuous
-
-    def trained_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """Both twin critics stacked in front, ``[2, M, batch, n_agents]`` (what :func:`critic_losses` broadcasts over)."""
-        return self.modules.call("critic", "twins", observations, actions, selections).movedim(1, 0)
-
-    def target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """The minimum of the two target critics, agent by agent, ``[M, batch, n_agents]``."""
-        return self.modules.call("critic_target", "twins", observations, actions, selections).amin(dim=1)
-
-    def target_actions(self, observations: th.Tensor) -> th.Tensor:
-        """Every target actor on its next observation, plus the clipped smoothing noise (continuous agents only)."""
-        actions = super().target_actions(observations)
-        noise = self.modules.normal_like(actions)
-        return smooth_target_actions(actions, self.noise_std, self.noise_clip, self.continuous, noise)
 
 
 class MATD3(MADDPG):
@@ -77,7 +47,7 @@ class MATD3(MADDPG):
     scheme's extractor; critic i's target is ``r_i + gamma * (1 - done_i) * min(Q_i1', Q_i2')`` at the target actors'
     actions plus clipped smoothing noise; the actors ascend their first critic, and the actors and every target network
     move once every ``policy_delay`` critic updates. The update is MADDPG's ``train`` with MATD3's target actions,
-    target critics and trained critics (a run group's: :class:`TwinUpdateNetworks`).
+    target critics and trained critics, which run groups apply to every run as they are.
     TD3's parameters have SB3's names and defaults; every other parameter is :class:`~sb3_maddpg.MADDPG`'s, with the
     paper's defaults (Lowe et al.).
 
@@ -224,11 +194,6 @@ class MATD3(MADDPG):
     def _trained_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
         """Both twin critics stacked in front, ``[2, batch, n_agents]`` (what :func:`critic_losses` broadcasts over)."""
         return self.critic.twins(observations, actions, selections)
-
-    def _update_networks(self, modules: MemberModules, parts: ActionParts) -> UpdateNetworks:
-        """:return: MATD3's networks over a run group's ``modules``: twin critics, smoothed targets (continuous agents
-        only)."""
-        return TwinUpdateNetworks(modules, self.target_policy_noise, self.target_noise_clip, parts.continuous)
 
     def _step_settings(self) -> StepSettings:
         """:return: MADDPG's settings with the actors delayed by ``policy_delay`` critic updates."""

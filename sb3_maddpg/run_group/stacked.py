@@ -99,7 +99,7 @@ class StackedModule:
 class StackedTeams:
     """
     The actors, critics and their targets of ``R`` teams, stacked: :class:`~sb3_maddpg.common.update_step.MemberModules` of
-    ``M = R`` members, the many-runs counterpart of :class:`~sb3_maddpg.common.update_step.TeamModules`.
+    ``M = R`` members.
 
     :param actors: Each run's team actor.
     :param critics: Each run's team critic (MATD3's: both twins).
@@ -132,8 +132,16 @@ class StackedTeams:
             [*self.critic_target.parameters(), *self.actor_target.parameters()],
         )
 
-    def call(self, module: str, method: str, *args: th.Tensor | None) -> Any:
-        return getattr(self, module).call(method, *args)
+    def stacked_parameters(self) -> dict[str, th.Tensor]:
+        return {
+            f"{module}.{name}": value
+            for module in ("actor", "critic", "actor_target", "critic_target")
+            for name, value in getattr(self, module).params.items()
+        }
+
+    def templates(self) -> dict[str, nn.Module]:
+        """:return: One team's four networks on the device (each stacked module's template), by module name."""
+        return {module: getattr(self, module).template for module in ("actor", "critic", "actor_target", "critic_target")}
 
     def parameters(self, module: str) -> list[th.Tensor]:
         return getattr(self, module).parameters()

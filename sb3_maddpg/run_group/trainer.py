@@ -15,7 +15,7 @@ from sb3_maddpg.common.losses import ActionParts
 from sb3_maddpg.common.noise import per_env_noise
 from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.common.update_step import LOSS_NAMES as LOSS_NAMES  # its import path of 0.3.0.dev
-from sb3_maddpg.common.update_step import StepLosses, summarise_steps, update_step
+from sb3_maddpg.common.update_step import GroupFunctions, StepLosses, summarise_steps, update_step
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.run_group.buffer import RunReplayBuffers, buffer_capacity
 from sb3_maddpg.run_group.checks import check_models
@@ -56,15 +56,15 @@ class RunGroup:
     ``R`` independent MADDPG (or MATD3) runs of one configuration, differing only in their seeds, trained at once.
 
     Each run's actors, critics and targets are the parameters of its model stacked along a run dimension
-    (:class:`~sb3_maddpg.run_group.stacked.StackedTeams`); one update of every run is the algorithm's own update step
-    (:func:`~sb3_maddpg.common.update_step.update_step`, which ``MADDPG.train`` and ``MATD3.train`` run with ``M = 1``) with
-    ``M = R`` members: one optimiser step (the models' optimiser, element-wise: Adam's state of run r is run r's),
-    gradient clipping per run and agent, Polyak updates. Data come from ``R`` runs of ``E`` simple_spread worlds in
-    torch on the same device, into replay buffers there; each run's new episodes, exploration noise, warm-up actions,
-    replay batches (and MATD3's smoothing noise) are drawn from its own counter-based stream of its model's ``seed``
-    (:class:`~sb3_maddpg.run_group.streams.RunStreams`), every run's at once, so that a run's data depend on its seed
-    only, not on the other runs. The update ratio is the models' (the paper's one gradient step per
-    ``transitions_per_update`` transitions of each run, after ``learning_starts``).
+    (:class:`~sb3_maddpg.run_group.stacked.StackedTeams`); one update of every run is the algorithm's own functions and
+    losses, those ``MADDPG.train`` and ``MATD3.train`` run for one team, ``vmap``-ed over the runs
+    (:func:`~sb3_maddpg.common.update_step.update_step`): one optimiser step (the models' optimiser, element-wise:
+    Adam's state of run r is run r's), gradient clipping per run and agent, Polyak updates. Data come from ``R`` runs of
+    ``E`` simple_spread worlds in torch on the same device, into replay buffers there; each run's new episodes,
+    exploration noise, warm-up actions, replay batches (and MATD3's smoothing noise) are drawn from its own
+    counter-based stream of its model's ``seed`` (:class:`~sb3_maddpg.run_group.streams.RunStreams`), every run's at
+    once, so that a run's data depend on its seed only, not on the other runs. The update ratio is the models' (the
+    paper's one gradient step per ``transitions_per_update`` transitions of each run, after ``learning_starts``).
 
     The models are read once, when the group is built; :meth:`write_back` puts each run's weights, optimiser state
     and counters into a model, which then saves as any MADDPG model (``MADDPG.load`` reads it).
@@ -106,7 +106,7 @@ class RunGroup:
         self.critic_optimizer = _stacked_optimizer(self.teams.critic, [model.critic.optimizer for model in models])
         # The algorithm's own networks and step settings (checked: the same in every model), over the stacked runs.
         parts = ActionParts.of(self.layout, self.device)
-        self.networks = first._update_networks(self.teams, parts)
+        self.networks = GroupFunctions(first, self.teams, self.teams.templates(), parts)
         self.settings = first._step_settings()._replace(parts=parts)
         self.batch_size = first.batch_size
         self.learning_starts = first.learning_starts
