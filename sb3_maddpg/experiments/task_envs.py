@@ -12,13 +12,14 @@ from sb3_maddpg.experiments.defaults import EPISODE_LENGTH
 
 def task_env_factory(name: str, env_kwargs: Mapping[str, Any], episode_length: int) -> Callable[[], gym.Env]:
     """
-    :param name: A task other than simple_spread: an MPE task's name, ``'module:function'`` of a PettingZoo parallel env
-        factory, or a registered gymnasium id.
+    :param name: A task other than simple_spread: an MPE task's name, ``'module:function'`` of a factory of a PettingZoo
+        parallel env (wrapped in the adapter) or of a ready gymnasium env (e.g. ``PettingZooToGym(env, positions=...)``,
+        taken as it is), or a registered gymnasium id.
     :param env_kwargs: The task constructor's keyword arguments.
     :param episode_length: Steps per episode (an MPE task's ``max_cycles``).
     :return: A function that builds one env of the task.
     """
-    from sb3_maddpg.envs import MPE_TASKS, PettingZooToGym, make_mpe_env
+    from sb3_maddpg.envs import MPE_TASKS, make_mpe_env
 
     kwargs = dict(env_kwargs)
     if name in MPE_TASKS:
@@ -32,13 +33,21 @@ def task_env_factory(name: str, env_kwargs: Mapping[str, Any], episode_length: i
                 f"env={name!r} names no importable function ({error}): give 'module:function' of a PettingZoo parallel "
                 "env factory, e.g. 'mpe2.simple_push_v3:parallel_env'."
             ) from None
-        return lambda: PettingZooToGym(factory(**kwargs))
+        return lambda: _as_gym_env(factory(**kwargs))
     if name in gym.registry:
         return lambda: gym.make(name, **kwargs)
     raise ValueError(
         f"Unknown env {name!r}: use 'simple_spread', an MPE task ({', '.join(MPE_TASKS)}), a PettingZoo factory as "
         "'module:function', or a registered gymnasium id (import the package that registers it)."
     )
+
+
+def _as_gym_env(env: Any) -> gym.Env:
+    """A factory's env as the runs take it: a gymnasium env as it is (e.g. a ``PettingZooToGym`` that declares its
+    positions or task metrics), a PettingZoo ParallelEnv wrapped in the adapter."""
+    from sb3_maddpg.envs import PettingZooToGym
+
+    return env if isinstance(env, gym.Env) else PettingZooToGym(env)
 
 
 def check_env_name(env: Any) -> None:

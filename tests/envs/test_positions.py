@@ -157,3 +157,14 @@ def test_a_replay_buffer_without_the_next_selections_a_model_needs_is_refused(tm
     following.save_replay_buffer(tmp_path / "next")
     stored.load_replay_buffer(tmp_path / "next")  # more than it needs: its own rule at sampling
     assert stored.replay_buffer.next_selections is None and stored.replay_buffer.sample(4).next_selections is None
+
+
+def test_a_cli_factory_may_return_the_adapter_with_its_positions_declared() -> None:
+    from sb3_maddpg.experiments.task_envs import task_env_factory
+
+    declared = task_env_factory("tests.envs.walkers:walkers_with_positions", {"max_cycles": 5}, 25)()
+    assert isinstance(declared, PettingZooToGym) and declared.agent_layout.positions_in_info
+    plain = task_env_factory("tests.envs.walkers:Walkers", {"observe": "noise"}, 25)()
+    assert isinstance(plain, PettingZooToGym) and not plain.agent_layout.declares_positions
+    model = MADDPG("MlpPolicy", declared, critic_sharing="selected", selector=1, policy_kwargs={"net_arch": [4]})
+    assert model.agent_layout is not None and model.agent_layout.positions_in_info

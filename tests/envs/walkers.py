@@ -90,3 +90,10 @@ class Walkers(ParallelEnv):
         if ending:
             self.agents = []
         return observations, rewards, terminations, truncations, infos
+
+
+def walkers_with_positions(**kwargs: object) -> object:
+    """A factory of a ready gymnasium env (for the CLI's ``module:function``): Walkers that declare their positions."""
+    from sb3_maddpg.envs import PettingZooToGym
+
+    return PettingZooToGym(Walkers(observe="noise", **kwargs), positions=lambda env: env.positions())  # type: ignore[arg-type]
