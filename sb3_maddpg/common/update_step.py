@@ -17,12 +17,12 @@ from typing import Any, NamedTuple, Protocol
 
 import torch as th
 from torch import nn
-from torch.func import functional_call, vmap
+from torch.func import functional_call, grad, vmap
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.common.gradient_step import optimiser_step
 from sb3_maddpg.common.gradient_step import polyak_update_foreach as polyak_update_foreach  # its path of 0.3.0.dev
 from sb3_maddpg.common.losses import ActionParts, ActorLossTerms, actor_loss_terms, critic_losses, critic_targets
+from sb3_maddpg.common.networks import clip_coefficients
 from sb3_maddpg.common.train_logs import LOSS_NAMES as LOSS_NAMES  # its path of 0.3.0.dev
 from sb3_maddpg.common.train_logs import StepLosses as StepLosses
 from sb3_maddpg.common.train_logs import step_losses
@@ -39,13 +39,9 @@ class MemberModules(Protocol):
         """:return: Every parameter of the four modules, ``[M, ...]`` each, by ``<module>.<parameter name>``."""
         ...
 
-    def parameters(self, module: str) -> list[th.Tensor]:
-        """:return: The trained parameters of ``"actor"`` or ``"critic"``."""
-        ...
-
-    def clip_gradients(self, module: str, max_norm: float) -> None:
-        """Clip the gradient of ``"actor"`` or ``"critic"`` to ``max_norm``, each member's each agent's (each twin's)
-        network separately, as if each had an optimiser of its own."""
+    def clip_groups(self, module: str) -> list[list[str]]:
+        """:return: The names (``<module>.<parameter name>``) of each network of ``"actor"`` or ``"critic"`` whose
+        gradient is clipped on its own (the critics and MATD3's twins apart)."""
         ...
 
     def update_targets(self, tau: float) -> None:
@@ -89,9 +85,12 @@ class TeamFunctions(nn.Module):
         """One member's critic losses on its batch, as ``train`` computes them (``[n_agents]``; MATD3 ``[2, n_agents]``)."""
         self._noise = noise
         algorithm: Any = self.algorithm
-        targets = critic_targets(
-            functools.partial(algorithm._target_actions, self), functools.partial(algorithm._target_q, self), batch, gamma
-        )
+        try:
+            targets = critic_targets(
+                functools.partial(algorithm._target_actions, self), functools.partial(algorithm._target_q, self), batch, gamma
+            )
+        finally:
+            self._noise = None  # a member's (vmapped) tensor must not outlive its call
         return critic_losses(functools.partial(algorithm._trained_q, self), batch, targets)
 
     def actor_loss_terms(self, batch: MultiAgentReplayBufferSamples, reg_coef: float) -> ActorLossTerms:
@@ -116,7 +115,9 @@ class _Bound(nn.Module):
 class GroupFunctions:
     """
     :class:`TeamFunctions` applied to every member at once: each member's parameters swapped in with
-    ``functional_call``, ``vmap``-ed over the members; the smoothing noise drawn from each member's own stream.
+    ``functional_call``, its gradients taken with ``torch.func.grad`` and clipped per agent, all ``vmap``-ed over the
+    members; the smoothing noise drawn from each member's own stream. Nothing here holds state: the parameters come in
+    as tensors and the gradients go out, so a whole step traces as one graph.
 
     :param model: The group's first model (its class and settings are every member's: checked by the group).
     :param members: The members' stacked modules.
@@ -131,18 +132,8 @@ class GroupFunctions:
         settings = {name: getattr(model, name) for name in ("target_policy_noise", "target_noise_clip") if self.smooths}
         self.team = TeamFunctions(algorithm, templates, parts, settings)
         self.members = members
-        prefixed = lambda function: _Bound(self.team, function)  # noqa: E731
-
-        def member_call(function: Callable[..., Any]) -> Callable[..., Any]:
-            bound = prefixed(function)
-
-            def call(params: dict[str, th.Tensor], *args: Any) -> Any:
-                return functional_call(bound, {f"team.{name}": value for name, value in params.items()}, args)
-
-            return call
-
-        self._critic = member_call(TeamFunctions.critic_losses)
-        self._actor = member_call(TeamFunctions.actor_loss_terms)
+        self._critic = _member_call(_Bound(self.team, TeamFunctions.critic_losses))
+        self._actor = _member_call(_Bound(self.team, TeamFunctions.actor_loss_terms))
 
     def critic_losses(self, batch: MultiAgentReplayBufferSamples, gamma: float) -> th.Tensor:
         """Every member's critic losses, ``[M, n_agents]`` (MATD3: ``[M, 2, n_agents]``)."""
@@ -154,6 +145,104 @@ class GroupFunctions:
         """Every member's actor loss terms, ``[M, n_agents]`` each."""
         calls = vmap(self._actor, in_dims=(0, _batch_dims(batch), None))
         return calls(self.members.stacked_parameters(), batch, reg_coef)  # type: ignore[no-any-return]
+
+    def critic_gradients(
+        self, batch: MultiAgentReplayBufferSamples, gamma: float, max_norm: float | None
+    ) -> tuple[dict[str, th.Tensor], th.Tensor]:
+        """
+        Every member's critic gradients (of the sum of its agents' losses), each agent's (each twin's) clipped to
+        ``max_norm`` on its own, and its losses.
+
+        :return: The gradients by ``critic.<parameter name>`` (``[M, ...]`` each) and the losses ``[M, n_agents]``
+            (MATD3: ``[M, 2, n_agents]``).
+        """
+        noise = self.members.normal_like(batch.actions) if self.smooths else None
+        step = _clipped_gradients(self._critic, "critic", max_norm, self.members.clip_groups("critic"))
+        calls = vmap(step, in_dims=(0, 0, _batch_dims(batch), None, None if noise is None else 0))
+        trained, others = _split(self.members.stacked_parameters(), "critic")
+        return calls(trained, others, batch, gamma, noise)  # type: ignore[no-any-return]
+
+    def actor_gradients(
+        self, batch: MultiAgentReplayBufferSamples, reg_coef: float, max_norm: float | None
+    ) -> tuple[dict[str, th.Tensor], ActorLossTerms]:
+        """
+        Every member's actor gradients (of the sum of its agents' loss totals), each agent's clipped to ``max_norm`` on
+        its own, and its loss terms.
+
+        :return: The gradients by ``actor.<parameter name>`` (``[M, ...]`` each) and the terms (``[M, n_agents]`` each).
+        """
+        step = _clipped_gradients(self._actor, "actor", max_norm, self.members.clip_groups("actor"))
+        calls = vmap(step, in_dims=(0, 0, _batch_dims(batch), None))
+        trained, others = _split(self.members.stacked_parameters(), "actor")
+        return calls(trained, others, batch, reg_coef)  # type: ignore[no-any-return]
+
+
+def _member_call(bound: nn.Module) -> Callable[..., Any]:
+    """:return: ``bound``'s forward with one member's parameters (``<module>.<name>``) swapped in."""
+
+    def call(params: dict[str, th.Tensor], *args: Any) -> Any:
+        return functional_call(bound, {f"team.{name}": value for name, value in params.items()}, args)
+
+    return call
+
+
+def _split(params: dict[str, th.Tensor], module: str) -> tuple[dict[str, th.Tensor], dict[str, th.Tensor]]:
+    """:return: ``module``'s parameters and the others."""
+    prefix = f"{module}."
+    trained = {name: value for name, value in params.items() if name.startswith(prefix)}
+    return trained, {name: value for name, value in params.items() if not name.startswith(prefix)}
+
+
+def _clipped_gradients(
+    call: Callable[..., Any], module: str, max_norm: float | None, clip_groups: list[list[str]]
+) -> Callable[..., tuple[dict[str, th.Tensor], Any]]:
+    """
+    One member's gradient step function: the gradients of ``call``'s losses (summed) with respect to ``module``'s
+    parameters, each network's clipped on its own (:func:`clip_per_agent` on each group of ``clip_groups``).
+
+    :param call: A member call (:func:`_member_call`) returning the losses (a tensor, or terms with a ``total``).
+    :param module: ``"actor"`` or ``"critic"``.
+    :param max_norm: The largest norm of each agent's gradient, or None for no clipping.
+    :param clip_groups: The names of the parameters clipped together (a network and its twin apart).
+    """
+
+    def losses(trained: dict[str, th.Tensor], others: dict[str, th.Tensor], *args: Any) -> tuple[th.Tensor, Any]:
+        out = call({**trained, **others}, *args)
+        total = out.total if isinstance(out, ActorLossTerms) else out
+        return total.sum(), _detached(out)
+
+    gradients = grad(losses, has_aux=True)
+
+    def step(trained: dict[str, th.Tensor], others: dict[str, th.Tensor], *args: Any) -> tuple[dict[str, th.Tensor], Any]:
+        grads, out = gradients(trained, others, *args)
+        if max_norm is not None:
+            for names in clip_groups:
+                grads.update(zip(names, clip_per_agent([grads[name] for name in names], max_norm)))
+        return grads, out
+
+    return step
+
+
+def _detached(out: Any) -> Any:
+    if isinstance(out, ActorLossTerms):
+        return ActorLossTerms(*(term.detach() for term in out))
+    return out.detach()
+
+
+def clip_per_agent(grads: list[th.Tensor], max_norm: float) -> list[th.Tensor]:
+    """
+    One team's gradients with each agent's norm clipped to ``max_norm`` on its own, as if each agent had an optimiser
+    of its own: the gradients of an :class:`~sb3_maddpg.common.networks.AgentEnsembleMLP` are ``[n_members, ...]``, and
+    slice ``[i]`` is agent i's network (one slice for all agents with shared parameters). Out of place; under ``vmap``
+    over a group's members, each member's each agent's.
+
+    :param grads: The network's gradients, ``[n_members, ...]`` each.
+    :param max_norm: The largest norm of each slice.
+    :return: The clipped gradients.
+    """
+    squared = th.cat([g.flatten(1) for g in grads], dim=1).pow(2).sum(dim=1)
+    coefficients = clip_coefficients(squared, max_norm)
+    return [g * coefficients.view(-1, *(1,) * (g.dim() - 1)) for g in grads]
 
 
 def _batch_dims(batch: MultiAgentReplayBufferSamples) -> MultiAgentReplayBufferSamples:
@@ -179,39 +268,34 @@ class StepSettings(NamedTuple):
 
 def update_step(
     functions: GroupFunctions,
-    optimizers: tuple[th.optim.Optimizer, th.optim.Optimizer],
+    optimizers: tuple[Any, Any],
     batch: MultiAgentReplayBufferSamples,
     settings: StepSettings,
     actor_due: bool,
+    capturable: bool = False,
 ) -> StepLosses:
     """
     One gradient step of every member on its batch: the critics, then (when due) the actors against the updated
     critics, then the targets; each member's losses are those ``train`` computes for one team.
 
     :param functions: The algorithm's functions over the members.
-    :param optimizers: The actors' and the critics' optimisers.
+    :param optimizers: The actors' and the critics' optimisers over the stacked parameters (each with
+        ``step(grads, capturable)`` and the parameters in the members' order: a run group's
+        :class:`~sb3_maddpg.run_group.stacked_adam.StackedAdam`).
     :param batch: Each member's replay batch, ``[M, batch, ...]`` each field.
     :param settings: The algorithm's hyperparameters.
     :param actor_due: Whether the actors and targets are updated at this step (:meth:`StepSettings.actor_due`).
+    :param capturable: The optimisers' capturable form (a compiled or captured step; see ``StackedAdam.step``).
     :return: The step's losses, ``[M, n_agents]`` each.
     """
-    members = functions.members
     actor_optimizer, critic_optimizer = optimizers
-    critic_loss = functions.critic_losses(batch, settings.gamma)
-    _optimise(members, "critic", critic_optimizer, critic_loss.sum(), settings.max_grad_norm)
+    grads, critic_loss = functions.critic_gradients(batch, settings.gamma, settings.max_grad_norm)
+    critic_optimizer.step(list(grads.values()), capturable)
     # Per member and agent, the mean over the agent's critics (MATD3's twins come after the member dimension).
-    critic_log = critic_loss.detach().reshape(critic_loss.shape[0], -1, critic_loss.shape[-1]).mean(1)
+    critic_log = critic_loss.reshape(critic_loss.shape[0], -1, critic_loss.shape[-1]).mean(1)
     if not actor_due:
         return step_losses(critic_log, None)
-    terms = functions.actor_loss_terms(batch, settings.actor_reg_coef)
-    _optimise(members, "actor", actor_optimizer, terms.total.sum(), settings.max_grad_norm)
-    members.update_targets(settings.tau)
+    grads, terms = functions.actor_gradients(batch, settings.actor_reg_coef, settings.max_grad_norm)
+    actor_optimizer.step(list(grads.values()), capturable)
+    functions.members.update_targets(settings.tau)
     return step_losses(critic_log, terms)
-
-
-def _optimise(
-    modules: MemberModules, module: str, optimizer: th.optim.Optimizer, loss: th.Tensor, max_norm: float | None
-) -> None:
-    """One optimiser step of ``module`` on ``loss``: only its own parameters' gradients are computed."""
-    clip = None if max_norm is None else functools.partial(modules.clip_gradients, module, max_norm)
-    optimiser_step(modules.parameters(module), optimizer, loss, clip)

@@ -201,7 +201,7 @@ class GroupRecorder(GroupCallback):
         agent_returns = th.stack(group.worlds.agent_episodes[-last:]).mean(0).tolist()  # [R][N]
         self.progress.team_return = sum(rewards) / len(rewards)
         elapsed = max(self.train_time, 1e-9)
-        lr = group.actor_optimizer.param_groups[0]["lr"]
+        lr = group.actor_optimizer.lr
         for run, model in enumerate(self.models):
             logger = model.logger
             logger.record("time/episodes", len(group.worlds.episodes) * self.worlds, exclude="tensorboard")

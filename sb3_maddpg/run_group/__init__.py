@@ -2,6 +2,7 @@
 
 64-unit networks at batch 1024 leave a GPU idle; ``R`` runs stacked along a run dimension fill it. The parts, one job
 each: :mod:`~sb3_maddpg.run_group.stacked` (the runs' networks stacked, evaluated with ``vmap``),
+:mod:`~sb3_maddpg.run_group.stacked_adam` (their Adam, as tensors),
 :mod:`~sb3_maddpg.run_group.buffer` (the runs' replay buffers on the device), :mod:`~sb3_maddpg.run_group.worlds`
 (the runs' simple_spread worlds in torch), :mod:`~sb3_maddpg.run_group.selection` (selections on the device),
 :mod:`~sb3_maddpg.run_group.streams` (each run's random numbers, every run's in one call),
@@ -10,7 +11,8 @@ each: :mod:`~sb3_maddpg.run_group.stacked` (the runs' networks stacked, evaluate
 """
 
 from sb3_maddpg.run_group.buffer import RunReplayBuffers
-from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams, clip_grad_norm_per_run_and_agent
+from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams
+from sb3_maddpg.run_group.stacked_adam import StackedAdam
 from sb3_maddpg.run_group.streams import RunStreams
 from sb3_maddpg.run_group.trainer import LOSS_NAMES, GroupCallback, RunGroup
 from sb3_maddpg.run_group.worlds import SpreadRuns, SpreadTask
@@ -23,7 +25,7 @@ __all__ = [
     "RunStreams",
     "SpreadRuns",
     "SpreadTask",
+    "StackedAdam",
     "StackedModule",
     "StackedTeams",
-    "clip_grad_norm_per_run_and_agent",
 ]

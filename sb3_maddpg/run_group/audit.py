@@ -15,6 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 import torch as th
+import torch.optim.adam as adam_module
 from torch.overrides import TorchFunctionMode
 from torch.utils._python_dispatch import TorchDispatchMode
 from torch.utils._pytree import tree_leaves
@@ -56,6 +57,10 @@ class DeviceAudit:
         return sum(self.launches.values())
 
     def __enter__(self) -> "DeviceAudit":
+        if self.device.type == "meta":
+            # The meta device stands for a GPU: torch's capturable Adam (what a GPU step runs) checks its device.
+            self._capturable_devices = adam_module._get_capturable_supported_devices
+            adam_module._get_capturable_supported_devices = lambda **kwargs: [*self._capturable_devices(**kwargs), "meta"]
         self._function.__enter__()
         self._dispatch.__enter__()
         return self
@@ -63,6 +68,8 @@ class DeviceAudit:
     def __exit__(self, *exc: Any) -> None:
         self._dispatch.__exit__(*exc)
         self._function.__exit__(*exc)
+        if self.device.type == "meta":
+            adam_module._get_capturable_supported_devices = self._capturable_devices
 
     def problems(self) -> list[str]:
         """:return: Every sync, transfer and float64 op recorded, one line each (empty: the code is device-ready)."""

@@ -16,7 +16,6 @@ from torch import nn
 from torch.func import functional_call, vmap
 
 from sb3_maddpg.common.gradient_step import polyak_update_foreach
-from sb3_maddpg.common.networks import clip_coefficients
 from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.run_group.streams import RunStreams
 
@@ -42,17 +41,16 @@ class StackedModule:
 
     :param modules: One module per run, all of the same architecture.
     :param device: Where the stacked parameters live.
-    :param requires_grad: Whether the stacked parameters train (False for target networks).
     """
 
-    def __init__(self, modules: Sequence[nn.Module], device: th.device | str, requires_grad: bool) -> None:
+    def __init__(self, modules: Sequence[nn.Module], device: th.device | str) -> None:
         self.template = copy.deepcopy(modules[0]).to(device)
         self.names = [name for name, _ in modules[0].named_parameters()]
         self.params: dict[str, th.Tensor] = {}
         """Each parameter of every run, ``[R, *shape]``, in the module's ``named_parameters`` order."""
         for name in self.names:
-            stacked = th.stack([module.get_parameter(name).detach() for module in modules]).to(device)
-            self.params[name] = stacked.requires_grad_(requires_grad)
+            # Plain tensors: their gradients come from torch.func.grad, and the optimiser moves them in place.
+            self.params[name] = th.stack([module.get_parameter(name).detach() for module in modules]).to(device)
         self._calls: dict[tuple[str, tuple[int | None, ...]], Callable[..., Any]] = {}
 
     @property
@@ -118,15 +116,18 @@ class StackedTeams:
         device: th.device | str,
         streams: RunStreams,
     ) -> None:
-        self.actor = StackedModule(actors, device, requires_grad=True)
-        self.critic = StackedModule(critics, device, requires_grad=True)
-        self.actor_target = StackedModule(actor_targets, device, requires_grad=False)
-        self.critic_target = StackedModule(critic_targets, device, requires_grad=False)
+        self.actor = StackedModule(actors, device)
+        self.critic = StackedModule(critics, device)
+        self.actor_target = StackedModule(actor_targets, device)
+        self.critic_target = StackedModule(critic_targets, device)
         self.streams = streams
         # Each network whose gradient is clipped on its own: the actors; each of MATD3's twin critics.
-        first = [self.critic.params[name] for name in self.critic.names if not name.startswith("twin.")]
-        twin = [self.critic.params[name] for name in self.critic.names if name.startswith("twin.")]
-        self._clip_groups = {"actor": [self.actor.parameters()], "critic": [group for group in (first, twin) if group]}
+        first = [f"critic.{name}" for name in self.critic.names if not name.startswith("twin.")]
+        twin = [f"critic.{name}" for name in self.critic.names if name.startswith("twin.")]
+        self._clip_groups = {
+            "actor": [[f"actor.{name}" for name in self.actor.names]],
+            "critic": [group for group in (first, twin) if group],
+        }
         self._target_pairs = (
             [*self.critic.parameters(), *self.actor.parameters()],
             [*self.critic_target.parameters(), *self.actor_target.parameters()],
@@ -143,12 +144,8 @@ class StackedTeams:
         """:return: One team's four networks on the device (each stacked module's template), by module name."""
         return {module: getattr(self, module).template for module in ("actor", "critic", "actor_target", "critic_target")}
 
-    def parameters(self, module: str) -> list[th.Tensor]:
-        return getattr(self, module).parameters()
-
-    def clip_gradients(self, module: str, max_norm: float) -> None:
-        for params in self._clip_groups[module]:
-            clip_grad_norm_per_run_and_agent(params, max_norm)
+    def clip_groups(self, module: str) -> list[list[str]]:
+        return self._clip_groups[module]
 
     def update_targets(self, tau: float) -> None:
         polyak_update_foreach(*self._target_pairs, tau)
@@ -159,22 +156,3 @@ class StackedTeams:
     def actions(self, observations: th.Tensor) -> th.Tensor:
         """The actors' actions when acting, ``[R, batch, action_dim]``."""
         return self.actor.call("forward", observations)
-
-
-def clip_grad_norm_per_run_and_agent(params: Sequence[th.Tensor], max_norm: float) -> None:
-    """
-    Clip each run's and agent's gradient norm separately, as ``clip_grad_norm_per_agent`` does within one run: the
-    gradients of an :class:`~sb3_maddpg.common.networks.AgentEnsembleMLP`, stacked, are ``[R, n_members, ...]``, and slice
-    ``[r, i]`` is agent i's network in run r (one slice for all agents with shared parameters). The launches do not
-    grow with ``R``: one concatenation for the norms, then one scale per parameter (a multi-tensor call, which on
-    CUDA takes its per-tensor path: the factors broadcast over each gradient).
-
-    :param params: Stacked ensemble parameters with their ``.grad`` set, ``[R, n_members, ...]`` each.
-    :param max_norm: The largest norm of each slice.
-    """
-    grads = [param.grad for param in params if param.grad is not None]
-    if not grads:
-        return
-    squared = th.cat([grad.flatten(2) for grad in grads], dim=2).pow(2).sum(dim=2)
-    coefficients = clip_coefficients(squared, max_norm)
-    th._foreach_mul_(grads, [coefficients.view(*coefficients.shape, *(1,) * (grad.dim() - 2)) for grad in grads])

@@ -61,6 +61,7 @@ class RunStreams:
         self.counter = th.zeros((), dtype=th.int64, device=self.device)
         """Draws made so far (on the device: it advances without a host read)."""
         self._offsets: dict[int, th.Tensor] = {}
+        self._golden = th.tensor(GOLDEN, dtype=th.int64, device=self.device)
 
     @property
     def n_runs(self) -> int:
@@ -73,11 +74,17 @@ class RunStreams:
         :return: 64 random bits per element, ``[R, *shape]`` (int64); the counter advances by one.
         """
         count = math.prod(shape)
-        if count not in self._offsets:  # SplitMix64's state after i + 1 steps, made once per size
-            self._offsets[count] = th.arange(1, count + 1, dtype=th.int64, device=self.device) * GOLDEN
+        if th.compiler.is_compiling():
+            # In a compiled graph, made inline (a cache is state the graph would guard on), times a tensor: a constant
+            # would be folded into index arithmetic, which cannot wrap around as int64 products do.
+            offsets = th.arange(1, count + 1, dtype=th.int64, device=self.device) * self._golden
+        else:  # SplitMix64's state after i + 1 steps, made once per size
+            if count not in self._offsets:
+                self._offsets[count] = th.arange(1, count + 1, dtype=th.int64, device=self.device) * GOLDEN
+            offsets = self._offsets[count]
         state = mix64(self.keys + (self.counter + 1) * GOLDEN)  # the keys are hashed: one more mix decorrelates
         self.counter += 1
-        return mix64(state.unsqueeze(1) + self._offsets[count]).view(self.n_runs, *shape)
+        return mix64(state.unsqueeze(1) + offsets).view(self.n_runs, *shape)
 
     def uniform(self, shape: Sequence[int], dtype: th.dtype = th.float32) -> th.Tensor:
         """

@@ -3,12 +3,12 @@
 one optimiser over them, the replay buffers and the worlds on the device, each run's randomness from its own seed.
 """
 
+import time
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 import torch as th
-from stable_baselines3.common.utils import update_learning_rate
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.losses import ActionParts
@@ -21,6 +21,7 @@ from sb3_maddpg.run_group.buffer import RunReplayBuffers, buffer_capacity
 from sb3_maddpg.run_group.checks import check_models
 from sb3_maddpg.run_group.selection import DeviceSelector
 from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams
+from sb3_maddpg.run_group.stacked_adam import StackedAdam
 from sb3_maddpg.run_group.streams import RunStreams
 from sb3_maddpg.run_group.worlds import METRICS, SpreadRuns, SpreadTask
 
@@ -75,6 +76,9 @@ class RunGroup:
         :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`); only :meth:`learn` needs them.
     :param device: The device of everything: networks, optimiser state, buffers, worlds.
     :param world_dtype: The worlds' floating dtype (float64: mpe2's arithmetic; float32, the default: faster).
+    :param compile: Compile each gradient step of every run (critics, actors, targets: one graph, no break) with
+        ``torch.compile(fullgraph=True)``; on CUDA, captured as CUDA graphs (mode ``"reduce-overhead"``). The first
+        steps compile (tens of seconds: :attr:`compile_seconds`); the results differ from eager ones by float rounding.
     """
 
     def __init__(
@@ -84,6 +88,7 @@ class RunGroup:
         task: SpreadTask | None = None,
         device: th.device | str = "cpu",
         world_dtype: th.dtype = th.float32,
+        compile: bool = False,
     ) -> None:
         check_models(models)
         first = models[0]
@@ -102,8 +107,8 @@ class RunGroup:
             self.device,
             self.streams,
         )
-        self.actor_optimizer = _stacked_optimizer(self.teams.actor, [model.actor.optimizer for model in models])
-        self.critic_optimizer = _stacked_optimizer(self.teams.critic, [model.critic.optimizer for model in models])
+        self.actor_optimizer = StackedAdam.of_models(self.teams.actor.parameters(), [m.actor.optimizer for m in models])
+        self.critic_optimizer = StackedAdam.of_models(self.teams.critic.parameters(), [m.critic.optimizer for m in models])
         # The algorithm's own networks and step settings (checked: the same in every model), over the stacked runs.
         parts = ActionParts.of(self.layout, self.device)
         self.networks = GroupFunctions(first, self.teams, self.teams.templates(), parts)
@@ -141,6 +146,11 @@ class RunGroup:
         self.worlds: SpreadRuns | None = None
         self.losses: dict[str, th.Tensor] = {}
         """The last :meth:`train` call's means of :data:`LOSS_NAMES`, ``[R, n_agents]`` each, on the device."""
+        self.compiled = compile
+        self.compile_seconds = 0.0
+        """Seconds spent compiling so far (the first step of each kind: with and without the actors' update)."""
+        self._step_kinds_seen: set[bool] = set()
+        self._gradient_step = self._compiled_step() if compile else self._eager_step
 
     # ----- updates -----
 
@@ -157,8 +167,39 @@ class RunGroup:
 
     def _step(self, batch: MultiAgentReplayBufferSamples) -> StepLosses:
         self.n_updates += 1
+        due = self.settings.actor_due(self.n_updates)
+        if due in self._step_kinds_seen or not self.compiled:
+            return self._gradient_step(batch, due)
+        start = time.perf_counter()  # this kind's first compiled step: it compiles
+        losses = self._gradient_step(batch, due)
+        self.compile_seconds += time.perf_counter() - start
+        self._step_kinds_seen.add(due)
+        return losses
+
+    def _eager_step(self, batch: MultiAgentReplayBufferSamples, actor_due: bool) -> StepLosses:
+        """One gradient step of every run, op by op (torch's capturable Adam on a GPU; on a CPU, its host form)."""
         optimizers = (self.actor_optimizer, self.critic_optimizer)
-        return update_step(self.networks, optimizers, batch, self.settings, self.settings.actor_due(self.n_updates))
+        capturable = self.device.type != "cpu"
+        return update_step(self.networks, optimizers, batch, self.settings, actor_due, capturable=capturable)
+
+    def _traced_step(self, batch: MultiAgentReplayBufferSamples, actor_due: bool) -> StepLosses:
+        """The gradient step a compiled group runs: :meth:`_eager_step` with Adam in its capturable form."""
+        optimizers = (self.actor_optimizer, self.critic_optimizer)
+        return update_step(self.networks, optimizers, batch, self.settings, actor_due, capturable=True)
+
+    def _compiled_step(self) -> Any:
+        """:meth:`_traced_step`, compiled as one graph (on CUDA, captured as CUDA graphs)."""
+        if self.device.type == "cuda":
+            # The tensors a step changes in place stay where they are: CUDA graphs replay on fixed addresses.
+            optimizers = (self.actor_optimizer, self.critic_optimizer)
+            fixed = [*self.teams.stacked_parameters().values(), self.streams.counter, self.actor_optimizer.lr_tensor]
+            for optimizer in optimizers:
+                fixed += [*optimizer.exp_avgs, *optimizer.exp_avg_sqs, *optimizer.max_exp_avg_sqs, *optimizer.steps]
+            fixed.append(self.critic_optimizer.lr_tensor)
+            for tensor in fixed:
+                th._dynamo.mark_static_address(tensor)
+            return th.compile(self._traced_step, fullgraph=True, mode="reduce-overhead")
+        return th.compile(self._traced_step, fullgraph=True)
 
     def train(self, gradient_steps: int) -> None:
         """
@@ -239,7 +280,7 @@ class RunGroup:
     def _update_learning_rate(self, progress_remaining: float) -> None:
         """Every optimiser's learning rate from the models' schedule, as SB3's ``_update_learning_rate``."""
         for optimizer in (self.actor_optimizer, self.critic_optimizer):
-            update_learning_rate(optimizer, self.lr_schedule(progress_remaining))
+            optimizer.set_lr(self.lr_schedule(progress_remaining))
 
     def _worlds(self) -> SpreadRuns:
         if self.worlds is None:
@@ -384,8 +425,8 @@ class RunGroup:
         ]
         for stacked, module in pairs:
             stacked.load_into(run, module)
-        _load_member_state(self.actor_optimizer, teams.actor, run, model.actor.optimizer)
-        _load_member_state(self.critic_optimizer, teams.critic, run, model.critic.optimizer)
+        _load_member_state(self.actor_optimizer, run, model.actor.optimizer)
+        _load_member_state(self.critic_optimizer, run, model.critic.optimizer)
         model.num_timesteps = self.num_timesteps
         model._n_updates = self.n_updates
         # The credit too: the model's learn(reset_num_timesteps=False), or a group built from it, goes on exactly.
@@ -406,62 +447,9 @@ def _tensor(values: Any, device: th.device) -> th.Tensor:
     return th.as_tensor(np.asarray(values), dtype=th.float32, device=device)
 
 
-def _stacked_optimizer(stacked: StackedModule, optimizers: Sequence[th.optim.Optimizer]) -> th.optim.Optimizer:
-    """
-    One optimiser of the models' class and settings over the stacked parameters, with their states stacked (models
-    that have not trained have none).
-
-    :param stacked: The stacked parameters.
-    :param optimizers: Each run's optimiser (over the same parameters, in the same order).
-    :return: The optimiser.
-    """
-    defaults = dict(optimizers[0].defaults)
-    if stacked.parameters()[0].device.type != "cpu" and "foreach" in defaults and defaults["foreach"] is None:
-        # Multi-tensor steps (a few launches for all parameters): torch's own choice on CUDA, made on any device
-        # (the meta device of an audit counts what CUDA launches).
-        defaults["foreach"] = True
-    optimizer = type(optimizers[0])(stacked.parameters(), **defaults)
-    states = [opt.state_dict()["state"] for opt in optimizers]
-    if not any(states):
-        return optimizer
-    if not all(state.keys() == states[0].keys() for state in states):
-        raise ValueError(
-            "Some models' optimisers have state and others none (or for other parameters): build the group from "
-            "models that have all trained for the same steps, or none at all."
-        )
-    stacked_state: dict[int, dict[str, Any]] = {}
-    for index, param in enumerate(stacked.parameters()):
-        entry: dict[str, Any] = {}
-        for key, value in states[0][index].items():
-            values = [state[index][key] for state in states]
-            if isinstance(value, th.Tensor) and value.shape == param.shape[1:]:
-                entry[key] = th.stack([v.to(param.device) for v in values])
-            elif all(th.equal(th.as_tensor(v), th.as_tensor(value)) for v in values):
-                entry[key] = value
-            else:
-                raise ValueError(
-                    f"The models' optimisers are at different points ({key} differs): build the group from models that "
-                    "have trained for the same steps."
-                )
-        stacked_state[index] = entry
-    optimizer.load_state_dict({"state": stacked_state, "param_groups": optimizer.state_dict()["param_groups"]})
-    return optimizer
-
-
-def _load_member_state(optimizer: th.optim.Optimizer, stacked: StackedModule, run: int, target: th.optim.Optimizer) -> None:
+def _load_member_state(optimizer: StackedAdam, run: int, target: th.optim.Optimizer) -> None:
     """Write run ``run``'s slice of the stacked optimiser's state into one model's optimiser (and its learning rate)."""
-    state: dict[int, dict[str, Any]] = {}
-    for index, param in enumerate(stacked.parameters()):
-        entry = optimizer.state.get(param, {})
-        state[index] = {
-            key: value[run].clone() if isinstance(value, th.Tensor) and value.shape == param.shape else _copy(value)
-            for key, value in entry.items()
-        }
     param_groups = target.state_dict()["param_groups"]
     for group in param_groups:
-        group["lr"] = optimizer.param_groups[0]["lr"]
-    target.load_state_dict({"state": {i: s for i, s in state.items() if s}, "param_groups": param_groups})
-
-
-def _copy(value: Any) -> Any:
-    return value.clone() if isinstance(value, th.Tensor) else value
+        group["lr"] = optimizer.lr
+    target.load_state_dict({"state": optimizer.run_state(run), "param_groups": param_groups})

@@ -22,8 +22,9 @@ from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.losses import one_member
 from sb3_maddpg.common.selection import FixedGraph, NearestAgents
+from sb3_maddpg.common.update_step import clip_per_agent
 from sb3_maddpg.envs import SimpleSpreadVecEnv
-from sb3_maddpg.run_group import RunGroup, RunReplayBuffers, RunStreams, SpreadTask, clip_grad_norm_per_run_and_agent
+from sb3_maddpg.run_group import RunGroup, RunReplayBuffers, RunStreams, SpreadTask
 from sb3_maddpg.run_group.buffer import replay_nbytes
 from sb3_maddpg.run_group.selection import select_on_device
 
@@ -86,8 +87,7 @@ def run_state(group: RunGroup, run: int) -> list[th.Tensor]:
         for name in stacked.names
     ]
     for optimizer in (group.actor_optimizer, group.critic_optimizer):
-        for state in optimizer.state.values():
-            tensors += [state["exp_avg"][run], state["exp_avg_sq"][run]]
+        tensors += [moment[run] for moment in (*optimizer.exp_avgs, *optimizer.exp_avg_sqs)]
     return [tensor.detach() for tensor in tensors]
 
 
@@ -224,17 +224,15 @@ def test_a_huge_gradient_in_one_run_does_not_shrink_another_runs_step() -> None:
 
 
 def test_clipping_is_per_run_and_agent() -> None:
+    """Under vmap over the runs (as a group's step clips), each run's each agent's slice is clipped on its own."""
     generator = th.Generator().manual_seed(5)
-    params = [th.zeros(3, 2, 4, 5, requires_grad=True), th.zeros(3, 2, 1, 5, requires_grad=True)]
-    for param in params:
-        param.grad = th.randn(param.shape, generator=generator) * 0.01
-    params[0].grad[1, 0] *= 1e4  # run 1, agent 0 only
-    before = [param.grad.clone() for param in params]  # type: ignore[union-attr]
-    clip_grad_norm_per_run_and_agent(params, max_norm=1.0)
-    norms = th.stack([param.grad.pow(2).sum(dim=(2, 3)) for param in params]).sum(0).sqrt()  # type: ignore[union-attr]
+    grads = [th.randn(3, 2, 4, 5, generator=generator) * 0.01, th.randn(3, 2, 1, 5, generator=generator) * 0.01]
+    grads[0][1, 0] *= 1e4  # run 1, agent 0 only
+    clipped = th.func.vmap(lambda run_grads: clip_per_agent(run_grads, 1.0))(grads)
+    norms = th.stack([grad.pow(2).sum(dim=(2, 3)) for grad in clipped]).sum(0).sqrt()
     assert norms[1, 0] == pytest.approx(1.0, rel=1e-4)
     for run, agent in [(0, 0), (0, 1), (1, 1), (2, 0), (2, 1)]:  # every other slice untouched
-        assert all(th.equal(param.grad[run, agent], old[run, agent]) for param, old in zip(params, before))  # type: ignore[index]
+        assert all(th.equal(new[run, agent], old[run, agent]) for new, old in zip(clipped, grads))
 
 
 def test_changing_one_runs_seed_leaves_the_others_learning_bit_identical() -> None:
@@ -534,6 +532,10 @@ def test_models_that_differ_in_more_than_their_seed_are_refused() -> None:
         (
             lambda: MADDPG("MlpPolicy", VecNormalize(SimpleSpreadVecEnv(2, n_agents=N_AGENTS), norm_reward=False), seed=0),
             r"^Model 0's env is wrapped in VecNormalize.*--backend local \(MADDPG\.learn\)",
+        ),
+        (
+            lambda: make_model(policy_kwargs={**SMALL, "optimizer_class": th.optim.SGD}),
+            r"^The models' optimiser is SGD, and a run group trains with Adam only",
         ),
     ],
 )
