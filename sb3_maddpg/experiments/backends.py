@@ -39,6 +39,7 @@ class Execution:
     :param verbose: 1 to print each run's (or group's) progress.
     :param snapshots: Runs alone (local, Ray) save a snapshot at each tenth of their budget, which a killed run goes
         on from (:mod:`~sb3_maddpg.experiments.run_snapshot`); run groups save their own state regardless.
+    :param compile: Run groups compile their gradient step (``RunGroup(..., compile=True)``).
     """
 
     backend: str = "local"
@@ -49,6 +50,7 @@ class Execution:
     runs_per_process: int | None = None
     verbose: int = 1
     snapshots: bool = True
+    compile: bool = False
 
     @property
     def ray_cpus(self) -> int | None:

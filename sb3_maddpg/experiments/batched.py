@@ -15,6 +15,7 @@ a sweep (the functions of 0.2).
 """
 
 import dataclasses
+import functools
 import os
 import shutil
 import time
@@ -105,6 +106,7 @@ def train_group(
     results_dir: str | os.PathLike[str],
     device: str = "auto",
     verbose: int = 1,
+    compile: bool = False,
 ) -> list[dict[str, Any]]:
     """
     Train a group's runs together (resuming from its state file when there is one for them) and evaluate each,
@@ -116,13 +118,14 @@ def train_group(
     :param results_dir: The sweep's results directory.
     :param device: Where the group trains (``"auto"``: CUDA when there is a GPU).
     :param verbose: 1 to print the group's progress lines.
+    :param compile: Compile the group's gradient step (``RunGroup(..., compile=True)``).
     :return: Each run's summary, plus ``"files"`` (as ``execute_run``'s).
     """
     directories = [run_directory(results_dir, config) for config in configs]
     trained = [read_trained(directory, config, verbose >= 1) for config, directory in zip(configs, directories)]
     untrained = [config for config, record in zip(configs, trained) if record is None]
     if untrained:
-        fresh = iter(_train_runs(untrained, results_dir, device, verbose))
+        fresh = iter(_train_runs(untrained, results_dir, device, verbose, compile))
         trained = [record if record is not None else next(fresh) for record in trained]
     results = []
     for config, directory, record in zip(configs, directories, trained):
@@ -147,6 +150,7 @@ def _train_runs(
     results_dir: str | os.PathLike[str],
     device: str,
     verbose: int,
+    compile: bool,
 ) -> list[TrainedRun]:
     """
     Train runs together, to their budget (see :func:`train_group`), and record each as trained (:func:`write_trained`).
@@ -162,7 +166,7 @@ def _train_runs(
     # On the CPU: they are saved and evaluated; a resumed run's progress.csv keeps its rows up to the state.
     models = [_model_logging_to(config, directory, steps) for config, directory in zip(configs, directories)]
     resolved = resolve_device(device)
-    group = RunGroup(models, device=resolved)
+    group = RunGroup(models, device=resolved, compile=compile)
     if resumed is not None:
         group.load_state_dict(resumed["group"])
     recorder = GroupRecorder(configs, models, group, results_dir, state_path, echo=verbose >= 1)
@@ -262,7 +266,13 @@ def run_batched(
 
 
 def train_groups(
-    groups: Sequence[Sequence[RunConfig]], results_dir: str, on_result: OnResult, device: str, threads: int, verbose: int
+    groups: Sequence[Sequence[RunConfig]],
+    results_dir: str,
+    on_result: OnResult,
+    device: str,
+    threads: int,
+    verbose: int,
+    compile: bool = False,
 ) -> None:
     """
     Train groups one after another in this process; a group that fails fails its runs (each reported with the
@@ -274,11 +284,12 @@ def train_groups(
     :param device: Where the groups train.
     :param threads: Torch threads.
     :param verbose: 1 to print each group's progress lines.
+    :param compile: Compile each group's gradient step.
     """
     th.set_num_threads(threads)
     for group in groups:
         try:
-            results = train_group(group, results_dir, device=device, verbose=verbose)
+            results = train_group(group, results_dir, device=device, verbose=verbose, compile=compile)
         except Exception:
             error = traceback.format_exc()
             for config in group:
@@ -351,14 +362,15 @@ def train_groups_on_ray(
         device = ray_device(execution.device, resources.get("GPU", 0))
         if on_parallel is not None:
             on_parallel(ray_parallel_tasks(resources, ray_task_options(threads, device)), device)
-        submit_ray_tasks(ray, groups, results_dir, _train_group_task, device, threads, execution.verbose, on_result)
+        work = functools.partial(_train_group_task, compile=execution.compile)
+        submit_ray_tasks(ray, groups, results_dir, work, device, threads, execution.verbose, on_result)
 
 
 def _train_group_task(
-    configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int
+    configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int, compile: bool = False
 ) -> list[dict[str, Any]]:
-    """A Ray task's work (:data:`~sb3_maddpg.experiments.ray_tasks.TaskWork`): train one group."""
-    return train_group(configs, results_dir, device=device, verbose=verbose)
+    """A Ray task's work (:data:`~sb3_maddpg.experiments.ray_tasks.TaskWork`, with ``compile`` bound): train one group."""
+    return train_group(configs, results_dir, device=device, verbose=verbose, compile=compile)
 
 
 class GroupBackend:
@@ -400,12 +412,21 @@ class GroupBackend:
     def _plan(self, groups: list[list[RunConfig]], results_dir: str, notes: list[str]) -> SweepPlan:
         parallel = max((len(group) for group in groups), default=1)  # a group's runs finish together
         where = f"in {len(groups)} run group(s) of up to {parallel} run(s) on {self.execution.device}"
+        where += ", compiled" if self.execution.compile else ""
         return SweepPlan(results_dir, groups, parallel, where + (", a Ray task each" if self.on_ray else ""), notes)
 
     def run(self, plan: SweepPlan, on_result: OnResult, progress: SweepLog) -> None:
         """See :meth:`~sb3_maddpg.experiments.backends.Backend.run`."""
         execution = self.execution
-        train_groups(plan.units, plan.results_dir, on_result, execution.device, execution.threads, execution.verbose)
+        train_groups(
+            plan.units,
+            plan.results_dir,
+            on_result,
+            execution.device,
+            execution.threads,
+            execution.verbose,
+            execution.compile,
+        )
 
 
 class GroupRayBackend(GroupBackend):

@@ -121,6 +121,7 @@ class GroupRecorder(GroupCallback):
         self.rounds_logged = 0
         self.save_points = sorted({*first.checkpoint_steps(), *(round(self.total * k * STATE_FRACTION) for k in range(1, 10))})
         self.saved_at = 0
+        self.compile_said = 0.0
         self.elapsed_before = 0.0
         self.started = time.perf_counter()
 
@@ -153,6 +154,8 @@ class GroupRecorder(GroupCallback):
             callback.on_training_start({}, {})  # the curves' first evaluation, at step 0 only
         if resumed is not None:
             self.progress.log(f"{self.progress.run_id}: resumed at {group.num_timesteps:,} steps per run")
+        if group.compiled:
+            self.progress.log(f"{self.progress.run_id}: compiling the gradient step at the first updates (tens of seconds)")
 
     def _resume_callbacks(self, runs: Sequence[dict[str, Any]], calls: int) -> None:
         """
@@ -220,7 +223,11 @@ class GroupRecorder(GroupCallback):
             logger.dump(group.num_timesteps)
 
     def on_round_end(self, group: Any) -> None:
-        """At the end of each round: the group's state, when a save point has passed since the last save."""
+        """At the end of each round: the compile time when a step has just compiled; the group's state, when a save
+        point has passed since the last save."""
+        if group.compile_seconds > self.compile_said:
+            self.compile_said = group.compile_seconds
+            self.progress.log(f"{self.progress.run_id}: gradient step compiled in {group.compile_seconds:.0f} s so far")
         steps = group.num_timesteps
         if any(self.saved_at < point <= steps for point in self.save_points):
             self.save(group)

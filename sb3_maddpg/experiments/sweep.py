@@ -135,6 +135,7 @@ def run_sweep(
     runs_per_process: int | None = None,
     on_ray: bool = False,
     snapshots: bool = True,
+    compile: bool = False,
 ) -> SweepResult:
     """
     Run every (scheme, seed) of the experiments, skipping runs finished before (resume an
@@ -164,6 +165,8 @@ def run_sweep(
     :param snapshots: Runs alone (local, Ray) save a snapshot at each tenth of their budget, so that a killed run goes
         on from its last one (:mod:`~sb3_maddpg.experiments.run_snapshot`; about two replay buffers of disk per run in
         progress, e.g. 2.7 GB at N=5 with 1M-transition buffers).
+    :param compile: The batched backends' run groups compile their gradient step (``RunGroup(..., compile=True)``;
+        the compile time is said in each group's progress lines).
     :return: What the sweep did.
     :raise ResultsDirectoryLocked: When another sweep is running in ``results_dir``.
     :raise BatchedRunRefused: When the batched backend cannot train a run (nothing has trained then).
@@ -174,7 +177,7 @@ def run_sweep(
         raise ValueError(f"Experiment names must be unique, got {names}.")
     run_verbose = 1 if verbose >= 2 else 0
     name = _backend_name(backend, on_ray)
-    execution = Execution(name, workers, threads, ray_address, device, runs_per_process, run_verbose, snapshots)
+    execution = Execution(name, workers, threads, ray_address, device, runs_per_process, run_verbose, snapshots, compile)
     chosen = make_backend(execution)
     with lock_results(results_path):
         todo, skipped = plan_sweep(experiments, results_path)

@@ -382,3 +382,23 @@ def test_a_sweep_plans_once_and_hands_the_plan_to_its_backend(tmp_path: Path, mo
     run_sweep([tiny(seeds=(0, 1, 2))], tmp_path, backend="batched", verbose=0, device="cpu")
     assert calls == {"plan_sweep": 1, "plan_groups": 1, "memory_bound": 1}
     assert trained == [[0, 1, 2]]
+
+
+def test_compile_trains_the_groups_compiled_and_says_its_compile_time(tmp_path: Path) -> None:
+    """``--compile``: the group's gradient step runs compiled (one graph), each run's train.log says how long the
+    compiling took, and the runs finish as any batched run."""
+    torch._dynamo.reset()
+    try:
+        arguments = ["run", "--config", "smoke", "--schemes", "full", "--seed-list", "0,1", "--results", str(tmp_path)]
+        status = main([*arguments, "--backend", "batched", "--device", "cpu", "--compile", "--quiet"])
+    finally:
+        torch._dynamo.reset()
+    assert status == 0
+    logs = sorted(tmp_path.rglob("train.log"))
+    assert len(logs) == 2
+    for log in logs:
+        text = log.read_text()
+        assert "compiling the gradient step at the first updates" in text
+        assert "gradient step compiled in" in text, text
+        assert (log.parent / DONE_FILE).is_file()
+    assert ", compiled" in next(tmp_path.rglob("sweep.log")).read_text()
