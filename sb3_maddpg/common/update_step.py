@@ -93,6 +93,10 @@ class TeamFunctions(nn.Module):
             self._noise = None  # a member's (vmapped) tensor must not outlive its call
         return critic_losses(functools.partial(algorithm._trained_q, self), batch, targets)
 
+    def act(self, observations: th.Tensor) -> th.Tensor:
+        """One member's actors on its observations ``[batch, obs_dim]``: its actions ``[batch, action_dim]``."""
+        return self.actor(observations)  # type: ignore[operator, no-any-return]
+
     def actor_loss_terms(self, batch: MultiAgentReplayBufferSamples, reg_coef: float) -> ActorLossTerms:
         """One member's actor loss terms on its batch, as ``train`` computes them (``[n_agents]`` each)."""
         actor: Any = self.actor
@@ -134,6 +138,12 @@ class GroupFunctions:
         self.members = members
         self._critic = _member_call(_Bound(self.team, TeamFunctions.critic_losses))
         self._actor = _member_call(_Bound(self.team, TeamFunctions.actor_loss_terms))
+        self._act = _member_call(_Bound(self.team, TeamFunctions.act))
+
+    def actions(self, observations: th.Tensor) -> th.Tensor:
+        """Every member's actors' actions (no gradient), ``[M, batch, action_dim]`` from ``[M, batch, obs_dim]``."""
+        with th.no_grad():
+            return vmap(self._act)(self.members.stacked_parameters(), observations)  # type: ignore[no-any-return]
 
     def critic_losses(self, batch: MultiAgentReplayBufferSamples, gamma: float) -> th.Tensor:
         """Every member's critic losses, ``[M, n_agents]`` (MATD3: ``[M, 2, n_agents]``)."""

@@ -166,6 +166,8 @@ def _train_runs(
     # On the CPU: they are saved and evaluated; a resumed run's progress.csv keeps its rows up to the state.
     models = [_model_logging_to(config, directory, steps) for config, directory in zip(configs, directories)]
     resolved = resolve_device(device)
+    if compile:
+        th._dynamo.reset()  # the last group's graphs: kept, each new group would be a recompile, up to torch's limit
     group = RunGroup(models, device=resolved, compile=compile)
     if resumed is not None:
         group.load_state_dict(resumed["group"])

@@ -226,11 +226,29 @@ class RunReplayBuffers:
         :param streams: The runs' random streams, on the buffers' device.
         :return: Rows drawn uniformly from what each run holds, run r's from its own stream, ``[R, batch_size]``.
         """
+        self.check_sample(streams)
+        return streams.integers(self.filled, (batch_size,))
+
+    def check_sample(self, streams: RunStreams) -> None:
+        """
+        :param streams: The runs' random streams.
+        :raise ValueError: When the buffers cannot be sampled with them (empty; another number of runs).
+        """
         if self.size == 0:
             raise ValueError("The replay buffers are empty: add transitions before sampling.")
         if streams.n_runs != self.n_runs:
             raise ValueError(f"Need one random stream per run ({self.n_runs}), got {streams.n_runs}.")
-        return streams.integers(self.filled, (batch_size,))
+
+    def draw(self, batch_size: int, streams: RunStreams) -> MultiAgentReplayBufferSamples:
+        """
+        :meth:`sample` without its checks (:meth:`check_sample`, made before): what a compiled step runs, reading no
+        Python value that changes as the buffers fill.
+
+        :param batch_size: Transitions per run.
+        :param streams: The runs' random streams, on the buffers' device.
+        :return: Each run's batch, ``[R, batch_size, ...]`` each field.
+        """
+        return self.get(streams.integers(self.filled, (batch_size,)))
 
     def next_observations_of(self, rows: th.Tensor) -> th.Tensor:
         """

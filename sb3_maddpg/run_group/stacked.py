@@ -1,6 +1,7 @@
 """
 The networks of ``R`` teams stacked along a run dimension: every parameter of R copies of one module as one tensor
-``[R, ...]``, evaluated for every run at once with ``torch.func.vmap`` over ``functional_call``.
+``[R, ...]``, evaluated for every run at once by :class:`~sb3_maddpg.common.update_step.GroupFunctions` (``vmap`` over
+``functional_call``).
 
 The modules themselves are the package's (:class:`~sb3_maddpg.common.policies.MultiAgentActor`,
 :class:`~sb3_maddpg.common.policies.MultiAgentCritic`), so their forward passes are not copied; only their parameters are
@@ -8,28 +9,14 @@ stacked. Run r's outputs depend on run r's parameters and inputs only, and its g
 """
 
 import copy
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 import torch as th
 from torch import nn
-from torch.func import functional_call, vmap
 
 from sb3_maddpg.common.gradient_step import polyak_update_foreach
 from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.run_group.streams import RunStreams
-
-
-class _Method(nn.Module):
-    """Calls one method of a module as ``forward``: ``functional_call`` calls only ``forward``."""
-
-    def __init__(self, module: nn.Module, method: str) -> None:
-        super().__init__()
-        self.module = module
-        self.method = method
-
-    def forward(self, *args: Any) -> Any:
-        return getattr(self.module, self.method)(*args)
 
 
 class StackedModule:
@@ -51,7 +38,6 @@ class StackedModule:
         for name in self.names:
             # Plain tensors: their gradients come from torch.func.grad, and the optimiser moves them in place.
             self.params[name] = th.stack([module.get_parameter(name).detach() for module in modules]).to(device)
-        self._calls: dict[tuple[str, tuple[int | None, ...]], Callable[..., Any]] = {}
 
     @property
     def n_runs(self) -> int:
@@ -61,25 +47,6 @@ class StackedModule:
     def parameters(self) -> list[th.Tensor]:
         """:return: The stacked parameters, in the module's order."""
         return [self.params[name] for name in self.names]
-
-    def call(self, method: str, *args: th.Tensor | None) -> Any:
-        """
-        The module's ``method`` for every run at once.
-
-        :param method: The method's name (``"forward"``, ``"forward_with_preactivation"``...).
-        :param args: Its arguments with the run dimension in front, or None (passed to every run as None).
-        :return: What the method returns, with the run dimension in front.
-        """
-        in_dims = tuple(None if arg is None else 0 for arg in args)
-        key = (method, in_dims)
-        if key not in self._calls:
-            wrapper = _Method(self.template, method)
-
-            def run(params: dict[str, th.Tensor], *run_args: th.Tensor | None) -> Any:
-                return functional_call(wrapper, {f"module.{name}": value for name, value in params.items()}, run_args)
-
-            self._calls[key] = vmap(run, in_dims=(0, *in_dims))
-        return self._calls[key](self.params, *args)
 
     def load_into(self, run: int, module: nn.Module) -> None:
         """
@@ -152,7 +119,3 @@ class StackedTeams:
 
     def normal_like(self, tensor: th.Tensor) -> th.Tensor:
         return self.streams.normal(tensor.shape[1:], tensor.dtype)
-
-    def actions(self, observations: th.Tensor) -> th.Tensor:
-        """The actors' actions when acting, ``[R, batch, action_dim]``."""
-        return self.actor.call("forward", observations)

@@ -3,7 +3,6 @@
 one optimiser over them, the replay buffers and the worlds on the device, each run's randomness from its own seed.
 """
 
-import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -19,6 +18,7 @@ from sb3_maddpg.common.update_step import GroupFunctions, StepLosses, summarise_
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.run_group.buffer import RunReplayBuffers, buffer_capacity
 from sb3_maddpg.run_group.checks import check_models
+from sb3_maddpg.run_group.compiled import CompiledPart, mark_static
 from sb3_maddpg.run_group.selection import DeviceSelector
 from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams
 from sb3_maddpg.run_group.stacked_adam import StackedAdam
@@ -76,9 +76,13 @@ class RunGroup:
         :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`); only :meth:`learn` needs them.
     :param device: The device of everything: networks, optimiser state, buffers, worlds.
     :param world_dtype: The worlds' floating dtype (float64: mpe2's arithmetic; float32, the default: faster).
-    :param compile: Compile each gradient step of every run (critics, actors, targets: one graph, no break) with
-        ``torch.compile(fullgraph=True)``; on CUDA, captured as CUDA graphs (mode ``"reduce-overhead"``). The first
-        steps compile (tens of seconds: :attr:`compile_seconds`); the results differ from eager ones by float rounding.
+    :param compile: Compile each part of a round with ``torch.compile(fullgraph=True)``, one graph each: the env step
+        of every run's worlds (actions, physics, selections) and each gradient step (its batch drawn, critics, actors,
+        targets). ``True``: inductor's default mode, and on CUDA the gradient step captured as CUDA graphs (mode
+        ``"reduce-overhead"``); a string: that mode for both. The first calls compile (tens of seconds:
+        :attr:`compile_seconds`); results differ from eager ones by float rounding. Torch keeps a few graphs per
+        function (``torch._dynamo.config.cache_size_limit``), and another group is another graph: call
+        ``torch._dynamo.reset()`` before compiling a new group once the last one is done.
     """
 
     def __init__(
@@ -88,7 +92,7 @@ class RunGroup:
         task: SpreadTask | None = None,
         device: th.device | str = "cpu",
         world_dtype: th.dtype = th.float32,
-        compile: bool = False,
+        compile: bool | str = False,
     ) -> None:
         check_models(models)
         first = models[0]
@@ -146,11 +150,21 @@ class RunGroup:
         self.worlds: SpreadRuns | None = None
         self.losses: dict[str, th.Tensor] = {}
         """The last :meth:`train` call's means of :data:`LOSS_NAMES`, ``[R, n_agents]`` each, on the device."""
-        self.compiled = compile
-        self.compile_seconds = 0.0
-        """Seconds spent compiling so far (the first step of each kind: with and without the actors' update)."""
-        self._step_kinds_seen: set[bool] = set()
-        self._gradient_step = self._compiled_step() if compile else self._eager_step
+        self.compiled = bool(compile)
+        # A mode by name is the user's; else CUDA graphs for the gradient step on a GPU, inductor's default elsewhere.
+        update_mode = compile if isinstance(compile, str) else "reduce-overhead" if self.device.type == "cuda" else None
+        env_mode = compile if isinstance(compile, str) else None  # the env step keeps state across calls: no capture
+        if self.compiled and update_mode == "reduce-overhead":
+            self._mark_static()
+        self._update = CompiledPart(self._gradient_step, update_mode, self.compiled)
+        self._sampled_update = CompiledPart(self._sample_and_step, update_mode, self.compiled)
+        self._env_step = CompiledPart(self._act_and_move, env_mode, self.compiled)
+
+    @property
+    def compile_seconds(self) -> float:
+        """Seconds spent compiling so far (each part's first calls: with and without the actors' update, before and
+        after ``learning_starts``)."""
+        return sum(part.seconds for part in (self._update, self._sampled_update, self._env_step))
 
     # ----- updates -----
 
@@ -165,41 +179,32 @@ class RunGroup:
         """
         return summarise_steps([self._step(batch)])
 
-    def _step(self, batch: MultiAgentReplayBufferSamples) -> StepLosses:
+    def _step(self, batch: MultiAgentReplayBufferSamples | None) -> StepLosses:
+        """One gradient step of every run, on ``batch`` or (None) on a batch drawn from each run's buffer."""
         self.n_updates += 1
         due = self.settings.actor_due(self.n_updates)
-        if due in self._step_kinds_seen or not self.compiled:
-            return self._gradient_step(batch, due)
-        start = time.perf_counter()  # this kind's first compiled step: it compiles
-        losses = self._gradient_step(batch, due)
-        self.compile_seconds += time.perf_counter() - start
-        self._step_kinds_seen.add(due)
-        return losses
+        if batch is None:
+            return self._sampled_update(due, key=due)  # type: ignore[no-any-return]
+        return self._update(batch, due, key=due)  # type: ignore[no-any-return]
 
-    def _eager_step(self, batch: MultiAgentReplayBufferSamples, actor_due: bool) -> StepLosses:
-        """One gradient step of every run, op by op (torch's capturable Adam on a GPU; on a CPU, its host form)."""
+    def _gradient_step(self, batch: MultiAgentReplayBufferSamples, actor_due: bool) -> StepLosses:
+        """One gradient step of every run on ``batch``; Adam in its capturable form where torch allows it (a
+        compiled step, a GPU), else (eager on a CPU) in its host form."""
         optimizers = (self.actor_optimizer, self.critic_optimizer)
-        capturable = self.device.type != "cpu"
+        capturable = self.compiled or self.device.type != "cpu"
         return update_step(self.networks, optimizers, batch, self.settings, actor_due, capturable=capturable)
 
-    def _traced_step(self, batch: MultiAgentReplayBufferSamples, actor_due: bool) -> StepLosses:
-        """The gradient step a compiled group runs: :meth:`_eager_step` with Adam in its capturable form."""
-        optimizers = (self.actor_optimizer, self.critic_optimizer)
-        return update_step(self.networks, optimizers, batch, self.settings, actor_due, capturable=True)
+    def _sample_and_step(self, actor_due: bool) -> StepLosses:
+        """A batch drawn from each run's buffer by its stream (:meth:`_sample`, checked before), then its step."""
+        return self._gradient_step(self._sample(checked=True), actor_due)
 
-    def _compiled_step(self) -> Any:
-        """:meth:`_traced_step`, compiled as one graph (on CUDA, captured as CUDA graphs)."""
-        if self.device.type == "cuda":
-            # The tensors a step changes in place stay where they are: CUDA graphs replay on fixed addresses.
-            optimizers = (self.actor_optimizer, self.critic_optimizer)
-            fixed = [*self.teams.stacked_parameters().values(), self.streams.counter, self.actor_optimizer.lr_tensor]
-            for optimizer in optimizers:
-                fixed += [*optimizer.exp_avgs, *optimizer.exp_avg_sqs, *optimizer.max_exp_avg_sqs, *optimizer.steps]
-            fixed.append(self.critic_optimizer.lr_tensor)
-            for tensor in fixed:
-                th._dynamo.mark_static_address(tensor)
-            return th.compile(self._traced_step, fullgraph=True, mode="reduce-overhead")
-        return th.compile(self._traced_step, fullgraph=True)
+    def _mark_static(self) -> None:
+        """The tensors the gradient step changes in place, kept where they are (CUDA graphs: :func:`mark_static`)."""
+        tensors = [*self.teams.stacked_parameters().values(), self.streams.counter]
+        for optimizer in (self.actor_optimizer, self.critic_optimizer):
+            tensors += [*optimizer.exp_avgs, *optimizer.exp_avg_sqs, *optimizer.max_exp_avg_sqs, *optimizer.steps]
+            tensors.append(optimizer.lr_tensor)
+        mark_static(tensors)
 
     def train(self, gradient_steps: int) -> None:
         """
@@ -208,34 +213,41 @@ class RunGroup:
 
         :param gradient_steps: Gradient steps of each run.
         """
-        steps = [self._step(self._sample()) for _ in range(gradient_steps)]
+        self.buffers.check_sample(self.streams)
+        steps = [self._step(None) for _ in range(gradient_steps)]
         if steps:
             self.losses = summarise_steps(steps)
 
-    def _sample(self) -> MultiAgentReplayBufferSamples:
+    def _sample(self, checked: bool = False) -> MultiAgentReplayBufferSamples:
         """Each run's batch; with a selector whose ``target`` is ``"next"``, the target's selection made from the next
-        observations, as :class:`~sb3_maddpg.common.buffers.MultiAgentReplayBuffer` makes it."""
-        batch = self.buffers.sample(self.batch_size, self.streams)
+        observations, as :class:`~sb3_maddpg.common.buffers.MultiAgentReplayBuffer` makes it.
+
+        :param checked: Whether the buffers were checked before (:meth:`RunReplayBuffers.check_sample`): then the draw
+            reads no Python value that changes as they fill (a compiled step's)."""
+        if checked:
+            batch = self.buffers.draw(self.batch_size, self.streams)
+        else:
+            batch = self.buffers.sample(self.batch_size, self.streams)
         if self.select is not None and self.selector is not None and self.selector.target == "next":
             batch = batch._replace(next_selections=self.select(batch.next_observations))
         return batch
 
     # ----- data -----
 
-    def explore(self, observations: th.Tensor) -> th.Tensor:
+    def explore(self, observations: th.Tensor, warm_up: bool | None = None) -> th.Tensor:
         """
         Each run's exploration actions in the [-1, 1] space, as ``MADDPG._sample_action``: uniform before
         ``learning_starts``, then every actor on its own observation; plus Gaussian noise, clipped to [-1, 1].
 
         :param observations: ``[R, E, obs_dim]``.
+        :param warm_up: Whether the actions are uniform (default: whether ``learning_starts`` is still ahead).
         :return: ``[R, E, action_dim]``.
         """
         shape = (observations.shape[1], self.layout.action_dim)
-        if self.num_timesteps < self.learning_starts:
+        if warm_up if warm_up is not None else self.num_timesteps < self.learning_starts:
             actions = self.streams.uniform(shape) * 2.0 - 1.0
         else:
-            with th.no_grad():
-                actions = self.teams.actions(observations)
+            actions = self.networks.actions(observations)
         if self.noise_std is not None and self.noise_mean is not None:
             actions = (actions + self.noise_mean + self.streams.normal(shape) * self.noise_std).clamp(-1.0, 1.0)
         return actions
@@ -244,12 +256,25 @@ class RunGroup:
         """One step of every run's worlds, its transitions stored in the runs' buffers."""
         worlds = self._worlds()
         observations = worlds.observations
-        actions = self.explore(observations)
-        step = worlds.step(actions)
-        selections = None if self.select is None else self.select(observations)
-        dones = th.zeros_like(step.rewards)  # simple_spread never terminates: its truncations bootstrap
-        self.buffers.add(observations, actions, step.next_observations, step.rewards, dones, selections, step.truncated)
+        warm_up = self.num_timesteps < self.learning_starts
+        actions, next_observations, rewards, selections = self._env_step(observations, warm_up, key=warm_up)
+        step = worlds.record(next_observations, rewards)
+        dones = th.zeros_like(rewards)  # simple_spread never terminates: its truncations bootstrap
+        self.buffers.add(observations, actions, next_observations, rewards, dones, selections, step.truncated)
         self.num_timesteps += self.worlds_per_run
+
+    def _act_and_move(
+        self, observations: th.Tensor, warm_up: bool
+    ) -> tuple[th.Tensor, th.Tensor, th.Tensor, th.Tensor | None]:
+        """
+        The device's part of :meth:`collect_step`: every run's actions, its worlds' physics step and the selections.
+
+        :return: The actions, next observations, rewards and selections (None without a selector).
+        """
+        actions = self.explore(observations, warm_up)
+        next_observations, rewards = self._worlds().move(actions)
+        selections = None if self.select is None else self.select(observations)
+        return actions, next_observations, rewards, selections
 
     def learn(self, total_timesteps: int, callback: GroupCallback | None = None) -> "RunGroup":
         """

@@ -139,17 +139,37 @@ class SpreadRuns:
         :param actions: Joint actions in the policy's [-1, 1] space, ``[R, E, action_dim]``.
         :return: The step's next observations and rewards, and whether the episodes ended.
         """
+        return self.record(*self.move(actions))
+
+    def move(self, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """
+        The device's part of :meth:`step`: every world's physics step, its rewards and observations (what a compiled
+        round runs; nothing here reads or changes a Python value).
+
+        :param actions: Joint actions in the policy's [-1, 1] space, ``[R, E, action_dim]``.
+        :return: The next observations ``[R, E, obs_dim]`` and the rewards ``[R, E, n_agents]``.
+        """
         n_worlds, n_agents = self.worlds.n_worlds, self.task.n_agents
         # [-1, 1] to mpe2's [0, 1] (SB3's unscale_action), clipped as the numpy env clips.
         env_actions = ((actions.reshape(n_worlds, n_agents, ACTION_SIZE) + 1.0) / 2.0).clamp(0.0, 1.0)
         distances = self.worlds.step(env_actions)
         rewards = self.worlds.rewards(distances).to(th.float32).reshape(self.n_runs, self.worlds_per_run, n_agents)
-        next_observations = self._joint(self.worlds.observations(distances))
+        return self._joint(self.worlds.observations(distances)), rewards
+
+    def record(self, next_observations: th.Tensor, rewards: th.Tensor) -> RunsStep:
+        """
+        The bookkeeping part of :meth:`step`, after :meth:`move`: the episodes' returns and step count; at their end,
+        their record and new episodes.
+
+        :param next_observations: :meth:`move`'s next observations.
+        :param rewards: :meth:`move`'s rewards.
+        :return: The step.
+        """
         self._agent_returns += rewards
         self.steps += 1
         truncated = self.steps >= self.task.max_cycles
         if truncated:
-            metrics = self.worlds.metrics(distances, self.task.capture_radius)
+            metrics = self.worlds.metrics(self.worlds.distances(), self.task.capture_radius)
             per_run = [metrics[name].reshape(self.n_runs, self.worlds_per_run).to(th.float32) for name in METRICS]
             # The team return is the agents' returns summed (derived, not kept beside them).
             self.episodes.append(th.stack([self._agent_returns.sum(dim=-1), *per_run]).mean(dim=-1))

@@ -90,25 +90,27 @@ def test_the_streams_state_is_host_integers_that_mean_the_same_on_every_device()
 def plant_sync(group: RunGroup, monkeypatch: pytest.MonkeyPatch) -> None:
     """An ``.item()`` in the loop (e.g. a loss logged per step)."""
     explore = group.explore
-    monkeypatch.setattr(group, "explore", lambda obs: explore(obs) * (1.0 + 0.0 * obs.sum().item()))
+    monkeypatch.setattr(group, "explore", lambda obs, *warm_up: explore(obs, *warm_up) * (1.0 + 0.0 * obs.sum().item()))
 
 
 def plant_per_run_loop(group: RunGroup, monkeypatch: pytest.MonkeyPatch) -> None:
     """A Python loop over the runs (e.g. one generator per run)."""
     explore = group.explore
-    monkeypatch.setattr(group, "explore", lambda obs: th.stack([run * 1.0 for run in explore(obs).unbind(0)]))
+    monkeypatch.setattr(
+        group, "explore", lambda obs, *warm_up: th.stack([run * 1.0 for run in explore(obs, *warm_up).unbind(0)])
+    )
 
 
 def plant_host_tensor(group: RunGroup, monkeypatch: pytest.MonkeyPatch) -> None:
     """A tensor made on the host in the step (a Python constant turned into a device tensor each call)."""
     explore = group.explore
-    monkeypatch.setattr(group, "explore", lambda obs: explore(obs) + th.tensor(0.0, device=obs.device))
+    monkeypatch.setattr(group, "explore", lambda obs, *warm_up: explore(obs, *warm_up) + th.tensor(0.0, device=obs.device))
 
 
 def plant_float64(group: RunGroup, monkeypatch: pytest.MonkeyPatch) -> None:
     """float64 arithmetic (e.g. a NumPy value's dtype carried over)."""
     explore = group.explore
-    monkeypatch.setattr(group, "explore", lambda obs: explore(obs).double().float())
+    monkeypatch.setattr(group, "explore", lambda obs, *warm_up: explore(obs, *warm_up).double().float())
 
 
 @pytest.mark.parametrize(

@@ -1,6 +1,7 @@
-"""A run group's gradient step traces whole (issue 44): torch._dynamo finds one graph and no break in a whole step of
-every run at once (critics' gradients, clipping and Adam step; actors' the same; Polyak updates), for MADDPG and MATD3,
-with full and selected sharing; the losses alone too. A compiled group trains as the eager one, to float rounding."""
+"""A run group's round traces whole (issue 44): torch._dynamo finds one graph and no break in each part a compiled
+group runs, for MADDPG and MATD3, with full and selected sharing: the env step of every run's worlds, and a whole
+gradient step of every run at once (its batch drawn; critics' gradients, clipping and Adam step; actors' the same;
+Polyak updates). A compiled group trains as the eager one, to float rounding."""
 
 from typing import Any
 
@@ -34,21 +35,30 @@ def tiny_models(algorithm: type[MADDPG], sharing: str, **kwargs: Any) -> list[MA
 
 @pytest.mark.parametrize("algorithm", [MADDPG, MATD3], ids=lambda algorithm: algorithm.__name__)
 @pytest.mark.parametrize("sharing", ["full", "selected"])
-def test_a_groups_gradient_step_traces_as_one_graph_without_a_break(algorithm: type[MADDPG], sharing: str) -> None:
+def test_each_part_of_a_round_traces_as_one_graph_without_a_break(algorithm: type[MADDPG], sharing: str) -> None:
+    """The parts a compiled group runs: the env step (warm-up and acting), a gradient step on a given batch (with and
+    without the actors: MATD3's delay) and one on a batch drawn from the buffers; the losses alone too."""
     models = tiny_models(algorithm, sharing, max_grad_norm=0.5)
-    group = RunGroup(models, worlds_per_run=2)
+    group = RunGroup(models, worlds_per_run=2, compile=True)  # built for compiling: nothing compiles until called
     generator = th.Generator().manual_seed(0)
     batch = stack_batches([random_batch(models[0], 4, generator) for _ in models])
+    for rows in (slice(0, 2), slice(2, 4)):  # the buffers hold the batch's rows, two worlds' at a time
+        fields = [None if field is None else field[:, rows] for field in batch]
+        group.buffers.add(*fields[:3], fields[4], fields[3], fields[5])
+    observations = group._worlds().observations
     dynamo.reset()
     try:
-        steps = [
-            lambda: group._traced_step(batch, True),  # critics, actors, targets
-            lambda: group._traced_step(batch, False),  # MATD3's delayed steps: the critics only
+        parts = [
+            lambda: group._act_and_move(observations, True),  # warm-up: uniform actions
+            lambda: group._act_and_move(observations, False),  # the actors act
+            lambda: group._gradient_step(batch, True),  # critics, actors, targets
+            lambda: group._gradient_step(batch, False),  # MATD3's delayed steps: the critics only
+            lambda: group._sample_and_step(True),  # the batch drawn inside
             lambda: group.networks.critic_losses(batch, 0.95),
             lambda: group.networks.actor_loss_terms(batch, 1e-3),
         ]
-        for step in steps:
-            explained = dynamo.explain(step)()
+        for part in parts:
+            explained = dynamo.explain(part)()
             assert (explained.graph_count, explained.graph_break_count) == (1, 0), explained.break_reasons
     finally:
         dynamo.reset()

@@ -318,7 +318,7 @@ def test_weights_written_back_save_and_load_and_act_the_same(tmp_path: Any) -> N
     group = RunGroup(models).learn(300)
     observations = th.randn(3, 5, models[0].agent_layout.obs_dim)  # type: ignore[union-attr]
     with th.no_grad():
-        group_actions = group.teams.actions(observations)
+        group_actions = group.networks.actions(observations)
     for run, model in enumerate(models):
         group.write_back(run, model)
         assert model.num_timesteps == 300 and model._n_updates == 2
@@ -478,8 +478,8 @@ def test_a_groups_target_selection_is_made_from_the_next_observations_as_the_buf
     for _ in range(30):
         group.collect_step()
     batches: list[MultiAgentReplayBufferSamples] = []
-    step = group._step
-    monkeypatch.setattr(group, "_step", lambda batch: batches.append(batch) or step(batch))
+    step = group._gradient_step  # what train() runs on the batch it draws
+    monkeypatch.setattr(group, "_gradient_step", lambda batch, due: batches.append(batch) or step(batch, due))
     group.train(1)
     (batch,) = batches
     if target == "stored":

@@ -1,0 +1,62 @@
+"""
+A run group's device work compiled: each part of a round (the env step of every run's worlds; a gradient step of
+every run, its batch drawn inside) as one graph with ``torch.compile(fullgraph=True)``, the time its compiling took
+counted.
+"""
+
+import time
+from collections.abc import Callable, Hashable
+from typing import Any
+
+import torch as th
+from torch.utils._pytree import tree_map
+
+
+class CompiledPart:
+    """
+    One part of a round, compiled on its first call with each value of its Python arguments (e.g. whether the actors
+    are due: a graph each), or run as it is.
+
+    :param function: The part: tensors in, tensors out; its Python arguments decide the graph.
+    :param mode: ``torch.compile``'s mode (``"reduce-overhead"``: CUDA graphs on a GPU), or None for its default;
+        ignored when ``compile`` is False.
+    :param compile: Whether to compile; False runs ``function`` as it is (eager).
+    """
+
+    def __init__(self, function: Callable[..., Any], mode: str | None, compile: bool) -> None:
+        self.eager = function
+        self.mode = mode if compile else None
+        self.function = th.compile(function, fullgraph=True, mode=mode) if compile else function
+        self.compiled = compile
+        self.seconds = 0.0
+        """Seconds spent in first calls (compiling) so far."""
+        self._seen: set[Hashable] = set()
+
+    def __call__(self, *args: Any, key: Hashable = None) -> Any:
+        """
+        :param args: The part's arguments.
+        :param key: The values of its Python arguments (a new key compiles a new graph: its call is timed).
+        :return: What the part returns (on CUDA graphs, copied out of the graph's memory, which the next call reuses).
+        """
+        if not self.compiled:
+            return self.function(*args)
+        first = key not in self._seen
+        start = time.perf_counter()
+        result = self.function(*args)
+        if first:
+            self.seconds += time.perf_counter() - start
+            self._seen.add(key)
+        if self.mode == "reduce-overhead":
+            result = tree_map(lambda value: value.clone() if isinstance(value, th.Tensor) else value, result)
+        return result
+
+
+def mark_static(tensors: list[th.Tensor]) -> None:
+    """
+    Keep the addresses of tensors a compiled part changes in place (the parameters, Adam's state, the random
+    streams' counter): CUDA graphs replay on fixed addresses, and a static tensor is read where it is, not copied in.
+
+    :param tensors: The tensors.
+    """
+    for tensor in tensors:
+        th._dynamo.mark_static_address(tensor)
