@@ -5,6 +5,7 @@ counted.
 """
 
 import time
+import warnings
 from collections.abc import Callable, Hashable
 from typing import Any
 
@@ -42,7 +43,13 @@ class CompiledPart:
             return self.function(*args)
         first = key not in self._seen
         start = time.perf_counter()
-        result = self.function(*args)
+        with warnings.catch_warnings():
+            # The worlds' array namespace is looked up through array_api_compat's lru_cache-d helpers: a type's module,
+            # which tracing through the cache gets exactly (torch warns of the cache it ignores, once per helper).
+            warnings.filterwarnings(
+                "ignore", message="Dynamo detected a call to a `functools.lru_cache`", category=UserWarning
+            )
+            result = self.function(*args)
         if first:
             self.seconds += time.perf_counter() - start
             self._seen.add(key)

@@ -83,3 +83,22 @@ def test_a_compiled_group_trains_as_the_eager_one() -> None:
     assert (eager.teams.actor.params["mlp.weight_0"] - initial).abs().max() > 1e-3  # the steps did something
     for expected, actual in pairs:
         th.testing.assert_close(actual, expected, atol=1e-5, rtol=1e-4)
+
+
+@pytest.mark.skipif(not th.cuda.is_available(), reason="needs a CUDA device")
+@pytest.mark.parametrize("compile", [True, "default"], ids=["captured", "compiled"])
+def test_a_compiled_group_on_cuda_trains_as_the_eager_one_on_the_cpu(compile: bool | str) -> None:
+    """On CUDA, with the gradient step replayed as CUDA graphs (``True``) or compiled without capture: the same
+    training as an eager group on the CPU, to float rounding (MATD3: both kinds of step, and the smoothing noise)."""
+    settings: dict[str, Any] = {"learning_starts": 50, "transitions_per_update": 10, "buffer_size": 1000}
+    eager = RunGroup(tiny_models(MATD3, "selected", **settings), worlds_per_run=2).learn(300)
+    dynamo.reset()
+    try:
+        on_cuda = RunGroup(tiny_models(MATD3, "selected", **settings), worlds_per_run=2, device="cuda", compile=compile)
+        on_cuda.learn(300)
+    finally:
+        dynamo.reset()
+    assert on_cuda.n_updates == eager.n_updates == 25
+    for expected, actual in zip(eager.teams.stacked_parameters().values(), on_cuda.teams.stacked_parameters().values()):
+        th.testing.assert_close(actual.cpu(), expected, atol=1e-4, rtol=1e-3)
+    th.testing.assert_close(on_cuda.episode_stats()["reward"], eager.episode_stats()["reward"], atol=1e-3, rtol=1e-3)
