@@ -40,8 +40,10 @@ class MemberModules(Protocol):
         ...
 
     def clip_groups(self, module: str) -> list[list[str]]:
-        """:return: The names (``<module>.<parameter name>``) of each network of ``"actor"`` or ``"critic"`` whose
-        gradient is clipped on its own (the critics and MATD3's twins apart)."""
+        """
+        :return: The names (``<module>.<parameter name>``) of each network of ``"actor"`` or ``"critic"`` whose
+            gradient is clipped on its own (the critics and MATD3's twins apart).
+        """
         ...
 
     def update_targets(self, tau: float) -> None:
