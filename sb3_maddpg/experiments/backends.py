@@ -39,7 +39,8 @@ class Execution:
     :param verbose: 1 to print each run's (or group's) progress.
     :param snapshots: Runs alone (local, Ray) save a snapshot at each tenth of their budget, which a killed run goes
         on from (:mod:`~sb3_maddpg.experiments.run_snapshot`); run groups save their own state regardless.
-    :param compile: Run groups compile their gradient step (``RunGroup(..., compile=True)``).
+    :param compile: Run groups compile their rounds (``RunGroup(..., compile=True)``); None: where it was measured to
+        pay (:func:`~sb3_maddpg.experiments.batched.compile_pays`).
     """
 
     backend: str = "local"
@@ -50,7 +51,7 @@ class Execution:
     runs_per_process: int | None = None
     verbose: int = 1
     snapshots: bool = True
-    compile: bool = False
+    compile: bool | None = None
 
     @property
     def ray_cpus(self) -> int | None:

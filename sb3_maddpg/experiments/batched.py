@@ -100,13 +100,30 @@ __all__ = [  # the names of 0.2's single module stay importable from here
 
 # ----- a group, and a sweep of groups -----
 
+COMPILE_FROM_STEPS = 1_000_000
+"""Each run's budget from which a CPU group compiles its rounds by default (:func:`compile_pays`)."""
+
+
+def compile_pays(total_timesteps: int, device: th.device) -> bool:
+    """
+    Whether a group compiles its rounds by default: where it was measured to pay. On a CPU, compiling costs 25-100 s
+    per group and saves about a third of each round at the paper's sizes (``benchmarks/README.md``, 1.5x per round):
+    it pays from a few hundred thousand env steps per run, so runs of :data:`COMPILE_FROM_STEPS` or more compile. On a
+    GPU the compiled and captured rounds are not measured yet (``benchmarks/device_check.sh``): not by default there.
+
+    :param total_timesteps: Each run's budget (env steps).
+    :param device: The group's device.
+    :return: Whether to compile.
+    """
+    return device.type == "cpu" and total_timesteps >= COMPILE_FROM_STEPS
+
 
 def train_group(
     configs: Sequence[RunConfig],
     results_dir: str | os.PathLike[str],
     device: str = "auto",
     verbose: int = 1,
-    compile: bool = False,
+    compile: bool | None = None,
 ) -> list[dict[str, Any]]:
     """
     Train a group's runs together (resuming from its state file when there is one for them) and evaluate each,
@@ -118,7 +135,8 @@ def train_group(
     :param results_dir: The sweep's results directory.
     :param device: Where the group trains (``"auto"``: CUDA when there is a GPU).
     :param verbose: 1 to print the group's progress lines.
-    :param compile: Compile the group's gradient step (``RunGroup(..., compile=True)``).
+    :param compile: Compile the group's rounds (``RunGroup(..., compile=True)``); None: where it pays
+        (:func:`compile_pays`).
     :return: Each run's summary, plus ``"files"`` (as ``execute_run``'s).
     """
     directories = [run_directory(results_dir, config) for config in configs]
@@ -150,7 +168,7 @@ def _train_runs(
     results_dir: str | os.PathLike[str],
     device: str,
     verbose: int,
-    compile: bool,
+    compile: bool | None,
 ) -> list[TrainedRun]:
     """
     Train runs together, to their budget (see :func:`train_group`), and record each as trained (:func:`write_trained`).
@@ -166,6 +184,7 @@ def _train_runs(
     # On the CPU: they are saved and evaluated; a resumed run's progress.csv keeps its rows up to the state.
     models = [_model_logging_to(config, directory, steps) for config, directory in zip(configs, directories)]
     resolved = resolve_device(device)
+    compile = compile_pays(configs[0].total_timesteps, resolved) if compile is None else compile
     if compile:
         th._dynamo.reset()  # the last group's graphs: kept, each new group would be a recompile, up to torch's limit
     group = RunGroup(models, device=resolved, compile=compile)
@@ -274,7 +293,7 @@ def train_groups(
     device: str,
     threads: int,
     verbose: int,
-    compile: bool = False,
+    compile: bool | None = None,
 ) -> None:
     """
     Train groups one after another in this process; a group that fails fails its runs (each reported with the
@@ -286,7 +305,7 @@ def train_groups(
     :param device: Where the groups train.
     :param threads: Torch threads.
     :param verbose: 1 to print each group's progress lines.
-    :param compile: Compile each group's gradient step.
+    :param compile: Compile each group's rounds (None: where it pays, :func:`compile_pays`).
     """
     th.set_num_threads(threads)
     for group in groups:
@@ -369,7 +388,7 @@ def train_groups_on_ray(
 
 
 def _train_group_task(
-    configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int, compile: bool = False
+    configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int, compile: bool | None = None
 ) -> list[dict[str, Any]]:
     """A Ray task's work (:data:`~sb3_maddpg.experiments.ray_tasks.TaskWork`, with ``compile`` bound): train one group."""
     return train_group(configs, results_dir, device=device, verbose=verbose, compile=compile)

@@ -290,9 +290,11 @@ def _add_run_execution(execution: Any) -> None:
     )
     execution.add_argument(
         "--compile",
-        action="store_true",
-        help="batched: compile each run group's gradient step into one graph (torch.compile; CUDA graphs on a GPU): "
-        "faster steps after tens of seconds of compiling, said in the progress lines",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="batched: compile each run group's rounds (torch.compile, one graph per part; CUDA graphs on a GPU): faster "
+        "rounds after tens of seconds of compiling, said in the progress lines (default: where measured to pay, CPU "
+        "groups of runs of 1M env steps or more)",
     )
     execution.add_argument(
         "--runs-per-process",

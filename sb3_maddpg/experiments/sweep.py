@@ -135,7 +135,7 @@ def run_sweep(
     runs_per_process: int | None = None,
     on_ray: bool = False,
     snapshots: bool = True,
-    compile: bool = False,
+    compile: bool | None = None,
 ) -> SweepResult:
     """
     Run every (scheme, seed) of the experiments, skipping runs finished before (resume an
@@ -165,8 +165,9 @@ def run_sweep(
     :param snapshots: Runs alone (local, Ray) save a snapshot at each tenth of their budget, so that a killed run goes
         on from its last one (:mod:`~sb3_maddpg.experiments.run_snapshot`; about two replay buffers of disk per run in
         progress, e.g. 2.7 GB at N=5 with 1M-transition buffers).
-    :param compile: The batched backends' run groups compile their gradient step (``RunGroup(..., compile=True)``;
-        the compile time is said in each group's progress lines).
+    :param compile: The batched backends' run groups compile their rounds (``RunGroup(..., compile=True)``; the
+        compile time is said in each group's progress lines); None: where it was measured to pay (CPU groups of runs
+        of 1M env steps or more, :func:`~sb3_maddpg.experiments.batched.compile_pays`).
     :return: What the sweep did.
     :raise ResultsDirectoryLocked: When another sweep is running in ``results_dir``.
     :raise BatchedRunRefused: When the batched backend cannot train a run (nothing has trained then).

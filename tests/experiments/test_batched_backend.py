@@ -402,3 +402,12 @@ def test_compile_trains_the_groups_compiled_and_says_its_compile_time(tmp_path: 
         assert "gradient step compiled in" in text, text
         assert (log.parent / DONE_FILE).is_file()
     assert ", compiled" in next(tmp_path.rglob("sweep.log")).read_text()
+
+
+def test_groups_compile_by_default_where_it_was_measured_to_pay() -> None:
+    """CPU groups of long runs compile (1M env steps per run and more); short runs, and GPUs (not measured yet), not."""
+    from sb3_maddpg.experiments.batched import COMPILE_FROM_STEPS, compile_pays
+
+    cpu, cuda = torch.device("cpu"), torch.device("cuda")
+    assert compile_pays(COMPILE_FROM_STEPS, cpu) and compile_pays(2_500_000, cpu)
+    assert not compile_pays(COMPILE_FROM_STEPS - 1, cpu) and not compile_pays(2_500_000, cuda)
