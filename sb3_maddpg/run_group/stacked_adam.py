@@ -32,8 +32,9 @@ class StackedAdam:
         self.max_exp_avg_sqs = [th.zeros_like(p) for p in self.params] if defaults["amsgrad"] else []
         # One count per parameter (torch's layout); on the device, so that a step reads no host value.
         self.steps = [th.zeros((), dtype=th.float32, device=device) for _ in self.params]
-        self.lr_tensor = th.tensor(float(defaults["lr"]), dtype=th.float32, device=device)
-        """The learning rate, a tensor: a schedule changes its value without changing a compiled step."""
+        self._lr = float(defaults["lr"])
+        self.lr_tensor = th.tensor(self._lr, dtype=th.float32, device=device)
+        """The learning rate as a tensor (the capturable form's): a schedule changes its value, not a compiled step."""
 
     @classmethod
     def of_models(cls, params: Sequence[th.Tensor], optimizers: Sequence[th.optim.Optimizer]) -> "StackedAdam":
@@ -83,11 +84,12 @@ class StackedAdam:
 
     @property
     def lr(self) -> float:
-        """The learning rate (a host read of :attr:`lr_tensor`)."""
-        return float(self.lr_tensor)
+        """The learning rate (the host form's, and what a model written back gets: exactly the schedule's value)."""
+        return self._lr
 
     def set_lr(self, lr: float) -> None:
-        """:param lr: The new learning rate (written into :attr:`lr_tensor`, in place)."""
+        """:param lr: The new learning rate (also written into :attr:`lr_tensor`, in place: no host read)."""
+        self._lr = float(lr)
         self.lr_tensor.fill_(lr)
 
     def step(self, grads: Sequence[th.Tensor], capturable: bool) -> None:
