@@ -1,10 +1,9 @@
 """Compatibility with older versions of sb3-maddpg, in one place: the import paths that 0.3 moved, and what a model
 saved by an older version implies for what it lacks.
 
-0.3 gave the package SB3's shape (``maddpg/``, ``matd3/``, ``common/``, ``analysis/``); every module path of 0.2 keeps
-working through :data:`MOVED_IN_0_3`: importing one warns once (:class:`MovedModuleWarning`, a ``FutureWarning``) and
-hands out the same objects as the new path, so ``isinstance`` checks and pickles (saved models name their classes'
-modules) keep working.
+0.3 gave the package SB3's shape (``maddpg/``, ``matd3/``, ``common/``, ``analysis/``); the module paths of 0.2 are
+gone (:data:`MOVED_IN_0_3` says where each went), except while a save is read (:func:`old_module_paths`): saved
+models and replay buffers name their classes by the paths of the version that wrote them.
 
 SB3's ``load`` builds the model with ``_init_setup_model=False`` and sets the saved attributes over it; an attribute
 that a version did not save would keep today's default, and so change how an old model trains. :meth:`MADDPG.load
@@ -187,13 +186,10 @@ MOVED_IN_0_3: dict[str, tuple[str, ...]] = {
 """Module paths of sb3-maddpg 0.2 that 0.3 moved: old path -> the new modules that hold its names (searched in order)."""
 
 
-class MovedModuleWarning(FutureWarning):
-    """An import through a module path that sb3-maddpg 0.3 moved (:data:`MOVED_IN_0_3`)."""
-
-
 class MovedModule(types.ModuleType):
     """
-    An old module path: its names are the new modules' own objects, looked up when asked for.
+    An old module path, while a save that names it is read: its names are the new modules' own objects, looked up
+    when asked for.
 
     :param name: The old path.
     :param targets: The new modules that hold its names, searched in order.
@@ -204,8 +200,6 @@ class MovedModule(types.ModuleType):
         self._targets = tuple(targets)
 
     def __getattr__(self, attribute: str) -> Any:
-        if attribute == "__all__":  # what `from <old path> import *` binds: the new modules' public names
-            return [name for name in self.__dir__() if not name.startswith("_")]
         if attribute.startswith("__"):
             raise AttributeError(attribute)
         for target in self._targets:
@@ -214,30 +208,9 @@ class MovedModule(types.ModuleType):
                 return getattr(module, attribute)
         raise AttributeError(f"module {self.__name__!r} (moved to {' and '.join(self._targets)}) has no {attribute!r}")
 
-    def __setattr__(self, attribute: str, value: Any) -> None:
-        # mock.patch("<old path>.name") must patch the module that the package reads the name from
-        if attribute.startswith("_"):
-            super().__setattr__(attribute, value)
-        else:
-            setattr(self._home(attribute), attribute, value)
 
-    def __delattr__(self, attribute: str) -> None:
-        if attribute.startswith("_"):
-            super().__delattr__(attribute)
-        else:
-            delattr(self._home(attribute), attribute)
-
-    def _home(self, attribute: str) -> types.ModuleType:
-        """:return: The new module that holds ``attribute`` (the first target when none does)."""
-        modules = [importlib.import_module(target) for target in self._targets]
-        return next((module for module in modules if hasattr(module, attribute)), modules[0])
-
-    def __dir__(self) -> list[str]:
-        return sorted({name for target in self._targets for name in dir(importlib.import_module(target))})
-
-
-class MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """Finds the old module paths of :data:`MOVED_IN_0_3` and makes each a :class:`MovedModule`, with a warning."""
+class _MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Finds the old module paths of :data:`MOVED_IN_0_3` and makes each a :class:`MovedModule`."""
 
     def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> importlib.machinery.ModuleSpec | None:
         if fullname not in MOVED_IN_0_3:
@@ -248,24 +221,26 @@ class MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         return MovedModule(spec.name, MOVED_IN_0_3[spec.name])
 
     def exec_module(self, module: types.ModuleType) -> None:
-        new = " and ".join(MOVED_IN_0_3[module.__name__])
-        warnings.warn(
-            f"{module.__name__} moved to {new} in sb3-maddpg 0.3: import from there (the old path will be removed)",
-            MovedModuleWarning,
-            stacklevel=2,
-        )
-
-
-def install_moved_module_finder() -> None:
-    """Let the module paths of :data:`MOVED_IN_0_3` be imported (once per interpreter; called on ``import sb3_maddpg``)."""
-    if not any(isinstance(finder, MovedModuleFinder) for finder in sys.meta_path):
-        sys.meta_path.append(MovedModuleFinder())
+        pass
 
 
 @contextmanager
-def moved_paths_quiet() -> Iterator[None]:
-    """Within: no :class:`MovedModuleWarning` (a saved model names its classes by the paths of the version that saved
-    it; the user did not write them)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", MovedModuleWarning)
+def old_module_paths() -> Iterator[None]:
+    """
+    Within: the module paths of 0.2 (:data:`MOVED_IN_0_3`) resolve to the new modules' objects, for reading a save
+    (a model or a replay buffer) that names its classes by the paths of the version that wrote it. Outside, they do
+    not exist: importing one fails as any missing module does, and nothing is added to ``sys.meta_path`` by
+    ``import sb3_maddpg``.
+    """
+    finder = _MovedModuleFinder()
+    sys.meta_path.append(finder)
+    try:
         yield
+    finally:
+        sys.meta_path.remove(finder)
+        for old in MOVED_IN_0_3:
+            if isinstance(sys.modules.get(old), MovedModule):
+                del sys.modules[old]
+                parent, _, child = old.rpartition(".")
+                if isinstance(vars(sys.modules[parent]).get(child), MovedModule):
+                    delattr(sys.modules[parent], child)

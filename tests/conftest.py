@@ -46,7 +46,6 @@ def auto_device_is_the_cpu(request: pytest.FixtureRequest, monkeypatch: pytest.M
         return original("cpu" if device == "auto" else device)
 
     for name, module in list(sys.modules.items()):
-        # vars(), not getattr(): a moved module's placeholder (sb3_maddpg.compat) would import its target on getattr.
         if name.startswith(("stable_baselines3", "sb3_maddpg")) and vars(module).get("get_device") is original:
             monkeypatch.setattr(module, "get_device", get_device)
 

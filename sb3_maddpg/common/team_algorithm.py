@@ -39,7 +39,7 @@ from sb3_maddpg.compat import (
     RENAMED_IN_0_3,
     attributes_missing_from,
     drop_names_before_0_3,
-    moved_paths_quiet,
+    old_module_paths,
     pop_0_2_dev_schedule,
     read_saved_data,
     renamed_argument,
@@ -380,7 +380,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param kwargs: Attributes to set on the model over the saved ones.
         :return: The model.
         """
-        with moved_paths_quiet():  # an older save names its classes by the paths of its version
+        with old_module_paths():  # an older save names its classes by the paths of its version
             data = read_saved_data(path, custom_objects)  # read once: for the team check and for older saves
         if env is not None:
             refuse_env_of_another_team(data, env)
@@ -392,7 +392,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             if old in kwargs:
                 kwargs[new] = renamed_argument(kwargs.get(new), kwargs.pop(old), old, new)
         attributes = {**missing, **renamed, **kwargs}
-        with moved_paths_quiet(), loading_a_saved_model():
+        with old_module_paths(), loading_a_saved_model():
             return super().load(path, env, device, custom_objects, print_system_info, force_reset, **attributes)
 
     def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
@@ -403,7 +403,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param truncate_last_traj: SB3's argument (used by ``HerReplayBuffer`` only).
         """
         current = self.replay_buffer
-        with moved_paths_quiet():  # a buffer saved by 0.2 names its classes by 0.2's paths
+        with old_module_paths():  # a buffer saved by 0.2 names its classes by 0.2's paths
             super().load_replay_buffer(path, truncate_last_traj)
         try:
             refuse_buffer_of_another_team(self.replay_buffer, self.agent_layout, self.selection_size, self.n_envs)
