@@ -4,25 +4,57 @@ Command line: ``sb3-maddpg run --config exp1 ...`` then ``sb3-maddpg report <res
 (or ``python -m sb3_maddpg.experiments ...``).
 """
 
-from sb3_maddpg.experiments.config import (
-    BASELINE_SCHEME,
-    EXP1,
-    EXP1_TUNED,
-    EXP2,
-    EXP2_TUNED,
-    EXPERIMENTS,
-    PAPER_NAMES,
-    SCHEMES,
-    SMOKE,
-    ExperimentConfig,
-    RunConfig,
-    load_experiment,
-)
-from sb3_maddpg.experiments.report import make_report
-from sb3_maddpg.experiments.results import ResultsDirectoryLocked
-from sb3_maddpg.experiments.runner import execute_run
-from sb3_maddpg.experiments.stats import aggregate, mann_whitney, significance_stars
-from sb3_maddpg.experiments.sweep import SweepInterrupted, SweepResult, run_sweep
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # what the names below are, for type checkers and editors; imported when first used
+    from sb3_maddpg.experiments.config import (
+        BASELINE_SCHEME,
+        EXP1,
+        EXP1_TUNED,
+        EXP2,
+        EXP2_TUNED,
+        EXPERIMENTS,
+        PAPER_NAMES,
+        SCHEMES,
+        SMOKE,
+        ExperimentConfig,
+        RunConfig,
+        load_experiment,
+    )
+    from sb3_maddpg.experiments.report import make_report
+    from sb3_maddpg.experiments.results import ResultsDirectoryLocked
+    from sb3_maddpg.experiments.runner import execute_run
+    from sb3_maddpg.experiments.stats import aggregate, mann_whitney, significance_stars
+    from sb3_maddpg.experiments.sweep import SweepInterrupted, SweepResult, run_sweep
+
+_HOMES = {
+    **dict.fromkeys(
+        ["BASELINE_SCHEME", "EXP1", "EXP1_TUNED", "EXP2", "EXP2_TUNED", "EXPERIMENTS", "PAPER_NAMES", "SCHEMES", "SMOKE"],
+        "config",
+    ),
+    **dict.fromkeys(["ExperimentConfig", "RunConfig", "load_experiment"], "config"),
+    "make_report": "report",
+    "ResultsDirectoryLocked": "results",
+    "execute_run": "runner",
+    **dict.fromkeys(["aggregate", "mann_whitney", "significance_stars"], "stats"),
+    **dict.fromkeys(["SweepInterrupted", "SweepResult", "run_sweep"], "sweep"),
+}
+"""Each public name's module: imported on first use (PEP 562), so that a run imports neither the report nor run
+groups, and the report imports no training code."""
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _HOMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)
+    globals()[name] = value  # the next lookup finds it directly
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_HOMES})
+
 
 __all__ = [
     "BASELINE_SCHEME",

@@ -9,19 +9,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from sb3_maddpg.experiments.config import RunConfig
-from sb3_maddpg.experiments.local_pool import LOST_RUN as LOST_RUN  # the local pool's names, at their 0.2 paths too
-from sb3_maddpg.experiments.local_pool import OnResult as OnResult
-from sb3_maddpg.experiments.local_pool import run_local as run_local
-from sb3_maddpg.experiments.local_pool import set_worker_threads as set_worker_threads
-from sb3_maddpg.experiments.local_pool import worker_pool as worker_pool
-from sb3_maddpg.experiments.ray_tasks import RAY_MAX_RETRIES as RAY_MAX_RETRIES  # Ray's names, at their 0.2 paths too
-from sb3_maddpg.experiments.ray_tasks import collect_ray_tasks as collect_ray_tasks
-from sb3_maddpg.experiments.ray_tasks import ray_parallel_runs as ray_parallel_runs
-from sb3_maddpg.experiments.ray_tasks import ray_parallel_tasks as ray_parallel_tasks
-from sb3_maddpg.experiments.ray_tasks import ray_session as ray_session
-from sb3_maddpg.experiments.ray_tasks import ray_task_options as ray_task_options
-from sb3_maddpg.experiments.ray_tasks import run_ray as run_ray
-from sb3_maddpg.experiments.ray_tasks import submit_ray_tasks as submit_ray_tasks
+from sb3_maddpg.experiments.local_pool import OnResult, run_local
 
 
 @dataclass(frozen=True)
@@ -257,6 +245,8 @@ class RayBackend(RunsBackend):
         def on_parallel(slots: int) -> None:
             progress.parallel = slots
             progress.log(f"Ray: {slots} run(s) at once ({execution.threads} CPU(s) each)")
+
+        from sb3_maddpg.experiments.ray_tasks import run_ray  # Ray's code, for Ray's backend only
 
         run_ray(
             plan.runs,

@@ -704,7 +704,7 @@ def run_command(args: argparse.Namespace) -> int:
     :param args: Parsed ``run`` arguments.
     :return: The exit status.
     """
-    from sb3_maddpg.experiments.batched import BatchedRunRefused
+    from sb3_maddpg.experiments.group_plan import BatchedRunRefused
     from sb3_maddpg.experiments.results import ResultsDirectoryLocked
     from sb3_maddpg.experiments.sweep import SweepInterrupted, plan_sweep, run_sweep  # torch: imported for runs only
 

@@ -1,0 +1,41 @@
+"""What a command imports (issue 45): a run imports neither run groups, the report nor Ray's code; a report imports
+no run group. Each in a fresh interpreter, as a user's command runs."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+LISTED = """
+import json, sys
+from sb3_maddpg.experiments.cli import main
+try:
+    main(sys.argv[1:])
+except SystemExit:
+    pass
+print(json.dumps(sorted(m for m in sys.modules if m.startswith("sb3_maddpg"))))
+"""
+
+
+def modules_imported(*args: str) -> list[str]:
+    """:return: The package's modules imported by ``sb3-maddpg <args>`` in a fresh interpreter."""
+    done = subprocess.run([sys.executable, "-c", LISTED, *args], capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
+
+
+def test_a_dry_run_imports_no_run_group_report_or_ray_code(tmp_path: Path) -> None:
+    imported = modules_imported("run", "--config", "exp1", "--seed-list", "0", "--dry-run", "--results", str(tmp_path))
+    assert "sb3_maddpg.experiments.runner" in imported  # the run's own code is there
+    for heavy in ("sb3_maddpg.run_group", "sb3_maddpg.experiments.report", "sb3_maddpg.experiments.ray_tasks"):
+        assert heavy not in imported, heavy
+
+
+@pytest.mark.parametrize("name", ["make_report", "run_sweep", "EXP1", "RunConfig"])
+def test_the_packages_names_import_when_first_used(name: str) -> None:
+    import sb3_maddpg.experiments as experiments
+
+    assert getattr(experiments, name) is not None and name in dir(experiments)
+    with pytest.raises(AttributeError, match="has no attribute 'no_such_name'"):
+        experiments.no_such_name  # noqa: B018
