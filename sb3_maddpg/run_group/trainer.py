@@ -199,11 +199,16 @@ class RunGroup:
         return self._gradient_step(self._sample(checked=True), actor_due)
 
     def _mark_static(self) -> None:
-        """The tensors the gradient step changes in place, kept where they are (CUDA graphs: :func:`mark_static`)."""
-        tensors = [*self.teams.stacked_parameters().values(), self.streams.counter]
+        """The tensors a captured gradient step reads or changes in place, read where they are (CUDA graphs:
+        :func:`mark_static`): the weights, Adam's state, the random streams and the replay buffers, which would
+        otherwise be copied into the graph's memory at every replay."""
+        tensors = [*self.teams.stacked_parameters().values()]
         for optimizer in (self.actor_optimizer, self.critic_optimizer):
             tensors += [*optimizer.exp_avgs, *optimizer.exp_avg_sqs, *optimizer.max_exp_avg_sqs, *optimizer.steps]
             tensors.append(optimizer.lr_tensor)
+        for holder in (self.streams, self.buffers, self.select):
+            if holder is not None:
+                tensors += [value for value in vars(holder).values() if isinstance(value, th.Tensor)]
         mark_static(tensors)
 
     def train(self, gradient_steps: int) -> None:

@@ -102,3 +102,22 @@ def test_a_compiled_group_on_cuda_trains_as_the_eager_one_on_the_cpu(compile: bo
     for expected, actual in zip(eager.teams.stacked_parameters().values(), on_cuda.teams.stacked_parameters().values()):
         th.testing.assert_close(actual.cpu(), expected, atol=1e-4, rtol=1e-3)
     th.testing.assert_close(on_cuda.episode_stats()["reward"], eager.episode_stats()["reward"], atol=1e-3, rtol=1e-3)
+
+
+def test_a_captured_step_reads_its_tensors_where_they_are() -> None:
+    """What CUDA graphs need (checked on the CPU, where the marking is the same): the weights, Adam's state, the
+    random streams and the replay buffers marked static, so that a replay neither copies the buffers into the graph's
+    memory nor reads stale weights."""
+    group = RunGroup(tiny_models(MADDPG, "selected"), worlds_per_run=2)
+    group._mark_static()
+    marked = [
+        *group.teams.stacked_parameters().values(),
+        *group.critic_optimizer.exp_avgs,
+        *group.actor_optimizer.steps,
+        group.actor_optimizer.lr_tensor,
+        group.streams.counter,
+        group.buffers.observations,
+        group.buffers.selections,
+        group.buffers.filled,
+    ]
+    assert all(hasattr(tensor, "_dynamo_static_input_type") for tensor in marked)
