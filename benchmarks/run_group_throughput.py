@@ -4,7 +4,8 @@ R runs' updates in one process (a run group) against the same work as R separate
 One gradient step of every run, at the paper's sizes (64-unit networks, batch 1024): the group's update of R runs at
 once, against R updates of a group of one and R calls of ``MADDPG.train(1)`` (the reference path), each on its own
 model and batch. All three are timed in the same run, interleaved, and the ratios are of their medians (> 1: the
-group is faster). Sampling is left out of every path (each gets its batch ready).
+group is faster). Also the same group compiled (``RunGroup(..., compile=True)``) against ``MADDPG.train``. Sampling is
+left out of every path (each gets its batch ready).
 
     python benchmarks/run_group_throughput.py --n-agents 5 --runs 1 4 16 --repeats 5
 """
@@ -63,13 +64,16 @@ def measure(n_runs: int, n_agents: int, batch_size: int, repeats: int) -> dict[s
         model.replay_buffer.sample = lambda *args, _batch=batch, **kwargs: _batch  # type: ignore[method-assign]
     stacked = MultiAgentReplayBufferSamples(*(th.stack([b[i] for b in batches]) for i in range(5)), None)  # type: ignore[misc]
     group = RunGroup(models)
+    compiled = RunGroup(models, compile=True)
     singles = [RunGroup([model]) for model in models]
     paths: dict[str, Callable[[], Any]] = {
         "group": lambda: group.update(stacked),
+        "compiled": lambda: compiled.update(stacked),
         "singles": lambda: [single.update(one_member(batch)) for single, batch in zip(singles, batches)],
         "maddpg": lambda: [model.train(gradient_steps=1, batch_size=batch_size) for model in models],
     }
-    for path in paths.values():  # warm-up: vmap's first call traces
+    for path in paths.values():  # warm-up: vmap's first call traces, the compiled group compiles
+        path()
         path()
     times: dict[str, list[float]] = {name: [] for name in paths}
     for _ in range(repeats):
@@ -89,14 +93,15 @@ def main() -> None:
     print(f"N={args.n_agents}, batch {args.batch_size}, 64-unit networks, one torch thread, median of {args.repeats}\n")
     print(
         "| R | group: one update of R runs (ms) | per run (ms) | R x group of one (ms) | R x MADDPG.train (ms) "
-        "| speed-up vs group of one | speed-up vs MADDPG.train |"
+        "| speed-up vs group of one | speed-up vs MADDPG.train | compiled group (ms) | compiled vs MADDPG.train |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for n_runs in args.runs:
         t = measure(n_runs, args.n_agents, args.batch_size, args.repeats)
         print(
             f"| {n_runs} | {t['group'] * 1e3:.1f} | {t['group'] / n_runs * 1e3:.1f} | {t['singles'] * 1e3:.1f} "
-            f"| {t['maddpg'] * 1e3:.1f} | {t['singles'] / t['group']:.2f}x | {t['maddpg'] / t['group']:.2f}x |",
+            f"| {t['maddpg'] * 1e3:.1f} | {t['singles'] / t['group']:.2f}x | {t['maddpg'] / t['group']:.2f}x "
+            f"| {t['compiled'] * 1e3:.1f} | {t['maddpg'] / t['compiled']:.2f}x |",
             flush=True,
         )
 
