@@ -33,7 +33,7 @@ from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.common.selection import FixedGraph, NearestAgents, Selector
 from sb3_maddpg.common.torch_threads import use_torch_threads
 from sb3_maddpg.experiments.config import load_experiment
-from sb3_maddpg.experiments.runner import build_model, log_interval, make_eval_env
+from sb3_maddpg.experiments.runner import build_model, log_interval
 from sb3_maddpg.experiments.tasks import run_task
 
 HERE = Path(__file__).resolve().parent
@@ -80,7 +80,7 @@ def main() -> None:
     started = time.perf_counter()
     model.learn(args.steps, log_interval=log_interval(config), progress_bar=False)
     train_time = time.perf_counter() - started
-    env = make_eval_env(config, args.eval_episodes)
+    env = run_task(config).make_eval_env(args.eval_episodes)
     result = evaluate_team(
         model, env, n_episodes=args.eval_episodes, seed=config.eval_seed, task_metrics=run_task(config).metrics
     )

@@ -16,24 +16,24 @@ if TYPE_CHECKING:  # what the names below are, for type checkers and editors; im
         EXP2_TUNED,
         EXPERIMENTS,
         PAPER_NAMES,
-        SCHEMES,
         SMOKE,
-        ExperimentConfig,
-        RunConfig,
         load_experiment,
     )
+    from sb3_maddpg.experiments.defaults import SCHEMES
     from sb3_maddpg.experiments.report import make_report
     from sb3_maddpg.experiments.results import ResultsDirectoryLocked
     from sb3_maddpg.experiments.runner import execute_run
+    from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig
     from sb3_maddpg.experiments.stats import aggregate, mann_whitney, significance_stars
     from sb3_maddpg.experiments.sweep import SweepInterrupted, SweepResult, run_sweep
 
 _HOMES = {
     **dict.fromkeys(
-        ["BASELINE_SCHEME", "EXP1", "EXP1_TUNED", "EXP2", "EXP2_TUNED", "EXPERIMENTS", "PAPER_NAMES", "SCHEMES", "SMOKE"],
-        "config",
+        ["BASELINE_SCHEME", "EXP1", "EXP1_TUNED", "EXP2", "EXP2_TUNED", "EXPERIMENTS", "PAPER_NAMES", "SMOKE"], "config"
     ),
-    **dict.fromkeys(["ExperimentConfig", "RunConfig", "load_experiment"], "config"),
+    "load_experiment": "config",
+    "SCHEMES": "defaults",
+    **dict.fromkeys(["ExperimentConfig", "RunConfig"], "setting"),
     "make_report": "report",
     "ResultsDirectoryLocked": "results",
     "execute_run": "runner",

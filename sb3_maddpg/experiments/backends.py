@@ -8,8 +8,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.local_pool import OnResult, run_local
+from sb3_maddpg.experiments.setting import RunConfig
 
 
 @dataclass(frozen=True)
@@ -185,7 +185,7 @@ class RunsBackend:
 
 class LocalBackend(RunsBackend):
     """
-    Runs in this process (one worker) or a local process pool (:func:`run_local`).
+    Runs in this process (one worker) or a local process pool (:func:`~sb3_maddpg.experiments.local_pool.run_local`).
 
     :param execution: Where and how the runs execute.
     """
@@ -224,7 +224,7 @@ class LocalBackend(RunsBackend):
 
 class RayBackend(RunsBackend):
     """
-    Runs as Ray tasks, one per run (:func:`run_ray`).
+    Runs as Ray tasks, one per run (:func:`~sb3_maddpg.experiments.ray_tasks.run_ray`).
 
     :param execution: Where and how the runs execute.
     """

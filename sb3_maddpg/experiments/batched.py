@@ -29,32 +29,23 @@ from stable_baselines3.common.logger import configure
 
 from sb3_maddpg.common.progress import log_line
 from sb3_maddpg.experiments.backends import Execution, SweepLog, SweepPlan
-from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.group_plan import (
-    BATCHED_HINT,
-    BatchedRunRefused,
     check_batched,
-    check_device,
     check_runs_per_process,
-    group_key,
     memory_bound,
     plan_groups,
     resolve_device,
     too_large_groups,
 )
-from sb3_maddpg.experiments.group_recorder import STATE_FRACTION, GroupProgress, GroupRecorder
+from sb3_maddpg.experiments.group_recorder import GroupRecorder
 from sb3_maddpg.experiments.group_state import (
-    STATE_PREFIX,
     TRAINED_FILE,
     TrainedRun,
     group_state_path,
     load_state,
-    parse_seed_ranges,
     read_progress_rows,
     read_trained,
     remove_stale_states,
-    save_state,
-    seed_ranges,
     write_trained,
 )
 from sb3_maddpg.experiments.local_pool import OnResult
@@ -68,35 +59,7 @@ from sb3_maddpg.experiments.ray_tasks import (
 from sb3_maddpg.experiments.results import CHECKPOINT_DIR, LOG_FILE, PROGRESS_FILE, run_directory
 from sb3_maddpg.experiments.run_cost import TrainingResources
 from sb3_maddpg.experiments.runner import build_model, finish_run, start_run_directory, training_line
-
-__all__ = [  # the names of 0.2's single module stay importable from here
-    "BATCHED_HINT",
-    "STATE_FRACTION",
-    "STATE_PREFIX",
-    "TRAINED_FILE",
-    "BatchedRunRefused",
-    "GroupProgress",
-    "GroupRecorder",
-    "check_batched",
-    "check_device",
-    "group_key",
-    "group_state_path",
-    "load_state",
-    "memory_bound",
-    "parse_seed_ranges",
-    "plan_groups",
-    "read_progress_rows",
-    "read_trained",
-    "remove_stale_states",
-    "resolve_device",
-    "run_batched",
-    "run_batched_ray",
-    "save_state",
-    "seed_ranges",
-    "train_group",
-    "write_trained",
-]
-
+from sb3_maddpg.experiments.setting import RunConfig
 
 # ----- a group, and a sweep of groups -----
 
@@ -126,12 +89,13 @@ def train_group(
     compile: bool | None = None,
 ) -> list[dict[str, Any]]:
     """
-    Train a group's runs together (resuming from its state file when there is one for them) and evaluate each,
-    writing every run's directory as :func:`~sb3_maddpg.experiments.runner.execute_run` does. A run whose training
-    is over (its :data:`TRAINED_FILE`: e.g. the process was killed while the group's runs were evaluated) is
-    evaluated only, not trained again.
+    Train a group's runs together (resuming from its state file when there is one for them) and evaluate each, writing
+    every run's directory as :func:`~sb3_maddpg.experiments.runner.execute_run` does. A run whose training is over (its
+    :data:`~sb3_maddpg.experiments.group_state.TRAINED_FILE`: e.g. the process was killed while the group's runs were
+    evaluated) is evaluated only, not trained again.
 
-    :param configs: The runs: one setting and scheme, different seeds (see :func:`plan_groups`).
+    :param configs: The runs: one setting and scheme, different seeds (see
+        :func:`~sb3_maddpg.experiments.group_plan.plan_groups`).
     :param results_dir: The sweep's results directory.
     :param device: Where the group trains (``"auto"``: CUDA when there is a GPU).
     :param verbose: 1 to print the group's progress lines.
@@ -171,7 +135,8 @@ def _train_runs(
     compile: bool | None,
 ) -> list[TrainedRun]:
     """
-    Train runs together, to their budget (see :func:`train_group`), and record each as trained (:func:`write_trained`).
+    Train runs together, to their budget (see :func:`train_group`), and record each as trained
+    (:func:`~sb3_maddpg.experiments.group_state.write_trained`).
 
     :return: Each run's checkpoints, ``(env steps, model file)`` in order, train time and resources.
     """
@@ -220,9 +185,9 @@ def _start_or_resume(
     verbose: int,
 ) -> dict[str, Any] | None:
     """
-    :return: The group's saved state to resume from (:func:`load_state`), or ``None`` when there is none to use: then
-        its runs' directories and earlier groups' states are started afresh, each run's new ``train.log`` saying why a
-        state was not used (and stdout, once).
+    :return: The group's saved state to resume from (:func:`~sb3_maddpg.experiments.group_state.load_state`), or
+        ``None`` when there is none to use: then its runs' directories and earlier groups' states are started afresh,
+        each run's new ``train.log`` saying why a state was not used (and stdout, once).
     """
     discarded: list[str] = []
     resumed = load_state(state_path, configs, results_dir, discarded.append)
@@ -267,19 +232,19 @@ def run_batched(
     most_runs: Callable[[Sequence[RunConfig]], int] | None = None,
 ) -> None:
     """
-    Run the sweep's runs in groups (:func:`plan_groups`), one group after another in this process; a group that
-    fails fails its runs (each reported with the traceback) and the sweep goes on.
+    Run the sweep's runs in groups (:func:`~sb3_maddpg.experiments.group_plan.plan_groups`), one group after another in
+    this process; a group that fails fails its runs (each reported with the traceback) and the sweep goes on.
 
-    :param configs: The runs (checked with :func:`check_batched`).
+    :param configs: The runs (checked with :func:`~sb3_maddpg.experiments.group_plan.check_batched`).
     :param results_dir: The sweep's results directory.
     :param on_result: Called for each run as its group ends.
     :param device: Where the groups train.
     :param runs_per_process: The most runs in one group (``None``: all of a setting and scheme, or as many as fit
-        in the device's memory, :func:`memory_bound`).
+        in the device's memory, :func:`~sb3_maddpg.experiments.group_plan.memory_bound`).
     :param threads: Torch threads.
     :param verbose: 1 to print each group's progress lines.
-    :param most_runs: For :func:`plan_groups` when ``runs_per_process`` is ``None`` (default: :func:`memory_bound` on
-        ``device``, saying a split on stdout).
+    :param most_runs: For :func:`~sb3_maddpg.experiments.group_plan.plan_groups` when ``runs_per_process`` is ``None``
+        (default: :func:`~sb3_maddpg.experiments.group_plan.memory_bound` on ``device``, saying a split on stdout).
     """
     if runs_per_process is None and most_runs is None:
         most_runs = memory_bound(device, log=print if verbose else None)
@@ -299,7 +264,7 @@ def train_groups(
     Train groups one after another in this process; a group that fails fails its runs (each reported with the
     traceback) and the sweep goes on.
 
-    :param groups: The groups (:func:`plan_groups`).
+    :param groups: The groups (:func:`~sb3_maddpg.experiments.group_plan.plan_groups`).
     :param results_dir: The sweep's results directory.
     :param on_result: Called for each run as its group ends.
     :param device: Where the groups train.
@@ -333,9 +298,11 @@ def run_batched_ray(
     on_parallel: Callable[[int, str], None] | None = None,
 ) -> None:
     """
-    Run the sweep's groups (:func:`plan_groups`) as Ray tasks, one task per group (:func:`train_groups_on_ray`).
+    Run the sweep's groups (:func:`~sb3_maddpg.experiments.group_plan.plan_groups`) as Ray tasks, one task per group
+    (:func:`train_groups_on_ray`).
 
-    :param configs: The runs (checked with :func:`check_batched` before: this submits them as they are).
+    :param configs: The runs (checked with :func:`~sb3_maddpg.experiments.group_plan.check_batched` before: this submits
+        them as they are).
     :param results_dir: The sweep's results directory (on a cluster, an absolute path on shared storage).
     :param on_result: Called for each run as its group ends.
     :param device: Where the groups train: ``"cuda"`` (each task on the GPU Ray gives it), ``"cpu"``, or ``"auto"``
@@ -369,7 +336,7 @@ def train_groups_on_ray(
     :data:`~sb3_maddpg.experiments.ray_tasks.RAY_MAX_RETRIES` times, and resumes from its state file when it sees
     it (the results directory shared by the nodes); a group's runs are reported when the group ends.
 
-    :param groups: The groups (:func:`plan_groups`).
+    :param groups: The groups (:func:`~sb3_maddpg.experiments.group_plan.plan_groups`).
     :param results_dir: The sweep's results directory (on a cluster, an absolute path on shared storage).
     :param on_result: Called for each run as its group ends.
     :param execution: Where and how (its device, threads, Ray address and CPUs, verbosity).
@@ -410,7 +377,8 @@ class GroupBackend:
     def check(self, runs: Sequence[RunConfig]) -> None:
         """
         :param runs: The runs to do.
-        :raise BatchedRunRefused: For the device or the first run a group cannot train (:func:`check_batched`).
+        :raise BatchedRunRefused: For the device or the first run a group cannot train
+            (:func:`~sb3_maddpg.experiments.group_plan.check_batched`).
         """
         check_runs_per_process(self.execution.runs_per_process)
         check_batched(runs, device=None if self.on_ray else self.execution.device)  # Ray: its tasks' machines

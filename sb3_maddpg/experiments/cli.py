@@ -18,18 +18,10 @@ from sb3_maddpg.analysis.evaluation import side_return_key
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
 from sb3_maddpg.experiments.backends import BACKENDS
-from sb3_maddpg.experiments.config import (
-    DEFAULT_ENV,
-    DEFAULT_N_ENVS,
-    EXPERIMENTS,
-    VEC_ENVS,
-    ExperimentConfig,
-    algorithm_argument,
-    load_experiment,
-    merge_model_kwargs,
-    scaled_schedule,
-)
+from sb3_maddpg.experiments.config import EXPERIMENTS, algorithm_argument, load_experiment
+from sb3_maddpg.experiments.defaults import DEFAULT_ENV, DEFAULT_N_ENVS, VEC_ENVS
 from sb3_maddpg.experiments.results import link_complete_seeds
+from sb3_maddpg.experiments.setting import ExperimentConfig, merge_model_kwargs, scaled_schedule
 from sb3_maddpg.experiments.stats import METRICS
 
 if TYPE_CHECKING:
@@ -433,7 +425,7 @@ def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
     :param args: Parsed ``run`` arguments.
     :return: The experiments with the overrides applied; a ``ValueError`` that names the option for a user's error.
         With ``--episodes``, each evaluation count not given follows the budget
-        (:func:`~sb3_maddpg.experiments.config.scaled_schedule`); an experiment that options of ``SETTING_FLAGS``
+        (:func:`~sb3_maddpg.experiments.setting.scaled_schedule`); an experiment that options of ``SETTING_FLAGS``
         changed is described by its new values, after ``"<config> with <options>"``.
     """
     if args.name and len(args.config) != 1:
@@ -460,8 +452,8 @@ def _run_overrides(experiment: ExperimentConfig, args: argparse.Namespace) -> di
     """
     :param experiment: A loaded ``--config``.
     :param args: Parsed ``run`` arguments.
-    :return: :meth:`ExperimentConfig.replace`'s changes (``None``: not given), the evaluation schedule scaled to
-        ``--episodes`` where it is not given.
+    :return: :meth:`~sb3_maddpg.experiments.setting.ExperimentConfig.replace`'s changes (``None``: not given), the
+        evaluation schedule scaled to ``--episodes`` where it is not given.
     """
     seeds = args.seed_list or (tuple(range(args.seeds)) if args.seeds is not None else None)
     model_kwargs = merge_model_kwargs(experiment.model_kwargs, args.model_kwargs) if args.model_kwargs else None

@@ -1,6 +1,6 @@
 """Experiment and run configurations: the paper's two experiments, a CI smoke test, and loading a setting by name or
-file. The configuration types (and the words that describe a setting) are :mod:`~sb3_maddpg.experiments.setting`'s; this
-module names them too, as it always has."""
+file. The configuration types (and the words that describe a setting) live in :mod:`~sb3_maddpg.experiments.setting`,
+the defaults in :mod:`~sb3_maddpg.experiments.defaults`."""
 
 import dataclasses
 import importlib
@@ -9,66 +9,12 @@ import json
 from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
-from sb3_maddpg.experiments.defaults import (
-    DEFAULT_ALGORITHM,
-    DEFAULT_ENV,
-    DEFAULT_N_ENVS,
-    EPISODE_LENGTH,
-    SCHEMES,
-    VEC_ENVS,
-)
-from sb3_maddpg.experiments.setting import (
-    NOTE_KEEPING_FIELDS,
-    SCHEDULE_FLOORS,
-    ExperimentConfig,
-    RunConfig,
-    Setting,
-    describe_setting,
-    merge_model_kwargs,
-    scaled_schedule,
-)
-from sb3_maddpg.experiments.task_envs import task_team_size
+from sb3_maddpg.experiments.defaults import DEFAULT_ALGORITHM, DEFAULT_ENV, SCHEMES
+from sb3_maddpg.experiments.setting import ExperimentConfig, merge_model_kwargs
 from sb3_maddpg.hyperparams import load_hyperparams
 
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
-
-__all__ = [  # every public name, those defined elsewhere included: this module has always named them
-    "BASELINE_SCHEME",
-    "DEFAULT_ALGORITHM",
-    "DEFAULT_ENV",
-    "DEFAULT_N_ENVS",
-    "EPISODE_LENGTH",
-    "EXP1",
-    "EXP1_TUNED",
-    "EXP2",
-    "EXP2_TUNED",
-    "EXPERIMENTS",
-    "N3_FULL",
-    "N3_PARTIAL",
-    "NOTE_KEEPING_FIELDS",
-    "PAPER_NAMES",
-    "SCHEDULE_FLOORS",
-    "SCHEMES",
-    "SELECT_NEAREST_AT_N3",
-    "SMOKE",
-    "TINY_MODEL_KWARGS",
-    "TUNE_OBJECTIVES",
-    "VEC_ENVS",
-    "ExperimentConfig",
-    "RunConfig",
-    "Setting",
-    "algorithm_argument",
-    "describe_setting",
-    "load_algorithm",
-    "load_experiment",
-    "merge_model_kwargs",
-    "ordered_schemes",
-    "scaled_schedule",
-    "setting_label",
-    "task_team_size",
-    "tuned_experiment",
-]
 
 
 def load_algorithm(path: str) -> "type[BaseAlgorithm]":
@@ -113,7 +59,8 @@ def algorithm_argument(experiment: Mapping[str, Any], name: str, scheme: str | N
 def ordered_schemes(schemes: Iterable[str]) -> list[str]:
     """
     :param schemes: Scheme names, in any order, repeats allowed.
-    :return: Each once: the paper's schemes in :data:`SCHEMES` order, then any others alphabetically.
+    :return: Each once: the paper's schemes in :data:`~sb3_maddpg.experiments.defaults.SCHEMES` order, then any others
+        alphabetically.
     """
     present = set(schemes)
     return [scheme for scheme in SCHEMES if scheme in present] + sorted(present - set(SCHEMES))
@@ -257,7 +204,7 @@ EXPERIMENTS: dict[str, ExperimentConfig] = {
 def load_experiment(name_or_path: str) -> ExperimentConfig:
     """
     :param name_or_path: A preset name (``exp1``, ``exp2``, ``exp1_tuned``, ``exp2_tuned``, ``n3_full``, ``n3_partial``,
-        ``smoke``) or the path of a JSON file written from :meth:`ExperimentConfig.to_dict`.
+        ``smoke``) or the path of a JSON file written from :meth:`~sb3_maddpg.experiments.setting.ExperimentConfig.to_dict`.
     :return: The experiment config; a ``ValueError`` that names the cause and what to give instead if there is none.
     """
     if name_or_path in EXPERIMENTS:

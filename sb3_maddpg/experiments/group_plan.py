@@ -6,8 +6,9 @@ from collections.abc import Callable, Sequence
 
 import torch as th
 
-from sb3_maddpg.experiments.config import DEFAULT_ENV, RunConfig
+from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.runner import build_model
+from sb3_maddpg.experiments.setting import RunConfig
 
 BATCHED_HINT = "Train such runs with --backend local (e.g. in a second sweep, leaving them out here with --schemes)."
 

@@ -11,10 +11,11 @@ import torch as th
 
 from sb3_maddpg.common.progress import ProgressLogCallback, log_line
 from sb3_maddpg.common.train_logs import record_losses
-from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.group_state import save_state, seed_ranges
 from sb3_maddpg.experiments.results import CHECKPOINT_DIR, LOG_FILE, run_directory
-from sb3_maddpg.experiments.runner import CheckpointAtSteps, curve_callback, log_interval, make_eval_env
+from sb3_maddpg.experiments.runner import CheckpointAtSteps, curve_callback, log_interval
+from sb3_maddpg.experiments.setting import RunConfig
+from sb3_maddpg.experiments.tasks import run_task
 from sb3_maddpg.run_group import GroupCallback
 
 STATE_FRACTION = 0.1
@@ -102,7 +103,7 @@ class GroupRecorder(GroupCallback):
             CheckpointAtSteps(c.checkpoint_steps(), d / CHECKPOINT_DIR) for c, d in zip(configs, self.directories)
         ]
         self.saved_before: list[list[tuple[int, Path]]] = [[] for _ in configs]  # by earlier attempts
-        self.curve_envs = [make_eval_env(config, config.curve_eval_episodes) for config in configs]
+        self.curve_envs = [run_task(config).make_eval_env(config.curve_eval_episodes) for config in configs]
         curves = [curve_callback(c, env, self.worlds, d) for c, env, d in zip(configs, self.curve_envs, self.directories)]
         self.curves = [curve for curve in curves if curve is not None]
         for model, checkpoint, curve in zip(self.models, self.checkpoints, curves):

@@ -11,9 +11,9 @@ from typing import Any, NamedTuple
 import torch as th
 
 from sb3_maddpg.common.progress import log_line
-from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.results import CONFIG_FILE, LOG_FILE, read_json, run_directory, write_json_atomic
 from sb3_maddpg.experiments.run_cost import TrainingResources
+from sb3_maddpg.experiments.setting import RunConfig
 
 STATE_PREFIX = "group_seeds_"
 """A group's state file: ``<results>/<experiment>/<scheme>/group_seeds_<seeds>.pt`` (e.g. ``group_seeds_0-30.pt``)."""

@@ -19,8 +19,8 @@ from contextlib import contextmanager
 from multiprocessing import get_context
 from typing import Any
 
-from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.runner import execute_run
+from sb3_maddpg.experiments.setting import RunConfig
 
 OnResult = Callable[[RunConfig, dict[str, Any] | None, str | None], None]
 """Called as each run ends: ``(config, result, None)`` on success, ``(config, None, traceback)`` on failure."""

@@ -41,7 +41,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from sb3_maddpg.experiments.config import DEFAULT_ALGORITHM, DEFAULT_ENV, PAPER_NAMES
+from sb3_maddpg.experiments.config import PAPER_NAMES
+from sb3_maddpg.experiments.defaults import DEFAULT_ALGORITHM, DEFAULT_ENV
 from sb3_maddpg.experiments.results import (
     CHECKPOINT_EVALS_FILE,
     CURVE_FILE,

@@ -7,7 +7,8 @@ from typing import Any
 import numpy as np
 
 from sb3_maddpg.analysis.normalised_score import REFERENCE_EPISODES, normalised_scores, reference_scores
-from sb3_maddpg.experiments.config import DEFAULT_ENV, EPISODE_LENGTH, PAPER_NAMES, ordered_schemes, setting_label
+from sb3_maddpg.experiments.config import PAPER_NAMES, ordered_schemes, setting_label
+from sb3_maddpg.experiments.defaults import DEFAULT_ENV, EPISODE_LENGTH
 
 
 def setting_references(experiment: dict[str, Any] | None) -> dict[str, dict[str, float]] | None:

@@ -21,7 +21,8 @@ from typing import Any, Literal
 import numpy as np
 
 from sb3_maddpg.experiments.aggregates import IntervalEstimate, improvement_interval
-from sb3_maddpg.experiments.config import BASELINE_SCHEME, DEFAULT_ENV, PAPER_NAMES, setting_label
+from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, setting_label
+from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, mann_whitney, seeds_to_separate
 from sb3_maddpg.sharing.registry import SCHEME_ALIASES
 

@@ -11,11 +11,11 @@ from typing import Any
 import torch as th
 
 from sb3_maddpg.common.install_hint import extra_install_command
-from sb3_maddpg.experiments.config import RunConfig
 from sb3_maddpg.experiments.group_plan import BatchedRunRefused
 from sb3_maddpg.experiments.local_pool import LOST_RUN, OnResult, set_worker_threads
 from sb3_maddpg.experiments.results import write_result_files
 from sb3_maddpg.experiments.runner import execute_run
+from sb3_maddpg.experiments.setting import RunConfig
 
 RAY_MAX_RETRIES = 3
 """Ray runs a task again this many times when its worker process or node dies (Ray's default, stated)."""

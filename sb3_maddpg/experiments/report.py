@@ -12,7 +12,8 @@ import numpy as np
 
 from sb3_maddpg.analysis.evaluation import side_return_key, side_returns
 from sb3_maddpg.experiments.aggregates import improvement_interval, iqm_interval
-from sb3_maddpg.experiments.config import BASELINE_SCHEME, DEFAULT_ENV, PAPER_NAMES, ordered_schemes, setting_label
+from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, ordered_schemes, setting_label
+from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.marl_eval import MARL_EVAL_FILE, write_marl_eval
 from sb3_maddpg.experiments.normalised_table import format_normalised_markdown
 from sb3_maddpg.experiments.paper_claims import write_claims_report

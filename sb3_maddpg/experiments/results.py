@@ -21,7 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from sb3_maddpg.experiments.config import RunConfig
+from sb3_maddpg.experiments.setting import RunConfig
 
 try:
     import fcntl

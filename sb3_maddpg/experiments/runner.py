@@ -23,7 +23,7 @@ from sb3_maddpg.analysis.evaluation import (
     write_rows,
 )
 from sb3_maddpg.common.progress import ProgressLogCallback, format_seconds
-from sb3_maddpg.experiments.config import PAPER_NAMES, RunConfig, load_algorithm
+from sb3_maddpg.experiments.config import PAPER_NAMES, load_algorithm
 from sb3_maddpg.experiments.results import (
     CHECKPOINT_DIR,
     CHECKPOINT_EVALS_FILE,
@@ -50,34 +50,9 @@ from sb3_maddpg.experiments.run_snapshot import (
     snapshot_steps,
     write_progress_rows,
 )
+from sb3_maddpg.experiments.setting import RunConfig
 from sb3_maddpg.experiments.tasks import run_task
 from sb3_maddpg.sharing.registry import resolve_scheme
-
-
-def make_env(config: RunConfig, n_envs: int | None = None) -> VecEnv:
-    """
-    :param config: The run.
-    :param n_envs: Worlds (default: the run's ``n_envs``).
-    :return: The run's task as a new VecEnv (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_env`).
-    """
-    return run_task(config).make_env(n_envs)
-
-
-def make_train_env(config: RunConfig) -> VecEnv:
-    """
-    :param config: The run.
-    :return: Its training env (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_train_env`).
-    """
-    return run_task(config).make_train_env()
-
-
-def make_eval_env(config: RunConfig, n_episodes: int) -> VecEnv:
-    """
-    :param config: The run.
-    :param n_episodes: Episodes per evaluation.
-    :return: An evaluation env (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_eval_env`).
-    """
-    return run_task(config).make_eval_env(n_episodes)
 
 
 def statistics_path(model_path: str | os.PathLike[str]) -> Path:
@@ -87,14 +62,17 @@ def statistics_path(model_path: str | os.PathLike[str]) -> Path:
 
 def load_observation_statistics(eval_env: VecEnv, model_path: str | os.PathLike[str]) -> None:
     """
-    Give an evaluation env (of :func:`make_eval_env`, with ``normalize_observations``) a checkpoint's observation
-    statistics, so that the checkpoint is evaluated on the observations it was trained on.
+    Give an evaluation env (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_eval_env`'s, with
+    ``normalize_observations``) a checkpoint's observation statistics, so that the checkpoint is evaluated on the
+    observations it was trained on.
 
     :param eval_env: The evaluation env (a ``VecNormalize``).
     :param model_path: The checkpoint's model file (its statistics beside it, :func:`statistics_path`).
     """
     if not isinstance(eval_env, VecNormalize):
-        raise TypeError("The evaluation env has no VecNormalize: build it with make_eval_env for a normalising run.")
+        raise TypeError(
+            "The evaluation env has no VecNormalize: build it with run_task(config).make_eval_env for a normalising run."
+        )
     path = statistics_path(model_path)
     if not path.exists():
         raise FileNotFoundError(
@@ -326,9 +304,10 @@ def build_model(config: RunConfig, **kwargs: Any) -> Any:
     """
     :param config: The run.
     :param kwargs: More keyword arguments for the algorithm (e.g. ``device``), under the config's ``model_kwargs``.
-    :return: The run's untrained model, on a new training env (:func:`make_train_env`). Its ``critic_sharing`` is the
-        run's scheme, unless its ``model_kwargs`` name one: a variant of a scheme compared beside it in one study (e.g.
-        scheme ``"selected_next"`` with ``{"critic_sharing": "selected", "selector": {"k": 2, "target": "next"}}``).
+    :return: The run's untrained model, on a new training env
+        (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_train_env`). Its ``critic_sharing`` is the run's scheme,
+        unless its ``model_kwargs`` name one: a variant of a scheme compared beside it in one study (e.g. scheme
+        ``"selected_next"`` with ``{"critic_sharing": "selected", "selector": {"k": 2, "target": "next"}}``).
     """
     algorithm: Any = load_algorithm(config.algorithm)
     # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.

@@ -9,10 +9,10 @@ from typing import Any
 
 from sb3_maddpg.common.progress import format_seconds, log_line
 from sb3_maddpg.experiments.backends import Backend, Execution, SweepPlan, make_backend
-from sb3_maddpg.experiments.config import ExperimentConfig, RunConfig
 from sb3_maddpg.experiments.local_pool import LOST_RUN, OnResult
 from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, lock_results, write_experiment
 from sb3_maddpg.experiments.runner import never_updated_line, score_line
+from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig
 
 
 @dataclass
@@ -274,7 +274,6 @@ def finished_line(result: SweepResult) -> str:
 
 
 __all__ = [
-    "Execution",  # moved to backends (0.2 imported it from here)
     "SweepInterrupted",
     "SweepProgress",
     "SweepResult",

@@ -63,7 +63,7 @@ def check_env_name(env: Any) -> None:
 
 def task_team_size(env: str, env_kwargs: dict[str, Any] | None = None) -> int:
     """
-    :param env: A task other than simple_spread (see :class:`~sb3_maddpg.experiments.config.Setting`'s ``env``).
+    :param env: A task other than simple_spread (see :class:`~sb3_maddpg.experiments.setting.Setting`'s ``env``).
     :param env_kwargs: Its constructor's keyword arguments.
     :return: Its team size, read from one env of the task (its ``agent_layout``).
     """

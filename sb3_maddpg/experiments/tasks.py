@@ -1,7 +1,6 @@
 """The task a run trains on, derived once from its config (:func:`run_task`, :class:`RunTask`): its envs
 (simple_spread batched or on mpe2, another MPE task, a PettingZoo factory or a gymnasium id, as VecEnvs), the metrics
-it is scored by and their directions, its sides, its evaluation schedule and its description. The module's functions
-of a config are that object's values, by their old names."""
+it is scored by and their directions, its sides, its evaluation schedule and its description."""
 
 import dataclasses
 from collections.abc import Callable
@@ -175,29 +174,9 @@ def _describe(config: "RunConfig") -> str:
     return f"{config.n_envs} {config.env} env(s){normalized}"
 
 
-def env_factory(config: "RunConfig") -> Callable[[], gym.Env]:
-    """:return: ``run_task(config).env_factory()`` (:meth:`RunTask.env_factory`)."""
-    return run_task(config).env_factory()
-
-
-def make_task_vec_env(config: "RunConfig", n_envs: int) -> VecEnv:
-    """:return: ``run_task(config).make_env(n_envs)`` (:meth:`RunTask.make_env`)."""
-    return run_task(config).make_env(n_envs)
-
-
 def task_metrics(config: "RunConfig") -> tuple[DeclaredMetric, ...]:
     """:return: ``run_task(config).metrics`` (:class:`RunTask`)."""
     return run_task(config).metrics
-
-
-def task_sides(config: "RunConfig") -> dict[str, tuple[str, ...]]:
-    """:return: ``run_task(config).sides`` (:class:`RunTask`)."""
-    return run_task(config).sides
-
-
-def describe(config: "RunConfig") -> str:
-    """:return: ``run_task(config).description`` (:class:`RunTask`)."""
-    return run_task(config).description
 
 
 def metric_info(metric: str, env: str = DEFAULT_ENV) -> Metric:

@@ -23,12 +23,13 @@ import numpy as np
 from sb3_maddpg.analysis.evaluation import TeamEvalCallback
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.common.torch_threads import use_torch_threads
-from sb3_maddpg.experiments.config import DEFAULT_ENV, ExperimentConfig, RunConfig, merge_model_kwargs
-from sb3_maddpg.experiments.config import TUNE_OBJECTIVES as OBJECTIVES
+from sb3_maddpg.experiments.config import TUNE_OBJECTIVES
+from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.local_pool import worker_pool
 from sb3_maddpg.experiments.ray_tasks import ray_session
-from sb3_maddpg.experiments.runner import build_model, make_eval_env
-from sb3_maddpg.experiments.tasks import declared_metrics, task_metrics
+from sb3_maddpg.experiments.runner import build_model
+from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig, merge_model_kwargs
+from sb3_maddpg.experiments.tasks import declared_metrics, run_task, task_metrics
 
 HEARTBEAT_SECONDS = 60
 """How often a running trial tells the study it is alive; a trial silent for twice as long is failed and retried."""
@@ -80,16 +81,16 @@ def task_objectives(experiment: ExperimentConfig) -> dict[str, str]:
     What a study can optimise on the experiment's task, and in which direction.
 
     :param experiment: The setting.
-    :return: ``"minimize"`` or ``"maximize"`` by objective, the default first: on simple_spread :data:`OBJECTIVES`
-        (the min-dist sum first); on another MPE task its metrics (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`) in their
-        direction, e.g. ``goal_distance`` (minimised) or ``simple_tag``'s ``collisions`` (the catches, maximised),
-        then, for a cooperative task (every metric the whole team's), ``return_mean``; on any other task
-        ``return_mean``. A competitive task's team return would add opponents' rewards: it is not offered.
-        ``group_return`` (maximised) follows when the experiment scores a group (``score_agents``), e.g. the
-        adversaries of ``simple_tag``.
+    :return: ``"minimize"`` or ``"maximize"`` by objective, the default first: on simple_spread
+        :data:`~sb3_maddpg.experiments.config.TUNE_OBJECTIVES` (the min-dist sum first); on another MPE task its metrics
+        (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`) in their direction, e.g. ``goal_distance`` (minimised) or
+        ``simple_tag``'s ``collisions`` (the catches, maximised), then, for a cooperative task (every metric the whole
+        team's), ``return_mean``; on any other task ``return_mean``. A competitive task's team return would add
+        opponents' rewards: it is not offered. ``group_return`` (maximised) follows when the experiment scores a group
+        (``score_agents``), e.g. the adversaries of ``simple_tag``.
     """
     if experiment.env == DEFAULT_ENV:
-        objectives = dict(OBJECTIVES)
+        objectives = dict(TUNE_OBJECTIVES)
     else:
         metrics = declared_metrics(experiment.env)
         objectives = {metric.key: "minimize" if metric.better == "lower" else "maximize" for metric in metrics}
@@ -243,7 +244,7 @@ class TuneSettings:
         """
         :param model_kwargs: The trial's sampled keyword arguments.
         :return: The trial's run: the experiment's first run with the trial's budget, seed and kwargs over its own
-            (:func:`~sb3_maddpg.experiments.config.merge_model_kwargs`: its ``policy_kwargs`` are kept under the
+            (:func:`~sb3_maddpg.experiments.setting.merge_model_kwargs`: its ``policy_kwargs`` are kept under the
             sample's network width).
         """
         base = self.experiment.replace(seeds=(self.seed,)).runs()[0]
@@ -352,7 +353,7 @@ def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | N
         references,
         log=log,
         budget=settings.budget,
-        eval_env=make_eval_env(config, settings.eval_episodes),
+        eval_env=run_task(config).make_eval_env(settings.eval_episodes),
         eval_freq=settings.evaluation_step // env.num_envs,
         n_eval_episodes=settings.eval_episodes,
         seed=config.eval_seed,

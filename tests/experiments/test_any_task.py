@@ -13,7 +13,8 @@ from sb3_maddpg.envs import MPE_TASK_METRICS, make_simple_spread
 from sb3_maddpg.experiments import SMOKE, make_report, run_sweep
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.results import load_summaries
-from sb3_maddpg.experiments.runner import execute_run, make_env
+from sb3_maddpg.experiments.runner import execute_run
+from sb3_maddpg.experiments.tasks import run_task
 
 ADVERSARIES = ("adversary_0", "adversary_1", "adversary_2")
 
@@ -80,16 +81,16 @@ def test_group_return_is_the_sum_of_the_groups_returns() -> None:
 )
 def test_a_pettingzoo_factory_or_a_gymnasium_id(env: str, env_kwargs: dict, tmp_path: Path) -> None:
     config = run_config(env=env, env_kwargs=env_kwargs)
-    assert make_env(config, 2).num_envs == 2
+    assert run_task(config).make_env(2).num_envs == 2
     summary = execute_run(config, tmp_path, verbose=0)
     assert np.isfinite(summary["score"]["return_mean"])
 
 
 def test_bad_tasks_say_what_to_give(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="Unknown env 'simple_nonsense': use 'simple_spread', an MPE task"):
-        make_env(run_config(env="simple_nonsense"), 1)
+        run_task(run_config(env="simple_nonsense")).make_env(1)
     with pytest.raises(ValueError, match="names no importable function"):
-        make_env(run_config(env="mpe2.simple_push_v3:no_such_factory"), 1)
+        run_task(run_config(env="mpe2.simple_push_v3:no_such_factory")).make_env(1)
     with pytest.raises(ValueError, match="env must name a task"):
         run_config(env=" ")
 
@@ -113,6 +114,6 @@ def test_an_mpe_task_is_scored_by_its_own_metrics(tmp_path: Path) -> None:
 
 
 def test_simple_spread_takes_its_env_kwargs() -> None:
-    discrete = make_env(run_config(env_kwargs={"continuous_actions": False}), 2)
+    discrete = run_task(run_config(env_kwargs={"continuous_actions": False})).make_env(2)
     assert discrete.get_attr("agent_layout")[0].has_discrete_actions
-    assert not make_env(run_config(), 2).get_attr("agent_layout")[0].has_discrete_actions
+    assert not run_task(run_config()).make_env(2).get_attr("agent_layout")[0].has_discrete_actions

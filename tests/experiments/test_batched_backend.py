@@ -14,19 +14,12 @@ import torch
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.experiments import SMOKE, ExperimentConfig, group_recorder, group_state, make_report, run_sweep, runner
-from sb3_maddpg.experiments.batched import (
-    BatchedRunRefused,
-    check_batched,
-    group_state_path,
-    parse_seed_ranges,
-    plan_groups,
-    remove_stale_states,
-    seed_ranges,
-    train_group,
-)
+from sb3_maddpg.experiments.batched import train_group
 from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.experiments.group_plan import BatchedRunRefused, check_batched, plan_groups
+from sb3_maddpg.experiments.group_state import group_state_path, parse_seed_ranges, remove_stale_states, seed_ranges
 from sb3_maddpg.experiments.results import DONE_FILE, load_summaries
-from sb3_maddpg.experiments.runner import make_eval_env
+from sb3_maddpg.experiments.tasks import run_task
 from sb3_maddpg.run_group import RunGroup
 from sb3_maddpg.run_group.trainer import STATE_VERSION
 
@@ -107,7 +100,7 @@ def test_a_group_writes_the_runners_files(warm_up_results: dict[str, Path], tmp_
         for path in sorted((ours / "checkpoints").iterdir()):
             model = MADDPG.load(path, device="cpu")
             assert path.name == f"model_{model.num_timesteps}_steps.zip"
-        result = evaluate_team(model, make_eval_env(config, 2), n_episodes=2, seed=config.eval_seed)
+        result = evaluate_team(model, run_task(config).make_eval_env(2), n_episodes=2, seed=config.eval_seed)
         assert np.isfinite(result["min_dist_sum"])
         assert not list(ours.parent.glob("group_seeds_*.pt"))  # a finished group's state is deleted
     written = make_report(batched, tmp_path / "report", plots=False)

@@ -14,7 +14,7 @@ import pytest
 
 from sb3_maddpg.experiments import EXP1, EXP2, SMOKE, ExperimentConfig
 from sb3_maddpg.experiments.cli import main
-from sb3_maddpg.experiments.config import describe_setting, scaled_schedule
+from sb3_maddpg.experiments.setting import describe_setting, scaled_schedule
 
 REPO = Path(__file__).resolve().parents[2]
 

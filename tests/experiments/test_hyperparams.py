@@ -14,7 +14,7 @@ import sb3_maddpg.hyperparams as hyperparams
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import SimpleSpreadVecEnv
 from sb3_maddpg.experiments.config import EXP1, EXP1_TUNED, EXP2, EXP2_TUNED, load_experiment, tuned_experiment
-from sb3_maddpg.experiments.runner import make_env
+from sb3_maddpg.experiments.tasks import run_task
 from sb3_maddpg.hyperparams import load_hyperparams, tuned_settings
 
 PAPER_DEFAULTS = {
@@ -79,7 +79,7 @@ def test_tuned_presets_change_only_what_their_entry_says() -> None:
 def test_exp1_tuned_observes_landmarks_nearest_first_where_exp1_does_not() -> None:
     def sortedness(experiment: Any) -> float:
         run = experiment.runs()[0]
-        env = make_env(dataclasses.replace(run, n_envs=50))
+        env = run_task(dataclasses.replace(run, n_envs=50)).make_env()
         distances = landmark_distances(env.reset(), run.n_agents)
         return float(np.mean(np.all(np.diff(distances, axis=-1) >= 0, axis=-1)))
 

@@ -10,7 +10,8 @@ from typing import Any
 import pytest
 
 from sb3_maddpg.compat import renamed_in_0_3
-from sb3_maddpg.experiments.config import EXPERIMENTS, ExperimentConfig, RunConfig, Setting
+from sb3_maddpg.experiments.config import EXPERIMENTS
+from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig, Setting
 
 ROOT = Path(__file__).resolve().parents[2]
 STORED = sorted(ROOT.glob("benchmarks/*/results/**/config.json")) + sorted(

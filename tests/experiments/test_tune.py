@@ -23,7 +23,7 @@ from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread
 from sb3_maddpg.experiments import SMOKE
 from sb3_maddpg.experiments.cli import main
-from sb3_maddpg.experiments.config import ExperimentConfig
+from sb3_maddpg.experiments.setting import ExperimentConfig
 from sb3_maddpg.experiments.tune import (
     TrialEvalCallback,
     TuneSettings,

@@ -14,16 +14,16 @@ from stable_baselines3.common.vec_env import VecNormalize
 from sb3_maddpg import MADDPG
 from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.experiments import SMOKE, run_sweep
-from sb3_maddpg.experiments.batched import BatchedRunRefused, check_batched
 from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.experiments.group_plan import BatchedRunRefused, check_batched
 from sb3_maddpg.experiments.runner import (
     NormalizedObservationPolicy,
     build_model,
     final_behaviour,
     load_observation_statistics,
-    make_eval_env,
     statistics_path,
 )
+from sb3_maddpg.experiments.tasks import run_task
 
 
 def checkpoints(directory: Path) -> list[Path]:
@@ -54,7 +54,7 @@ def test_each_checkpoint_is_scored_with_its_own_statistics(finished_run: Path) -
     for row, path in zip(rows, models):
         assert statistics_path(path).exists()
         model = MADDPG.load(path, device="cpu")
-        eval_env = make_eval_env(config, config.eval_episodes)
+        eval_env = run_task(config).make_eval_env(config.eval_episodes)
         load_observation_statistics(eval_env, path)
         scored = evaluate_team(model, eval_env, n_episodes=config.eval_episodes, seed=config.eval_seed)
         assert scored["return_mean"] == pytest.approx(float(row["return_mean"]))
@@ -72,7 +72,7 @@ def test_the_behaviour_is_read_from_raw_observations(finished_run: Path) -> None
         last = list(csv.DictReader(file))[-1]
     assert summary["behaviour"]["min_dist_sum"] == pytest.approx(float(last["min_dist_sum"]), rel=1e-5)
     path = checkpoints(finished_run)[-1]
-    eval_env = make_eval_env(config, config.eval_episodes)
+    eval_env = run_task(config).make_eval_env(config.eval_episodes)
     load_observation_statistics(eval_env, path)
     again = final_behaviour(config, MADDPG.load(path, device="cpu"), eval_env)
     assert again == pytest.approx(summary["behaviour"])
@@ -94,7 +94,7 @@ def test_a_normalising_run_uses_obs_only_vecnormalize_and_the_wrapper_normalises
 def test_missing_statistics_and_run_groups_are_refused(tmp_path: Path) -> None:
     config = NORMALIZED.runs()[0]
     with pytest.raises(FileNotFoundError, match=r"model_5_steps.vecnormalize.pkl is missing: a run that normalises"):
-        load_observation_statistics(make_eval_env(config, 2), tmp_path / "model_5_steps.zip")
+        load_observation_statistics(run_task(config).make_eval_env(2), tmp_path / "model_5_steps.zip")
     with pytest.raises(BatchedRunRefused, match=r"normalized/full/seed_000 .*cannot train in a run group.*VecNormalize"):
         check_batched(NORMALIZED.runs(), device="cpu")
 

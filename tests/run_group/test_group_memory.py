@@ -10,7 +10,7 @@ import torch as th
 
 import sb3_maddpg.run_group.memory as memory
 from sb3_maddpg.experiments import SMOKE, ExperimentConfig, run_sweep
-from sb3_maddpg.experiments.batched import BatchedRunRefused, check_batched, memory_bound, plan_groups
+from sb3_maddpg.experiments.group_plan import BatchedRunRefused, check_batched, memory_bound, plan_groups
 from sb3_maddpg.experiments.runner import build_model
 from sb3_maddpg.run_group import RunGroup
 from sb3_maddpg.run_group.memory import run_buffer_nbytes, runs_that_fit
