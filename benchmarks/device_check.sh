@@ -13,13 +13,7 @@ DEVICE="${DEVICE:-cuda}"
 RUNS="${RUNS:-31 155}"
 STEPS="${STEPS:-10000}"
 BUFFER="${BUFFER:-100000}"  # per run: 155 runs' 1M-transition buffers would not fit; a batch's gathers cost the same
-export SDL_VIDEODRIVER=dummy PYTHONUNBUFFERED=1
-if ! python3 -c "import stable_baselines3" 2>/dev/null; then  # the device machine has torch, not the rest: carried as wheels
-    python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
-    export PYTHONPATH="/tmp/site:$PWD"
-fi
-nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>&1 | tee "$OUT/device.txt"
-python3 -c "import torch, stable_baselines3, sb3_maddpg; print('torch', torch.__version__, 'cuda', torch.cuda.is_available(), 'sb3', stable_baselines3.__version__)" | tee -a "$OUT/device.txt"
+source benchmarks/device_setup.sh  # the carried wheels installed; the machine described in $OUT/device.txt
 if [ -z "${SKIP_TESTS:-}" ]; then
     # The test files with CUDA cases (they skip without a GPU, so CI never runs them); the compiled ones compile.
     timeout 140 python3 -m pytest -q -p no:cacheprovider -n 8 tests/run_group tests/envs/test_torch_worlds.py -rs \
