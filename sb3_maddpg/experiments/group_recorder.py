@@ -156,7 +156,7 @@ class GroupRecorder(GroupCallback):
         if resumed is not None:
             self.progress.log(f"{self.progress.run_id}: resumed at {group.num_timesteps:,} steps per run")
         if group.compiled:
-            self.progress.log(f"{self.progress.run_id}: compiling the gradient step at the first updates (tens of seconds)")
+            self.progress.log(f"{self.progress.run_id}: compiling the rounds at the first steps and updates (tens of seconds)")
 
     def _resume_callbacks(self, runs: Sequence[dict[str, Any]], calls: int) -> None:
         """
@@ -228,7 +228,7 @@ class GroupRecorder(GroupCallback):
         point has passed since the last save."""
         if group.compile_seconds > self.compile_said:
             self.compile_said = group.compile_seconds
-            self.progress.log(f"{self.progress.run_id}: gradient step compiled in {group.compile_seconds:.0f} s so far")
+            self.progress.log(f"{self.progress.run_id}: rounds compiled in {group.compile_seconds:.0f} s so far")
         steps = group.num_timesteps
         if any(self.saved_at < point <= steps for point in self.save_points):
             self.save(group)

@@ -53,9 +53,22 @@ class CompiledPart:
         if first:
             self.seconds += time.perf_counter() - start
             self._seen.add(key)
-        if self.mode == "reduce-overhead":
+        if captures(self.mode):
             result = tree_map(lambda value: value.clone() if isinstance(value, th.Tensor) else value, result)
         return result
+
+
+def captures(mode: str | None) -> bool:
+    """
+    :param mode: A ``torch.compile`` mode, or None (its default).
+    :return: Whether the mode replays CUDA graphs (``"reduce-overhead"``, ``"max-autotune"``): on a GPU, its part's
+        outputs are the graph's memory, which the next replay reuses.
+    """
+    if mode is None:
+        return False
+    from torch._inductor import list_mode_options  # the compiler's own table of what each mode turns on
+
+    return bool(list_mode_options(mode).get("triton.cudagraphs", False))
 
 
 def mark_static(tensors: list[th.Tensor]) -> None:

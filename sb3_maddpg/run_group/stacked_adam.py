@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import torch as th
+import torch.optim.adam as adam_module
 from torch.optim.adam import adam
 
 
@@ -82,6 +83,11 @@ class StackedAdam:
         )
         return stacked
 
+    @staticmethod
+    def capturable_on(device: th.device) -> bool:
+        """:return: Whether torch runs Adam's capturable form eagerly on ``device`` (a GPU: yes; a CPU or MPS: no)."""
+        return device.type in adam_module._get_capturable_supported_devices()
+
     @property
     def lr(self) -> float:
         """The learning rate (the host form's, and what a model written back gets: exactly the schedule's value)."""
@@ -102,6 +108,8 @@ class StackedAdam:
             other form (the learning rate read on the host), which differs from it by float rounding.
         """
         settings = self.defaults
+        # Only when set: torch's Adam function takes it from 2.7 on (AdamW's form).
+        extra: dict[str, Any] = {"decoupled_weight_decay": True} if settings.get("decoupled_weight_decay") else {}
         with th.no_grad():
             adam(
                 self.params,
@@ -112,7 +120,6 @@ class StackedAdam:
                 self.steps,
                 foreach=True,
                 capturable=capturable,
-                decoupled_weight_decay=bool(settings.get("decoupled_weight_decay", False)),
                 amsgrad=bool(settings["amsgrad"]),
                 beta1=settings["betas"][0],
                 beta2=settings["betas"][1],
@@ -120,6 +127,7 @@ class StackedAdam:
                 weight_decay=settings["weight_decay"],
                 eps=settings["eps"],
                 maximize=bool(settings["maximize"]),
+                **extra,
             )
 
     def run_state(self, run: int) -> dict[int, dict[str, th.Tensor]]:
@@ -138,8 +146,11 @@ class StackedAdam:
         return {"state": state if float(self.steps[0]) > 0 else {}, "param_groups": [{**self.defaults, "lr": self.lr}]}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """:param state: A state of :meth:`state_dict` (its tensors on any device)."""
+        """:param state: A state of :meth:`state_dict` (its tensors on any device); an empty one is Adam before its
+        first step."""
         with th.no_grad():
+            for tensor in (*self.exp_avgs, *self.exp_avg_sqs, *self.max_exp_avg_sqs, *self.steps):
+                tensor.zero_()
             for index, entry in state["state"].items():
                 self.steps[index].fill_(float(entry["step"]))
                 self.exp_avgs[index].copy_(entry["exp_avg"])

@@ -18,7 +18,7 @@ from sb3_maddpg.common.update_step import GroupFunctions, StepLosses, summarise_
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.run_group.buffer import RunReplayBuffers, buffer_capacity
 from sb3_maddpg.run_group.checks import check_models
-from sb3_maddpg.run_group.compiled import CompiledPart, mark_static
+from sb3_maddpg.run_group.compiled import CompiledPart, captures, mark_static
 from sb3_maddpg.run_group.selection import DeviceSelector
 from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams
 from sb3_maddpg.run_group.stacked_adam import StackedAdam
@@ -80,8 +80,9 @@ class RunGroup:
         of every run's worlds (actions, physics, selections) and each gradient step (its batch drawn, critics, actors,
         targets). ``True``: inductor's default mode, and on CUDA the gradient step captured as CUDA graphs (mode
         ``"reduce-overhead"``); a string: that mode for both. The first calls compile (tens of seconds:
-        :attr:`compile_seconds`); results differ from eager ones by float rounding. Torch keeps a few graphs per
-        function (``torch._dynamo.config.cache_size_limit``), and another group is another graph: call
+        :attr:`compile_seconds`); results differ from eager ones by float rounding. Groups of the same settings
+        share their graphs; on CUDA, alternating between two live captured groups re-records them at each switch, and
+        groups of other settings add graphs up to torch's limit (``torch._dynamo.config.cache_size_limit``): call
         ``torch._dynamo.reset()`` before compiling a new group once the last one is done.
     """
 
@@ -153,8 +154,9 @@ class RunGroup:
         self.compiled = bool(compile)
         # A mode by name is the user's; else CUDA graphs for the gradient step on a GPU, inductor's default elsewhere.
         update_mode = compile if isinstance(compile, str) else "reduce-overhead" if self.device.type == "cuda" else None
-        env_mode = compile if isinstance(compile, str) else None  # the env step keeps state across calls: no capture
-        if self.compiled and update_mode == "reduce-overhead":
+        # The env step replaces the worlds' state between calls: never captured (a capturing mode: the default here).
+        env_mode = None if captures(update_mode) else update_mode
+        if self.compiled and captures(update_mode):
             self._mark_static()
         self._update = CompiledPart(self._gradient_step, update_mode, self.compiled)
         self._sampled_update = CompiledPart(self._sample_and_step, update_mode, self.compiled)
@@ -191,7 +193,7 @@ class RunGroup:
         """One gradient step of every run on ``batch``; Adam in its capturable form where torch allows it (a
         compiled step, a GPU), else (eager on a CPU) in its host form."""
         optimizers = (self.actor_optimizer, self.critic_optimizer)
-        capturable = self.compiled or self.device.type != "cpu"
+        capturable = self.compiled or StackedAdam.capturable_on(self.device)
         return update_step(self.networks, optimizers, batch, self.settings, actor_due, capturable=capturable)
 
     def _sample_and_step(self, actor_due: bool) -> StepLosses:
@@ -352,14 +354,16 @@ class RunGroup:
         (:meth:`GroupCallback.on_round_end`), :meth:`load_state_dict` continues the same training exactly, on this
         device or another (the random streams' state means the same on every device).
 
-        :param copy_buffers: Copy the buffers' filled rows on the device, for a state kept in memory while the group
-            trains on. ``False`` (the default), to ``torch.save`` the state at once: full buffers are the group's own
-            tensors (no second copy on the device: groups are sized to fill it) and partly filled ones' rows are
-            copied to host memory; such a state changes as the group trains on.
+        :param copy_buffers: Copy the buffers' filled rows (and the worlds' state) on the device, for a state kept in
+            memory while the group trains on. ``False`` (the default), to ``torch.save`` the state at once: full
+            buffers are the group's own tensors (no second copy on the device: groups are sized to fill it) and partly
+            filled ones' rows are copied to host memory; such a state changes as the group trains on.
         :return: The state.
         """
         teams, buffers = self.teams, self.buffers
         worlds = self.worlds
+        # The worlds' tensors change in place as the group steps: copied for a state kept in memory.
+        kept = (lambda tensor: tensor.clone()) if copy_buffers else (lambda tensor: tensor)
         return {
             "version": STATE_VERSION,
             "seeds": list(self.seeds),
@@ -374,10 +378,10 @@ class RunGroup:
             "worlds": None
             if worlds is None
             else {
-                "state": [worlds.worlds.agent_pos, worlds.worlds.agent_vel, worlds.worlds.landmark_pos],
+                "state": [kept(worlds.worlds.agent_pos), kept(worlds.worlds.agent_vel), kept(worlds.worlds.landmark_pos)],
                 "steps": worlds.steps,
-                "observations": worlds.observations,
-                "agent_returns": worlds._agent_returns,
+                "observations": kept(worlds.observations),
+                "agent_returns": kept(worlds._agent_returns),
                 "episodes": th.stack(worlds.episodes) if worlds.episodes else None,
                 "agent_episodes": th.stack(worlds.agent_episodes) if worlds.agent_episodes else None,
             },

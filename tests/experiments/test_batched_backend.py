@@ -391,8 +391,8 @@ def test_compile_trains_the_groups_compiled_and_says_its_compile_time(tmp_path: 
     assert len(logs) == 2
     for log in logs:
         text = log.read_text()
-        assert "compiling the gradient step at the first updates" in text
-        assert "gradient step compiled in" in text, text
+        assert "compiling the rounds at the first steps and updates" in text
+        assert "rounds compiled in" in text, text
         assert (log.parent / DONE_FILE).is_file()
     assert ", compiled" in next(tmp_path.rglob("sweep.log")).read_text()
 

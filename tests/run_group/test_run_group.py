@@ -584,3 +584,16 @@ def test_each_agents_episode_returns_are_its_stored_rewards_summed() -> None:
     th.testing.assert_close(agents, expected, rtol=1e-5, atol=1e-4)
     th.testing.assert_close(agents.sum(dim=-1), team, rtol=1e-5, atol=1e-4)
     assert th.equal(group.state_dict()["worlds"]["agent_episodes"], agents)
+
+
+def test_a_copied_state_does_not_change_as_the_group_trains_on() -> None:
+    """``state_dict(copy_buffers=True)`` is a snapshot: the worlds' positions, velocities and episode returns too
+    (they change in place as the worlds step)."""
+    group = RunGroup([make_model(seed) for seed in (0, 1)]).learn(200)
+    kept = group.state_dict(copy_buffers=True)
+    expected = copy.deepcopy(kept)
+    group.learn(40)
+    worlds, before = kept["worlds"], expected["worlds"]
+    for name in ("state", "observations", "agent_returns"):
+        pairs = zip(worlds[name], before[name]) if name == "state" else [(worlds[name], before[name])]
+        assert all(th.equal(a, b) for a, b in pairs), name

@@ -82,3 +82,14 @@ def test_models_at_different_steps_are_refused() -> None:
             optimizer.step()
     with pytest.raises(ValueError, match=r"^The models' optimisers are at different steps \(\[1\.0, 2\.0\]\)"):
         StackedAdam.of_models(params, optimizers)
+
+
+def test_the_capturable_form_where_torch_runs_it_eagerly_and_an_empty_state_is_adam_before_its_first_step() -> None:
+    """Eager on a CPU or MPS, torch refuses the capturable form: a group there takes the host form."""
+    assert StackedAdam.capturable_on(th.device("cuda")) and not StackedAdam.capturable_on(th.device("cpu"))
+    assert not StackedAdam.capturable_on(th.device("mps"))
+    params, grads = runs_and_grads()
+    stacked = StackedAdam([p.clone() for p in params], th.optim.Adam([th.zeros(1)]).defaults)
+    stacked.step(grads[0], capturable=False)
+    stacked.load_state_dict({"state": {}, "param_groups": [{"lr": 1e-3}]})
+    assert float(stacked.steps[0]) == 0 and all(not m.any() for m in (*stacked.exp_avgs, *stacked.exp_avg_sqs))
