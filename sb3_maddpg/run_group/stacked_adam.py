@@ -146,8 +146,10 @@ class StackedAdam:
         return {"state": state if float(self.steps[0]) > 0 else {}, "param_groups": [{**self.defaults, "lr": self.lr}]}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """:param state: A state of :meth:`state_dict` (its tensors on any device); an empty one is Adam before its
-        first step."""
+        """
+        :param state: A state of :meth:`state_dict` (its tensors on any device); an empty one is Adam before its
+            first step.
+        """
         with th.no_grad():
             for tensor in (*self.exp_avgs, *self.exp_avg_sqs, *self.max_exp_avg_sqs, *self.steps):
                 tensor.zero_()
