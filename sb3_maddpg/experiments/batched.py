@@ -361,6 +361,22 @@ def _train_group_task(
     return train_group(configs, results_dir, device=device, verbose=verbose, compile=compile)
 
 
+def _compiled_note(compile: bool | None, groups: Sequence[Sequence[RunConfig]], device: str | None) -> str:
+    """
+    :param compile: ``--compile`` (None: where it pays, :func:`compile_pays`).
+    :param groups: The planned groups.
+    :param device: Their device (None under Ray: the workers' is not known here).
+    :return: What the sweep log says of compiling (``""``: nothing compiles, or it is not known).
+    """
+    if compile is not None or device is None:
+        return ", compiled" if compile else ""
+    budgets = {config.total_timesteps for group in groups for config in group}
+    paying = [steps for steps in budgets if compile_pays(steps, resolve_device(device))]
+    if not paying:
+        return ""
+    return ", compiled" if len(paying) == len(budgets) else f", compiled where runs have {COMPILE_FROM_STEPS:,} steps or more"
+
+
 class GroupBackend:
     """
     Runs in run groups, one group after another in this process (``--backend batched``).
@@ -401,7 +417,7 @@ class GroupBackend:
     def _plan(self, groups: list[list[RunConfig]], results_dir: str, notes: list[str]) -> SweepPlan:
         parallel = max((len(group) for group in groups), default=1)  # a group's runs finish together
         where = f"in {len(groups)} run group(s) of up to {parallel} run(s) on {self.execution.device}"
-        where += ", compiled" if self.execution.compile else ""
+        where += _compiled_note(self.execution.compile, groups, None if self.on_ray else self.execution.device)
         return SweepPlan(results_dir, groups, parallel, where + (", a Ray task each" if self.on_ray else ""), notes)
 
     def run(self, plan: SweepPlan, on_result: OnResult, progress: SweepLog) -> None:

@@ -404,3 +404,17 @@ def test_groups_compile_by_default_where_it_was_measured_to_pay() -> None:
     cpu, cuda = torch.device("cpu"), torch.device("cuda")
     assert compile_pays(COMPILE_FROM_STEPS, cpu) and compile_pays(2_500_000, cpu)
     assert not compile_pays(COMPILE_FROM_STEPS - 1, cpu) and not compile_pays(2_500_000, cuda)
+
+
+def test_the_sweep_log_says_whether_groups_compile_by_default(tmp_path: Path) -> None:
+    from sb3_maddpg.experiments.backends import Execution, make_backend
+
+    long = tiny(episodes=40_000)  # 1M env steps per run: a CPU group compiles
+    assert long.runs()[0].total_timesteps == 1_000_000
+    by_default = make_backend(Execution("batched", device="cpu"))
+    assert by_default.plan(long.runs(), str(tmp_path)).where.endswith(", compiled")
+    assert "compiled" not in by_default.plan(tiny().runs(), str(tmp_path)).where
+    assert (
+        "compiled"
+        not in make_backend(Execution("batched", device="cpu", compile=False)).plan(long.runs(), str(tmp_path)).where
+    )
