@@ -164,8 +164,9 @@ class RunGroup:
 
     @property
     def compile_seconds(self) -> float:
-        """Seconds spent compiling so far (each part's first calls: with and without the actors' update, before and
-        after ``learning_starts``)."""
+        """Seconds spent compiling so far: each part's first call with each value of its Python arguments (with and
+        without the actors' update, before and after ``learning_starts``). Not counted: recompiles for another batch
+        shape given to :meth:`update`, and on CUDA graphs their recording, which torch does at the next calls."""
         return sum(part.seconds for part in (self._update, self._sampled_update, self._env_step))
 
     # ----- updates -----
