@@ -169,7 +169,7 @@ class GroupFunctions:
             (MATD3: ``[M, 2, n_agents]``).
         """
         noise = self.members.normal_like(batch.actions) if self.smooths else None
-        step = _clipped_gradients(self._critic, "critic", max_norm, self.members.clip_groups("critic"))
+        step = _clipped_gradients(self._critic, max_norm, self.members.clip_groups("critic"))
         calls = vmap(step, in_dims=(0, 0, _batch_dims(batch), None, None if noise is None else 0))
         trained, others = _split(self.members.stacked_parameters(), "critic")
         return calls(trained, others, batch, gamma, noise)  # type: ignore[no-any-return]
@@ -183,7 +183,7 @@ class GroupFunctions:
 
         :return: The gradients by ``actor.<parameter name>`` (``[M, ...]`` each) and the terms (``[M, n_agents]`` each).
         """
-        step = _clipped_gradients(self._actor, "actor", max_norm, self.members.clip_groups("actor"))
+        step = _clipped_gradients(self._actor, max_norm, self.members.clip_groups("actor"))
         calls = vmap(step, in_dims=(0, 0, _batch_dims(batch), None))
         trained, others = _split(self.members.stacked_parameters(), "actor")
         return calls(trained, others, batch, reg_coef)  # type: ignore[no-any-return]
@@ -206,14 +206,14 @@ def _split(params: dict[str, th.Tensor], module: str) -> tuple[dict[str, th.Tens
 
 
 def _clipped_gradients(
-    call: Callable[..., Any], module: str, max_norm: float | None, clip_groups: list[list[str]]
+    call: Callable[..., Any], max_norm: float | None, clip_groups: list[list[str]]
 ) -> Callable[..., tuple[dict[str, th.Tensor], Any]]:
     """
-    One member's gradient step function: the gradients of ``call``'s losses (summed) with respect to ``module``'s
-    parameters, each network's clipped on its own (:func:`clip_per_agent` on each group of ``clip_groups``).
+    One member's gradient step function: the gradients of ``call``'s losses (summed) with respect to its first
+    argument's parameters (the trained module's), each network's clipped on its own (:func:`clip_per_agent` on each
+    group of ``clip_groups``).
 
     :param call: A member call (:func:`_member_call`) returning the losses (a tensor, or terms with a ``total``).
-    :param module: ``"actor"`` or ``"critic"``.
     :param max_norm: The largest norm of each agent's gradient, or None for no clipping.
     :param clip_groups: The names of the parameters clipped together (a network and its twin apart).
     """

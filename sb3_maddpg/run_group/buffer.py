@@ -286,7 +286,8 @@ class RunReplayBuffers:
         :param streams: The runs' random streams, on the buffers' device.
         :return: Each run's batch, ``[R, batch_size, ...]`` each field.
         """
-        return self.get(self.sample_rows(batch_size, streams))
+        self.check_sample(streams)
+        return self.draw(batch_size, streams)
 
     # ----- save and resume -----
 

@@ -25,10 +25,10 @@ class CompiledPart:
     """
 
     def __init__(self, function: Callable[..., Any], mode: str | None, compile: bool) -> None:
-        self.eager = function
-        self.mode = mode if compile else None
         self.function = th.compile(function, fullgraph=True, mode=mode) if compile else function
         self.compiled = compile
+        self.copies_outputs = compile and captures(mode)
+        """Whether the outputs are copied out of the CUDA graphs' memory (a capturing mode)."""
         self.seconds = 0.0
         """Seconds spent in first calls (compiling) so far."""
         self._seen: set[Hashable] = set()
@@ -41,19 +41,20 @@ class CompiledPart:
         """
         if not self.compiled:
             return self.function(*args)
-        first = key not in self._seen
-        start = time.perf_counter()
-        with warnings.catch_warnings():
-            # The worlds' array namespace is looked up through array_api_compat's lru_cache-d helpers: a type's module,
-            # which tracing through the cache gets exactly (torch warns of the cache it ignores, once per helper).
-            warnings.filterwarnings(
-                "ignore", message="Dynamo detected a call to a `functools.lru_cache`", category=UserWarning
-            )
+        if key in self._seen:
             result = self.function(*args)
-        if first:
+        else:  # this key's first call: it compiles
+            start = time.perf_counter()
+            with warnings.catch_warnings():
+                # The worlds' array namespace is looked up through array_api_compat's lru_cache-d helpers (a type's
+                # module), which tracing through the cache gets exactly: torch warns of the cache it ignores.
+                warnings.filterwarnings(
+                    "ignore", message="Dynamo detected a call to a `functools.lru_cache`", category=UserWarning
+                )
+                result = self.function(*args)
             self.seconds += time.perf_counter() - start
             self._seen.add(key)
-        if captures(self.mode):
+        if self.copies_outputs:
             result = tree_map(lambda value: value.clone() if isinstance(value, th.Tensor) else value, result)
         return result
 

@@ -199,7 +199,7 @@ class RunGroup:
 
     def _sample_and_step(self, actor_due: bool) -> StepLosses:
         """A batch drawn from each run's buffer by its stream (:meth:`_sample`, checked before), then its step."""
-        return self._gradient_step(self._sample(checked=True), actor_due)
+        return self._gradient_step(self._sample(), actor_due)
 
     def _mark_static(self) -> None:
         """The tensors a captured gradient step reads or changes in place, read where they are (CUDA graphs:
@@ -226,16 +226,11 @@ class RunGroup:
         if steps:
             self.losses = summarise_steps(steps)
 
-    def _sample(self, checked: bool = False) -> MultiAgentReplayBufferSamples:
-        """Each run's batch; with a selector whose ``target`` is ``"next"``, the target's selection made from the next
-        observations, as :class:`~sb3_maddpg.common.buffers.MultiAgentReplayBuffer` makes it.
-
-        :param checked: Whether the buffers were checked before (:meth:`RunReplayBuffers.check_sample`): then the draw
-            reads no Python value that changes as they fill (a compiled step's)."""
-        if checked:
-            batch = self.buffers.draw(self.batch_size, self.streams)
-        else:
-            batch = self.buffers.sample(self.batch_size, self.streams)
+    def _sample(self) -> MultiAgentReplayBufferSamples:
+        """Each run's batch (the buffers checked before, by :meth:`train`: the draw reads no Python value that changes
+        as they fill); with a selector whose ``target`` is ``"next"``, the target's selection made from the next
+        observations, as :class:`~sb3_maddpg.common.buffers.MultiAgentReplayBuffer` makes it."""
+        batch = self.buffers.draw(self.batch_size, self.streams)
         if self.select is not None and self.selector is not None and self.selector.target == "next":
             batch = batch._replace(next_selections=self.select(batch.next_observations))
         return batch
