@@ -1,5 +1,11 @@
-"""Compatibility with older versions of sb3-maddpg, in one place: the import paths that 0.3 moved, and what a model
-saved by an older version implies for what it lacks.
+"""Compatibility with older versions of sb3-maddpg, in one place: the version written into every save and stored
+config, the one migration of each kind of file keyed on it (:func:`migrate_saved_model`, :func:`migrate_stored_config`),
+the import paths that 0.3 moved, and what a file written by an older version implies for what it lacks.
+
+Since 0.3.0, a saved model's attributes and every ``config.json`` and ``experiment.json`` of a results directory hold
+:data:`VERSION_KEY`: the sb3-maddpg version that wrote them. A file without it was written before (0.1, 0.2 or 0.3's
+development versions), and is read as those wrote it; a file of a newer version than the installed one is refused,
+saying to upgrade.
 
 0.3 gave the package SB3's shape (``maddpg/``, ``matd3/``, ``common/``, ``analysis/``); the module paths of 0.2 are
 gone (:data:`MOVED_IN_0_3` says where each went), except while a save is read (:func:`old_module_paths`): saved
@@ -20,14 +26,22 @@ import sys
 import types
 import warnings
 import zipfile
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from typing import Any
 
+from packaging.version import InvalidVersion, Version
 from stable_baselines3.common.save_util import json_to_data, open_path
 
 from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.common.user_code import user_stacklevel
+from sb3_maddpg.version import __version__
+
+VERSION_KEY = "sb3_maddpg_version"
+"""The key of the version that wrote a file: an attribute of a saved model, a key of a stored config."""
+
+STORED_BEFORE_0_2 = {"vec_env": "mpe2", "n_envs": 1}
+"""The values of the config fields that files written before 0.2 lack: those runs stepped one mpe2 env each."""
 
 SAVED_BEFORE_0_2: dict[str, Callable[[], Any]] = {
     "update_rule": UpdateSchedule.sb3_semantics,  # SB3's train_freq counted vectorised steps
@@ -126,6 +140,94 @@ def schedule_of_0_2_dev(attributes: dict[str, Any]) -> UpdateSchedule:
         credit=attributes.pop("_update_credit"),
         counted_at=attributes.pop("_credited_timesteps", 0),
     )
+
+
+def written_by(data: Mapping[str, Any], what: str) -> Version | None:
+    """
+    :param data: A saved model's attributes or a stored config.
+    :param what: What ``data`` is, for the error (e.g. ``"model saved"``).
+    :return: The sb3-maddpg version that wrote it (:data:`VERSION_KEY`), ``None`` for one written before 0.3.0; a
+        ``ValueError`` for a version newer than the installed one, whose fields this one may not know.
+    """
+    stored = data.get(VERSION_KEY)
+    if stored is None:
+        return None
+    try:
+        version = Version(str(stored))
+    except InvalidVersion:
+        raise ValueError(f"The {what} says it was written by sb3-maddpg {stored!r}, which is no version number.") from None
+    if version > Version(__version__):
+        raise ValueError(
+            f"The {what} was written by sb3-maddpg {version}, newer than the installed {__version__}: upgrade "
+            "sb3-maddpg (pip install -U sb3-maddpg) to read it."
+        )
+    return version
+
+
+def with_version(stored: dict[str, Any]) -> dict[str, Any]:
+    """
+    :param stored: A config as written to a results directory (``to_dict()``).
+    :return: The same keys, then :data:`VERSION_KEY` with the installed version: what :func:`migrate_stored_config`
+        reads back.
+    """
+    return {**stored, VERSION_KEY: __version__}
+
+
+def migrate_stored_config(data: Mapping[str, Any]) -> dict[str, Any]:
+    """
+    The one reading of a stored experiment or run config (``experiment.json``, ``config.json``) of any version.
+
+    :param data: The file's object.
+    :return: Its fields as this version names them, :data:`VERSION_KEY` removed. A file written before 0.3.0 gets the
+        values its version ran with for what it lacks (:data:`STORED_BEFORE_0_2`) and 0.3's names for renamed
+        ``model_kwargs`` (:data:`RENAMED_IN_0_3`, in ``scheme_model_kwargs`` too); a file of 0.3.0 or later is this
+        version's format. A file of a newer version is refused (:func:`written_by`).
+    """
+    fields = dict(data)
+    version = written_by(fields, "stored config")
+    fields.pop(VERSION_KEY, None)
+    if version is not None:
+        return fields
+    fields = {**STORED_BEFORE_0_2, **fields}
+    if isinstance(fields.get("model_kwargs"), dict):
+        fields["model_kwargs"] = renamed_in_0_3(fields["model_kwargs"])
+    if isinstance(fields.get("scheme_model_kwargs"), dict):
+        fields["scheme_model_kwargs"] = {
+            scheme: renamed_in_0_3(kwargs) if isinstance(kwargs, dict) else kwargs
+            for scheme, kwargs in fields["scheme_model_kwargs"].items()
+        }
+    return fields
+
+
+def migrate_saved_model(data: Mapping[str, Any] | None) -> dict[str, Any]:
+    """
+    The one reading of a saved model of any version, before SB3's ``load`` sets its attributes.
+
+    :param data: The save's attributes (:func:`read_saved_data`; ``None`` where they cannot be read: ``load`` then
+        says why).
+    :return: The attributes to set over the saved ones: for a save before 0.3.0, what it lacks (the values its version
+        implies: :func:`attributes_missing_from`) and what it holds under an old name under the new one
+        (:data:`RENAMED_IN_0_3`); for a save of 0.3.0 or later, none. A save of a newer version is refused
+        (:func:`written_by`). :func:`drop_old_attributes` then removes what the loaded model must not keep.
+    """
+    if data is None or written_by(data, "model") is not None:
+        return {}
+    renamed = {new: data[old] for old, new in RENAMED_IN_0_3.items() if old in data}
+    return {**attributes_missing_from(dict(data)), **renamed}
+
+
+def drop_old_attributes(attributes: dict[str, Any]) -> None:
+    """
+    Remove from a loaded model what its save held that the model must not keep: the version that wrote it (the next
+    save writes its own), the attributes a save before 0.3 holds under an old name (:meth:`load
+    <sb3_maddpg.common.team_algorithm.TeamOffPolicyAlgorithm.load>` passed their values under the new one) and a 0.2.0
+    development save's schedule attributes.
+
+    :param attributes: A loaded model's ``__dict__``.
+    """
+    attributes.pop(VERSION_KEY, None)
+    drop_names_before_0_3(attributes)
+    pop_0_2_dev_schedule(attributes)
 
 
 def read_saved_data(

@@ -8,7 +8,7 @@ into SB3's loop; the logs; loading saves of older versions.
 import io
 import pathlib
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
@@ -37,14 +37,15 @@ from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.common.user_code import user_stacklevel
 from sb3_maddpg.compat import (
     RENAMED_IN_0_3,
-    attributes_missing_from,
-    drop_names_before_0_3,
+    VERSION_KEY,
+    drop_old_attributes,
+    migrate_saved_model,
     old_module_paths,
-    pop_0_2_dev_schedule,
     read_saved_data,
     renamed_argument,
 )
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent
+from sb3_maddpg.version import __version__
 
 if TYPE_CHECKING:  # the algorithms' policy; the base class only names its type
     from sb3_maddpg.maddpg.policies import MADDPGPolicy
@@ -120,9 +121,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             raise ValueError(f"{type(self).__name__} needs an env to read the agent layout from (or a saved model to load).")
         if self.env is not None:  # on load(path, env=...), SB3 compares only the spaces
             check_same_layout(layout_of(self.env), self.agent_layout)
-        # Older saves' attributes, read by load(): renamed ones, and a 0.2.0 development save's schedule.
-        drop_names_before_0_3(self.__dict__)
-        pop_0_2_dev_schedule(self.__dict__)
+        drop_old_attributes(self.__dict__)  # what load() read from the save that a model must not keep
         # A new dict: SB3 keeps the caller's, which must not change under them.
         if self.replay_buffer_class is not None and issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
             self.replay_buffer_kwargs = {**self.replay_buffer_kwargs, "layout": self.agent_layout, "selector": self.selector}
@@ -384,14 +383,11 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             data = read_saved_data(path, custom_objects)  # read once: for the team check and for older saves
         if env is not None:
             refuse_env_of_another_team(data, env)
-        # What an older save lacks, filled with what its version implies, and what it holds under an old name under
-        # the new one; the caller's kwargs over both (under the new names too, with a warning).
-        missing = {} if data is None else attributes_missing_from(data)
-        renamed = {} if data is None else {new: data[old] for old, new in RENAMED_IN_0_3.items() if old in data}
+        migrated = migrate_saved_model(data)  # what its version implies; the caller's kwargs over it, under new names too
         for old, new in RENAMED_IN_0_3.items():
             if old in kwargs:
                 kwargs[new] = renamed_argument(kwargs.get(new), kwargs.pop(old), old, new)
-        attributes = {**missing, **renamed, **kwargs}
+        attributes = {**migrated, **kwargs}
         with old_module_paths(), loading_a_saved_model():
             return super().load(path, env, device, custom_objects, print_system_info, force_reset, **attributes)
 
@@ -421,6 +417,26 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         self.replay_buffer.selector = self.selector  # new rows: the model's rule, of the same size k
         if not needs_next:
             self.replay_buffer.next_selections = None  # a buffer's own; this model selects again at sampling
+
+    def save(
+        self,
+        path: str | pathlib.Path | io.BufferedIOBase,
+        exclude: Iterable[str] | None = None,
+        include: Iterable[str] | None = None,
+    ) -> None:
+        """
+        Save the model (SB3's ``save``), with the sb3-maddpg version that wrote it, by which :meth:`load` reads it
+        (:func:`~sb3_maddpg.compat.migrate_saved_model`).
+
+        :param path: Where to save (``.zip`` added if missing) or an open file.
+        :param exclude: Attributes not to save, beyond the default ones.
+        :param include: Attributes to save that are excluded by default.
+        """
+        self.__dict__[VERSION_KEY] = __version__
+        try:
+            super().save(path, exclude, include)
+        finally:
+            del self.__dict__[VERSION_KEY]
 
     def _excluded_save_params(self) -> list[str]:
         # The running returns belong to the env's episodes under way, which a loaded model's env starts again.

@@ -9,9 +9,10 @@ import json
 from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
+from sb3_maddpg.compat import VERSION_KEY
 from sb3_maddpg.experiments.defaults import DEFAULT_ALGORITHM, DEFAULT_ENV, SCHEMES
-from sb3_maddpg.experiments.setting import ExperimentConfig, merge_model_kwargs
-from sb3_maddpg.hyperparams import load_hyperparams
+from sb3_maddpg.experiments.presets import package_presets, read_preset_file
+from sb3_maddpg.experiments.setting import ExperimentConfig
 
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
@@ -108,109 +109,42 @@ PAPER_NAMES = {
 """The paper's name of each scheme."""
 
 
-EXP1 = ExperimentConfig(name="exp1", n_agents=5, num_agent_neighbors=None, episodes=100_000, n_checkpoints=20).described(
-    "Experiment 1"
-)
+EXPERIMENTS: dict[str, ExperimentConfig] = package_presets()
+"""The named presets, read from their YAML files (:mod:`sb3_maddpg.experiments.presets`)."""
+
+EXP1 = EXPERIMENTS["exp1"]
 """The paper's experiment 1 (fully observable cooperative navigation)."""
 
-EXP2 = ExperimentConfig(name="exp2", n_agents=5, num_agent_neighbors=2, episodes=150_000, n_checkpoints=30).described(
-    "Experiment 2"
-)
+EXP2 = EXPERIMENTS["exp2"]
 """The paper's experiment 2 (each agent observes its two nearest other agents)."""
 
+EXP1_TUNED = EXPERIMENTS["exp1_tuned"]
+"""Experiment 1 at the best configuration measured at N=5 (``exp1.yml``'s ``tuned``)."""
 
-def tuned_experiment(paper: ExperimentConfig) -> ExperimentConfig:
-    """
-    :param paper: One of the paper's settings (``EXP1``, ``EXP2``).
-    :return: The same setting, protocol and budget at the hyperparameters ``sb3_maddpg/hyperparams/maddpg.yml``
-        holds for it, named ``<setting>_tuned``.
-    """
-    tuned = load_hyperparams(paper.name)
-    if tuned.n_agents != paper.n_agents or tuned.n_timesteps != paper.episodes * paper.episode_length:
-        raise ValueError(
-            f"maddpg.yml's {paper.name!r} entry is for {tuned.n_agents} agents and {tuned.n_timesteps:,} steps, but the "
-            f"setting has {paper.n_agents} agents and {paper.episodes * paper.episode_length:,} steps: correct the entry."
-        )
-    env_kwargs = dict(tuned.env_kwargs)
-    num_agent_neighbors = env_kwargs.pop("num_agent_neighbors", paper.num_agent_neighbors)
-    return dataclasses.replace(
-        paper,
-        name=f"{paper.name}_tuned",
-        num_agent_neighbors=num_agent_neighbors,
-        env_kwargs={**paper.env_kwargs, **env_kwargs},
-        model_kwargs=merge_model_kwargs(paper.model_kwargs, tuned.model_kwargs),
-    ).described(tuned.description)
+EXP2_TUNED = EXPERIMENTS["exp2_tuned"]
+"""Experiment 2 with experiment 1's best changes (``exp2.yml``'s ``tuned``)."""
 
-
-EXP1_TUNED = tuned_experiment(EXP1)
-"""Experiment 1 at the best configuration measured at N=5 (``sb3_maddpg/hyperparams/maddpg.yml``)."""
-
-EXP2_TUNED = tuned_experiment(EXP2)
-"""Experiment 2 with experiment 1's best changes (``sb3_maddpg/hyperparams/maddpg.yml``)."""
-
-SELECT_NEAREST_AT_N3: dict[str, dict[str, Any]] = {"selected": {"selector": 1}}
-"""``selected`` runs of a 3-agent team select the nearest other agent: selecting both (the default ``k=2``) would be
-``full`` sharing in another order."""
-
-N3_FULL = ExperimentConfig(
-    name="n3_full",
-    n_agents=3,
-    num_agent_neighbors=None,
-    episodes=20_000,
-    seeds=tuple(range(10)),
-    n_checkpoints=20,
-    keep_checkpoints=False,
-    scheme_model_kwargs=SELECT_NEAREST_AT_N3,
-).described("Experiment 1's setting with 3 agents, 10 seeds, selected with k=1")
-"""Experiment 1's setting with 3 agents, at a budget where the package learns on a small machine."""
-
-N3_PARTIAL = dataclasses.replace(N3_FULL, name="n3_partial", num_agent_neighbors=1).described(
-    "Experiment 2's setting with 3 agents, 10 seeds, selected with k=1"
-)
-"""Experiment 2's setting with 3 agents: each agent observes its nearest other agent (of two)."""
-
-TINY_MODEL_KWARGS: dict[str, Any] = {
-    "learning_starts": 250,
-    "batch_size": 64,
-    "buffer_size": 10_000,
-    "transitions_per_update": 50,
-    "policy_kwargs": {"net_arch": {"pi": [16, 16], "qf": [16, 16]}},
-}
-"""Tiny networks and an early start for pipeline tests."""
-
-SMOKE = ExperimentConfig(
-    name="smoke",
-    n_agents=3,
-    num_agent_neighbors=None,
-    episodes=40,
-    seeds=(0, 1),
-    n_envs=4,
-    n_checkpoints=2,
-    eval_episodes=4,
-    curve_points=2,
-    curve_eval_episodes=2,
-    keep_checkpoints=False,
-    model_kwargs=TINY_MODEL_KWARGS,
-    scheme_model_kwargs=SELECT_NEAREST_AT_N3,  # k=2 of 3 would select everyone, as "full" does
-).described("Smoke test, 2 seeds, tiny networks (tests the pipeline, not the methods)")
+SMOKE = EXPERIMENTS["smoke"]
 """A pipeline check that runs every scheme in seconds (for CI)."""
-
-EXPERIMENTS: dict[str, ExperimentConfig] = {
-    config.name: config for config in (EXP1, EXP2, EXP1_TUNED, EXP2_TUNED, N3_FULL, N3_PARTIAL, SMOKE)
-}
-"""The named presets."""
 
 
 def load_experiment(name_or_path: str) -> ExperimentConfig:
     """
     :param name_or_path: A preset name (``exp1``, ``exp2``, ``exp1_tuned``, ``exp2_tuned``, ``n3_full``, ``n3_partial``,
-        ``smoke``) or the path of a JSON file written from :meth:`~sb3_maddpg.experiments.setting.ExperimentConfig.to_dict`.
+        ``smoke``), the path of a preset file (``.yml`` or ``.yaml``: :mod:`~sb3_maddpg.experiments.presets`; its
+        setting, not its tuned preset) or of a stored experiment (``.json``, e.g. a results directory's
+        ``experiment.json``, of any version: :func:`~sb3_maddpg.compat.migrate_stored_config`).
     :return: The experiment config; a ``ValueError`` that names the cause and what to give instead if there is none.
     """
     if name_or_path in EXPERIMENTS:
         return EXPERIMENTS[name_or_path]
+    if name_or_path.endswith((".yml", ".yaml")):
+        return read_preset_file(name_or_path)[0]
     if not name_or_path.endswith(".json"):
-        raise ValueError(f"Unknown experiment {name_or_path!r}: use one of {sorted(EXPERIMENTS)} or a .json config file.")
+        raise ValueError(
+            f"Unknown experiment {name_or_path!r}: use one of {sorted(EXPERIMENTS)}, a .yml preset file or a stored "
+            ".json experiment."
+        )
     try:
         with open(name_or_path) as file:
             data = json.load(file)
@@ -225,8 +159,8 @@ def load_experiment(name_or_path: str) -> ExperimentConfig:
         ) from None
     except json.JSONDecodeError as error:
         raise ValueError(
-            f"Experiment file {name_or_path!r} is not JSON ({error}): write it as ExperimentConfig.to_dict() gives it "
-            "(e.g. sb3-maddpg tune --preset-out writes one)."
+            f"Experiment file {name_or_path!r} is not JSON ({error}): write ExperimentConfig.to_dict() to it with "
+            "json.dump (as a tuning study's best_preset is written)."
         ) from None
     return _experiment_from_file(name_or_path, data)
 
@@ -236,7 +170,7 @@ def _experiment_from_file(path: str, data: Any) -> ExperimentConfig:
     fields = [field.name for field in dataclasses.fields(ExperimentConfig)]
     if not isinstance(data, dict) or "name" not in data:
         raise ValueError(f'Experiment file {path!r} holds no experiment: give a JSON object with a "name" and {fields[1:]}.')
-    unknown = sorted(set(data) - set(fields))
+    unknown = sorted(set(data) - {*fields, VERSION_KEY})
     if unknown:
         raise ValueError(f"Experiment file {path!r} has unknown key(s) {unknown}: an experiment's keys are {fields}.")
     try:

@@ -10,7 +10,10 @@ from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.runner import build_model
 from sb3_maddpg.experiments.setting import RunConfig
 
-BATCHED_HINT = "Train such runs with --backend local (e.g. in a second sweep, leaving them out here with --schemes)."
+BATCHED_HINT = (
+    'Train such runs on the local backend (backend="local"), e.g. in a second sweep, leaving their schemes out of this '
+    "one's experiments."
+)
 
 
 class BatchedRunRefused(ValueError):
@@ -60,7 +63,7 @@ def check_runs_per_process(runs_per_process: int | None) -> None:
 
 def too_large_groups(groups: Sequence[Sequence[RunConfig]], fits: Callable[[Sequence[RunConfig]], int]) -> list[str]:
     """
-    :param groups: Groups of a size given by ``--runs-per-process``.
+    :param groups: Groups of a size given by ``runs_per_process`` (:func:`plan_groups`).
     :param fits: The most runs one group holds (:func:`memory_bound`).
     :return: A warning for each setting and scheme whose groups may not fit, said by its first (largest) group.
     """
@@ -69,15 +72,15 @@ def too_large_groups(groups: Sequence[Sequence[RunConfig]], fits: Callable[[Sequ
         setting = f"{group[0].experiment}/{group[0].scheme}"
         if setting not in warnings and len(group) > fits(group):
             warnings[setting] = (
-                f"{setting}: groups of {len(group)} runs (--runs-per-process) may not fit in memory: {fits(group)} fit "
-                "by the package's estimate; lower --runs-per-process if the sweep runs out of memory"
+                f"{setting}: groups of {len(group)} runs (runs_per_process) may not fit in memory: {fits(group)} fit "
+                "by the package's estimate; lower runs_per_process if the sweep runs out of memory"
             )
     return list(warnings.values())
 
 
 def resolve_device(device: str) -> th.device:
     """
-    :param device: ``--device``: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:<index>"``.
+    :param device: The device asked for: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:<index>"``.
     :return: The device a group trains on (``"auto"``: CUDA when there is a GPU, else the CPU).
     """
     if device == "auto":
@@ -87,7 +90,7 @@ def resolve_device(device: str) -> th.device:
 
 def memory_bound(device: str, log: Callable[[str], None] | None = None) -> Callable[[Sequence[RunConfig]], int]:
     """
-    :param device: The groups' device (``--device``).
+    :param device: The groups' device (``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:<index>"``).
     :param log: Called with a line for each setting and scheme whose seeds do not fit in one group.
     :return: For :func:`plan_groups`: the most of given runs (one setting and scheme) that one group holds on that device
         (:func:`~sb3_maddpg.run_group.memory.runs_that_fit`: their replay buffers bound it).
@@ -108,7 +111,7 @@ def memory_bound(device: str, log: Callable[[str], None] | None = None) -> Calla
             if log is not None and size.runs < len(runs):
                 log(
                     f"{config.experiment}/{config.scheme}: groups of at most {size.runs} runs (each run's replay buffer "
-                    f"{size.run_bytes / 1e9:.2f} GB; bound: {size.limit}); --runs-per-process sets another size"
+                    f"{size.run_bytes / 1e9:.2f} GB; bound: {size.limit}); runs_per_process sets another size"
                 )
             sizes[key] = size.runs
         return sizes[key]
@@ -121,23 +124,25 @@ def check_device(device: str) -> None:
     Refuse a device the runs (alone or in groups) cannot train on here, before anything is written (every run would
     fail after its directory was started afresh).
 
-    :param device: ``--device``: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:<index>"``.
+    :param device: The device asked for: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:<index>"``.
     :raise BatchedRunRefused: For a device that is not one, or a CUDA device this machine does not have.
     """
     try:
         resolved = th.device(device) if device != "auto" else None
     except (RuntimeError, TypeError) as error:
-        raise BatchedRunRefused(f"--device {device!r} is not a device torch knows ({error}): use cpu, cuda or auto.") from None
+        raise BatchedRunRefused(
+            f'device {device!r} is not a device torch knows ({error}): use "cpu", "cuda" or "auto".'
+        ) from None
     if resolved is None or resolved.type != "cuda":
         return
     if not th.cuda.is_available():
         raise BatchedRunRefused(
-            f"CUDA is not available on this machine, so the runs cannot train on {device}: use --device cpu or "
-            "auto (or --backend ray or batched-ray, to train on a Ray cluster's GPUs)."
+            f'CUDA is not available on this machine, so the runs cannot train on {device}: use device="cpu" or '
+            '"auto" (or the ray or batched-ray backend, to train on a Ray cluster\'s GPUs).'
         )
     if resolved.index is not None and resolved.index >= th.cuda.device_count():
         raise BatchedRunRefused(
-            f"This machine has {th.cuda.device_count()} CUDA device(s), so there is no {device}: use --device cuda "
+            f'This machine has {th.cuda.device_count()} CUDA device(s), so there is no {device}: use device="cuda" '
             f"(device 0), or an index below {th.cuda.device_count()}."
         )
 
@@ -181,6 +186,6 @@ def check_batched(configs: Sequence[RunConfig], device: str | None = None) -> No
             model.get_env().close()
         if cause:
             raise BatchedRunRefused(
-                f"{config.run_id} (and its other seeds) cannot train in a run group (--backend batched): {cause} "
+                f"{config.run_id} (and its other seeds) cannot train in a run group (the batched backends): {cause} "
                 + BATCHED_HINT
             )

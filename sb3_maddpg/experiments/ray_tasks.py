@@ -120,7 +120,7 @@ def ray_session(address: str | None, num_cpus: int | None, verbose: int) -> Iter
 
 def ray_device(device: str, gpus: float) -> str:
     """
-    :param device: ``--device``: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:<index>"``.
+    :param device: The device asked for: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:<index>"``.
     :param gpus: The Ray cluster's GPUs.
     :return: The device a Ray task trains on: ``"cuda"`` (on the GPU Ray gives the task, its ``CUDA_VISIBLE_DEVICES``,
         so ``"cuda:1"`` would name another) when asked for CUDA, or for ``"auto"`` on a cluster with GPUs; else ``"cpu"``.
@@ -131,13 +131,15 @@ def ray_device(device: str, gpus: float) -> str:
     try:
         kind = th.device(device).type
     except (RuntimeError, TypeError) as error:
-        raise BatchedRunRefused(f"--device {device!r} is not a device torch knows ({error}): use cpu, cuda or auto.") from None
+        raise BatchedRunRefused(
+            f'device {device!r} is not a device torch knows ({error}): use "cpu", "cuda" or "auto".'
+        ) from None
     if kind != "cuda":
         return device
     if gpus < 1:
         raise BatchedRunRefused(
             f"The runs cannot train on {device} under Ray: the Ray cluster has no GPU, so a task asking for one would "
-            "wait forever. Use --device cpu (or auto), or a cluster with GPU nodes."
+            'wait forever. Use device="cpu" (or "auto"), or a cluster with GPU nodes.'
         )
     return "cuda"
 
@@ -235,7 +237,7 @@ def execute_runs(
 def execute_runs_without_snapshots(
     configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int
 ) -> list[dict[str, Any]]:
-    """:func:`execute_runs` with no snapshots saved (``--no-snapshots``)."""
+    """:func:`execute_runs` with no snapshots saved (``snapshots=False``)."""
     return [
         execute_run(config, results_dir, threads=threads, verbose=verbose, snapshots=False, device=device)
         for config in configs

@@ -284,7 +284,7 @@ class UnscoredMetricError(ValueError):
         self.unscored, self.scored, self.results_dir = list(unscored), list(scored), str(results_dir)
         super().__init__(
             f"Unknown metric(s) {self.unscored}: the runs in {self.results_dir} score {self.scored} (runs written before "
-            "0.2 have no success or coverage at other radii); pick --metric among those."
+            "0.2 have no success or coverage at other radii); pick metrics among those."
         )
 
 

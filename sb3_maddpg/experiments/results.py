@@ -21,6 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from sb3_maddpg.compat import migrate_stored_config, with_version
 from sb3_maddpg.experiments.setting import RunConfig
 
 try:
@@ -282,7 +283,7 @@ def never_updated_warning(run_ids: list[str]) -> str | None:
     return (
         f"{len(run_ids)} run(s) never updated (0 gradient steps: the training budget ended before learning_starts): "
         f"{listed}. Their scores are untrained teams', so methods that differ only in training look alike; train for "
-        "longer or lower learning_starts (e.g. --model-kwargs '{\"learning_starts\": 1000}')."
+        'longer or lower learning_starts (e.g. model_kwargs={"learning_starts": 1000}).'
     )
 
 
@@ -290,22 +291,24 @@ def write_experiment(results_dir: str | os.PathLike[str], name: str, experiment:
     """
     :param results_dir: A results directory.
     :param name: The experiment's name.
-    :param experiment: Its config as a dict (``ExperimentConfig.to_dict()``), written to ``<name>/experiment.json``.
+    :param experiment: Its config as a dict (``ExperimentConfig.to_dict()``), written to ``<name>/experiment.json``
+        with the version that wrote it (:func:`~sb3_maddpg.compat.with_version`).
     """
     directory = Path(results_dir) / name
     directory.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(directory / EXPERIMENT_FILE, experiment)
+    write_json_atomic(directory / EXPERIMENT_FILE, with_version(experiment))
 
 
 def load_experiments(results_dir: str | os.PathLike[str]) -> dict[str, dict[str, Any]]:
     """
     :param results_dir: A results directory.
-    :return: The experiment configs stored in it (``<experiment>/experiment.json``), by name.
+    :return: The experiment configs stored in it (``<experiment>/experiment.json``), by name, as this version reads
+        them (:func:`~sb3_maddpg.compat.migrate_stored_config`).
     """
     experiments = {}
     for path in sorted(Path(results_dir).glob(f"*/{EXPERIMENT_FILE}")):
         with open(path) as file:
-            experiments[path.parent.name] = json.load(file)
+            experiments[path.parent.name] = migrate_stored_config(json.load(file))
     return experiments
 
 
@@ -384,5 +387,5 @@ def _locked_message(results_dir: Path, holder_text: str) -> str:
         who, stop = "PID unknown", "stop it"
     return (
         f"{results_dir} is in use by another sweep ({who}). Two sweeps in one results directory would run the "
-        f"same runs at once. Wait for that sweep to end, {stop}, or give this one another results directory (--results)."
+        f"same runs at once. Wait for that sweep to end, {stop}, or give this one another results directory."
     )

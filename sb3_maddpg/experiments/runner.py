@@ -23,6 +23,7 @@ from sb3_maddpg.analysis.evaluation import (
     write_rows,
 )
 from sb3_maddpg.common.progress import ProgressLogCallback, format_seconds
+from sb3_maddpg.compat import with_version
 from sb3_maddpg.experiments.config import PAPER_NAMES, load_algorithm
 from sb3_maddpg.experiments.results import (
     CHECKPOINT_DIR,
@@ -289,7 +290,8 @@ def resumed_line(config: RunConfig, steps: int) -> str:
 
 def start_run_directory(config: RunConfig, directory: Path) -> None:
     """
-    Start a run's directory afresh: anything an interrupted attempt left is removed, then ``config.json`` is written.
+    Start a run's directory afresh: anything an interrupted attempt left is removed, then ``config.json`` is written
+    (with the version that wrote it: :func:`~sb3_maddpg.compat.with_version`).
 
     :param config: The run.
     :param directory: Its directory.
@@ -297,7 +299,7 @@ def start_run_directory(config: RunConfig, directory: Path) -> None:
     if directory.exists():
         shutil.rmtree(directory)
     directory.mkdir(parents=True)
-    write_json_atomic(directory / CONFIG_FILE, config.to_dict())
+    write_json_atomic(directory / CONFIG_FILE, with_version(config.to_dict()))
 
 
 def build_model(config: RunConfig, **kwargs: Any) -> Any:

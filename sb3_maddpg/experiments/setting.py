@@ -11,7 +11,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar
 
-from sb3_maddpg.compat import renamed_in_0_3
+from sb3_maddpg.compat import migrate_stored_config
 from sb3_maddpg.experiments.defaults import (
     DEFAULT_ALGORITHM,
     DEFAULT_ENV,
@@ -23,9 +23,6 @@ from sb3_maddpg.experiments.defaults import (
 from sb3_maddpg.experiments.task_envs import check_env_name, task_team_size
 
 SettingT = TypeVar("SettingT", bound="Setting")
-
-STORED_BEFORE_0_2 = {"vec_env": "mpe2", "n_envs": 1}
-"""The values of the fields that files written before 0.2 lack: those runs stepped one mpe2 env each."""
 
 
 def merge_model_kwargs(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
@@ -129,20 +126,21 @@ class Setting:
     @classmethod
     def from_dict(cls: type[SettingT], data: dict[str, Any]) -> SettingT:
         """
-        :param data: A dict from :meth:`to_dict` or a JSON file, of this version or an older one (unknown keys are an
-            error). Files written before 0.2 have no ``vec_env`` and ``n_envs`` (:data:`STORED_BEFORE_0_2`); before
-            0.3, some ``model_kwargs`` had other names (:func:`~sb3_maddpg.compat.renamed_in_0_3`).
+        :param data: A dict from :meth:`to_dict` or a stored JSON file of any version, read by
+            :func:`~sb3_maddpg.compat.migrate_stored_config` (unknown keys are an error).
         :return: The config.
         """
-        data = {**STORED_BEFORE_0_2, **data}
-        if isinstance(data.get("model_kwargs"), dict):
-            data["model_kwargs"] = renamed_in_0_3(data["model_kwargs"])
-        if isinstance(data.get("scheme_model_kwargs"), dict):
-            data["scheme_model_kwargs"] = {
-                scheme: renamed_in_0_3(kwargs) if isinstance(kwargs, dict) else kwargs
-                for scheme, kwargs in data["scheme_model_kwargs"].items()
-            }
-        for key in ("schemes", "seeds", "score_agents"):  # JSON has lists; the configs hold tuples
+        return cls.from_fields(migrate_stored_config(data))
+
+    @classmethod
+    def from_fields(cls: type[SettingT], fields: dict[str, Any]) -> SettingT:
+        """
+        :param fields: This version's fields as JSON or YAML give them (lists where the config holds tuples), e.g. a
+            preset file's; those left out keep their defaults (unknown keys are an error).
+        :return: The config.
+        """
+        data = dict(fields)
+        for key in ("schemes", "seeds", "score_agents"):  # JSON and YAML have lists; the configs hold tuples
             if key in data:
                 data[key] = tuple(data[key])
         return cls(**data)
@@ -181,7 +179,7 @@ class RunConfig(Setting):
         if self.n_checkpoints > self.episodes * self.checkpoint_fraction:
             raise ValueError(
                 f"{self.n_checkpoints} checkpoints do not fit in the last {self.checkpoint_fraction:.0%} of "
-                f"{self.episodes} episodes: lower n_checkpoints (--n-checkpoints) or raise the budget (--episodes)."
+                f"{self.episodes} episodes: lower n_checkpoints or raise episodes."
             )
         if self.eval_episodes < 1 or self.curve_eval_episodes < 1 or self.curve_points < 0:
             raise ValueError("eval_episodes and curve_eval_episodes must be positive and curve_points non-negative.")

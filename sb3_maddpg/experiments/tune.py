@@ -23,6 +23,7 @@ import numpy as np
 from sb3_maddpg.analysis.evaluation import TeamEvalCallback
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.common.torch_threads import use_torch_threads
+from sb3_maddpg.compat import with_version
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES
 from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.local_pool import worker_pool
@@ -101,24 +102,11 @@ def task_objectives(experiment: ExperimentConfig) -> dict[str, str]:
     return objectives
 
 
-TUNE_FLAGS = {
-    "n_trials": "--trials",
-    "budget": "--steps",
-    "n_evaluations": "--evaluations",
-    "eval_episodes": "--eval-episodes",
-    "last_evaluations": "--last-evaluations",
-    "warmup_evaluations": "--warmup-evaluations",
-    "heartbeat_seconds": "--heartbeat",
-    "objective": "--objective",
-}
-"""``sb3-maddpg tune``'s option for each field of :class:`TuneSettings` it sets, for the errors to name."""
-
-
 def default_study_name(setting: str, objective: str, fixed: dict[str, Any]) -> str:
     """
     :param setting: The setting's name.
     :param objective: A key of :func:`task_objectives`.
-    :param fixed: The study's fixed parameters (``--fix``).
+    :param fixed: The study's fixed parameters (:attr:`TuneSettings.fixed_params`).
     :return: ``<setting>_<objective>``, then each fixed parameter as ``_<name>=<value>`` in the order of their names
         (so that the same fixes in another order resume the same study).
     """
@@ -136,14 +124,14 @@ def check_fixed_params(fixed: dict[str, Any]) -> None:
             choices = CATEGORICAL_PARAMS[name]
             integers = all(isinstance(choice, int) for choice in choices)
             if value not in choices or isinstance(value, bool) or (integers and not isinstance(value, int)):
-                raise ValueError(f"--fix {name}={value!r} is not one of its choices {list(choices)}.")
+                raise ValueError(f"fixed parameter {name}={value!r} is not one of its choices {list(choices)}.")
         elif name in LOG_UNIFORM_PARAMS:
             low, high = LOG_UNIFORM_PARAMS[name]
             if not isinstance(value, int | float) or isinstance(value, bool) or not low <= value <= high:
-                raise ValueError(f"--fix {name}={value!r} is outside its range [{low}, {high}].")
+                raise ValueError(f"fixed parameter {name}={value!r} is outside its range [{low}, {high}].")
         else:
             sampled = sorted([*CATEGORICAL_PARAMS, *LOG_UNIFORM_PARAMS])
-            raise ValueError(f"--fix {name!r} is not a sampled parameter: fix one of {sampled}.")
+            raise ValueError(f"fixed parameter {name!r} is not a sampled parameter: fix one of {sampled}.")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,24 +182,24 @@ class TuneSettings:
             object.__setattr__(self, "objective", next(iter(objectives)))
         elif self.objective not in objectives:
             choices = ", ".join(f"{name} ({direction})" for name, direction in objectives.items())
-            group = "" if self.experiment.score_agents else " (group_return needs --score-agents)"
+            group = "" if self.experiment.score_agents else " (group_return needs the experiment's score_agents)"
             raise ValueError(
-                f"--objective {self.objective!r} is not one of {self.experiment.env}'s objectives: give one of "
+                f"TuneSettings.objective {self.objective!r} is not one of {self.experiment.env}'s objectives: give one of "
                 f"{choices}{group}."
             )
         for name in ("n_trials", "budget", "n_evaluations", "eval_episodes", "last_evaluations", "heartbeat_seconds"):
             if getattr(self, name) < 1:
-                raise ValueError(f"{TUNE_FLAGS[name]} must be at least 1, got {getattr(self, name)} (TuneSettings.{name}).")
+                raise ValueError(f"TuneSettings.{name} must be at least 1, got {getattr(self, name)}.")
         if self.warmup_evaluations < 0:
             raise ValueError(
-                f"--warmup-evaluations must be at least 0, got {self.warmup_evaluations} (TuneSettings.warmup_evaluations):"
-                " 0 lets the pruner stop a trial at any evaluation, 1 (the default) spares its first."
+                f"TuneSettings.warmup_evaluations must be at least 0, got {self.warmup_evaluations}: 0 lets the pruner "
+                "stop a trial at any evaluation, 1 (the default) spares its first."
             )
         if self.last_evaluations > self.n_evaluations:
             raise ValueError(
-                f"--last-evaluations ({self.last_evaluations}) cannot exceed --evaluations ({self.n_evaluations}): a trial "
-                "scores its mean over its last evaluations, so lower --last-evaluations or raise --evaluations "
-                "(TuneSettings.last_evaluations and n_evaluations)."
+                f"TuneSettings.last_evaluations ({self.last_evaluations}) cannot exceed n_evaluations "
+                f"({self.n_evaluations}): a trial scores its mean over its last evaluations, so lower last_evaluations "
+                "or raise n_evaluations."
             )
 
     @property
@@ -311,7 +299,7 @@ class TrialEvalCallback(TeamEvalCallback):
         if not math.isfinite(value):  # Optuna fails such a trial and starts another, which would fare no better
             raise ValueError(
                 f"trial {self.trial.number}'s {self.objective} is {value} at step {self.num_timesteps}: the task's "
-                "evaluations do not score it; choose another --objective of the task "
+                "evaluations do not score it; choose another objective of the task "
                 "(sb3_maddpg.experiments.tune.task_objectives)."
             )
         self.values.append(value)
@@ -413,7 +401,7 @@ def sampler_seed(seed: int, trials_so_far: int, worker: int) -> int:
     :return: ``seed`` itself for the first worker of a study without trials (so that a study of one worker is
         reproducible), else a seed drawn from the three and this process's id (numpy's ``SeedSequence``), so that
         commands started apart (other shells, other machines) differ too. Two commands that start a new study at the
-        same moment both draw from ``seed``: give the second another ``--seed``.
+        same moment both draw from ``seed``: give the second another ``seed``.
     """
     if trials_so_far == 0 and worker == 0:
         return seed
@@ -552,9 +540,10 @@ def best_preset(study: Any, settings: TuneSettings) -> dict[str, Any]:
     """
     :param study: A study with a complete trial.
     :param settings: The study's settings.
-    :return: The best trial as an experiment config (JSON-ready, for ``sb3-maddpg run --config``): the experiment
-        with the trial's ``model_kwargs`` over its own, named ``<study>_best`` (not ``<experiment>_tuned``: the
-        package's own ``exp1_tuned`` and ``exp2_tuned`` presets hold those names and their results' directories).
+    :return: The best trial as a stored experiment config (JSON-ready, with the version that wrote it, for
+        ``sb3-maddpg run --config``): the experiment with the trial's ``model_kwargs`` over its own, named
+        ``<study>_best`` (not ``<experiment>_tuned``: the package's own ``exp1_tuned`` and ``exp2_tuned`` presets hold
+        those names and their results' directories).
     """
     best = study.best_trial
     model_kwargs = merge_model_kwargs(settings.experiment.model_kwargs, best.user_attrs["model_kwargs"])
@@ -564,7 +553,7 @@ def best_preset(study: Any, settings: TuneSettings) -> dict[str, Any]:
         f"{settings.n_evaluations} evaluations, {settings.budget:,} steps)"
     )
     tuned = dataclasses.replace(settings.experiment, name=f"{settings.study_name}_best", model_kwargs=model_kwargs)
-    return tuned.described(note).to_dict()
+    return with_version(tuned.described(note).to_dict())
 
 
 def describe_best(study: Any, settings: TuneSettings) -> Sequence[str]:

@@ -1,7 +1,7 @@
 """
-Tuned hyperparameters, in the spirit of rl-zoo3's hyperparams files (nested here: the env's and the model's keyword
-arguments apart): one YAML file per algorithm (``maddpg.yml`` beside this module), one entry per setting, each with
-the measurement that put it there in the file's comments.
+Tuned hyperparameters, in the spirit of rl-zoo3's hyperparams files, kept beside the preset they tune: the ``tuned``
+section of a setting's preset file (``sb3_maddpg/experiments/presets/exp1.yml``, ``exp2.yml``), each with the
+measurement that put it there in the file's comments; here as the env's and the model's keyword arguments apart.
 
 MADDPG's own defaults stay the paper's, for reproduction; an entry says what to change, in a setting, to learn
 better than that. For example, the paper's experiment 1 at its best measured configuration::
@@ -14,27 +14,22 @@ better than that. For example, the paper's experiment 1 at its best measured con
     env = SimpleSpreadVecEnv(n_envs=100, n_agents=tuned.n_agents, **tuned.env_kwargs)
     model = MADDPG("MlpPolicy", env, **tuned.model_kwargs)
 
-The experiments runner's presets ``exp1_tuned`` and ``exp2_tuned`` are these entries applied to ``exp1`` and ``exp2``.
+The experiments runner's presets ``exp1_tuned`` and ``exp2_tuned`` are the same sections applied to ``exp1`` and
+``exp2``.
 """
 
 import copy
 from dataclasses import dataclass, field
-from importlib import resources
 from typing import Any
 
-import yaml
-
-HYPERPARAMS_FILES = {"maddpg": "maddpg.yml"}
-"""The file of each algorithm's tuned hyperparameters, in this package."""
-
-ENTRY_KEYS = ("n_agents", "n_timesteps", "env_kwargs", "model_kwargs", "description")
-"""The keys every entry has, and the only ones it may have."""
+TUNED_ALGORITHMS = ("maddpg",)
+"""The algorithms with tuned hyperparameters (the presets' ``algorithm``: MADDPG)."""
 
 
 @dataclass(frozen=True)
 class TunedHyperparams:
     """
-    One setting's entry of a hyperparams file.
+    One setting's tuned values (its preset file's ``tuned`` section).
 
     :param setting: The setting the entry tunes (a preset name, e.g. ``"exp1"``).
     :param n_agents: The setting's agents (and landmarks).
@@ -53,53 +48,46 @@ class TunedHyperparams:
     description: str = ""
 
 
-def read_hyperparams_file(algo: str = "maddpg") -> dict[str, Any]:
-    """
-    :param algo: The algorithm (a key of :data:`HYPERPARAMS_FILES`).
-    :return: The file's entries by setting, as YAML gives them.
-    """
-    if algo not in HYPERPARAMS_FILES:
-        raise ValueError(
-            f"No tuned hyperparameters for algorithm {algo!r}: the package has them for {sorted(HYPERPARAMS_FILES)}."
-        )
-    text = resources.files(__name__).joinpath(HYPERPARAMS_FILES[algo]).read_text(encoding="utf-8")
-    entries = yaml.safe_load(text)
-    if not isinstance(entries, dict):
-        raise ValueError(f"{HYPERPARAMS_FILES[algo]} must map setting names to entries, got {type(entries).__name__}.")
-    return entries
-
-
 def tuned_settings(algo: str = "maddpg") -> list[str]:
     """
-    :param algo: The algorithm (a key of :data:`HYPERPARAMS_FILES`).
-    :return: The settings the algorithm has tuned hyperparameters for, in the file's order.
+    :param algo: The algorithm (one of :data:`TUNED_ALGORITHMS`).
+    :return: The settings the algorithm has tuned hyperparameters for, in the presets' order.
     """
-    return list(read_hyperparams_file(algo))
+    from sb3_maddpg.experiments.config import EXPERIMENTS
+    from sb3_maddpg.experiments.presets import TUNED_SUFFIX
+
+    _check_algorithm(algo)
+    return [name for name in EXPERIMENTS if name + TUNED_SUFFIX in EXPERIMENTS]
 
 
 def load_hyperparams(setting: str, algo: str = "maddpg") -> TunedHyperparams:
     """
-    :param setting: A setting of the file (``"exp1"``, ``"exp2"``; :func:`tuned_settings` lists them).
-    :param algo: The algorithm (a key of :data:`HYPERPARAMS_FILES`).
-    :return: That setting's entry (a copy: changing it changes nothing else).
+    :param setting: A setting with tuned values (``"exp1"``, ``"exp2"``; :func:`tuned_settings` lists them).
+    :param algo: The algorithm (one of :data:`TUNED_ALGORITHMS`).
+    :return: That setting's tuned values (a copy: changing it changes nothing else).
     """
-    entries = read_hyperparams_file(algo)
-    if setting not in entries:
+    from sb3_maddpg.experiments.config import EXPERIMENTS
+    from sb3_maddpg.experiments.presets import TUNED_SUFFIX
+
+    _check_algorithm(algo)
+    if setting not in tuned_settings(algo):
         raise ValueError(
-            f"No tuned {algo} hyperparameters for setting {setting!r}: {HYPERPARAMS_FILES[algo]} has {sorted(entries)}. "
-            "Tune one with `sb3-maddpg tune --config <setting>`."
+            f"No tuned {algo} hyperparameters for setting {setting!r}: the presets tune {tuned_settings(algo)}. Tune one "
+            "with sb3_maddpg.experiments.tune and write its values in the preset's tuned section."
         )
-    entry = entries[setting]
-    if not isinstance(entry, dict) or set(entry) != set(ENTRY_KEYS):
-        found = sorted(entry) if isinstance(entry, dict) else type(entry).__name__
-        raise ValueError(
-            f"{HYPERPARAMS_FILES[algo]}'s entry {setting!r} must have exactly the keys {list(ENTRY_KEYS)}, got {found}."
-        )
+    tuned = EXPERIMENTS[setting + TUNED_SUFFIX]
     return TunedHyperparams(
         setting=setting,
-        n_agents=int(entry["n_agents"]),
-        n_timesteps=int(entry["n_timesteps"]),
-        env_kwargs=copy.deepcopy(entry["env_kwargs"]),
-        model_kwargs=copy.deepcopy(entry["model_kwargs"]),
-        description=str(entry["description"]),
+        n_agents=tuned.n_agents,
+        n_timesteps=tuned.episodes * tuned.episode_length,
+        env_kwargs={"num_agent_neighbors": tuned.num_agent_neighbors, **copy.deepcopy(tuned.env_kwargs)},
+        model_kwargs=copy.deepcopy(tuned.model_kwargs),
+        description=tuned.note or "",
     )
+
+
+def _check_algorithm(algo: str) -> None:
+    if algo not in TUNED_ALGORITHMS:
+        raise ValueError(
+            f"No tuned hyperparameters for algorithm {algo!r}: the package has them for {list(TUNED_ALGORITHMS)}."
+        )

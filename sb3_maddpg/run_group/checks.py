@@ -58,8 +58,8 @@ def check_model(model: MADDPG, index: int) -> None:
     if model.get_vec_normalize_env() is not None:
         raise ValueError(
             f"Model {index}'s env is wrapped in VecNormalize, but a run group steps its own worlds and would train on "
-            "raw observations: train it with --backend local (MADDPG.learn), or build the model on the "
-            "env without VecNormalize."
+            'raw observations: train it with MADDPG.learn (a sweep\'s local backend, backend="local"), or build the '
+            "model on the env without VecNormalize."
         )
     layout = model.agent_layout
     assert layout is not None, "MADDPG reads the layout when it is built"

@@ -98,6 +98,6 @@ def runs_that_fit(model: MADDPG, device: th.device | str, host_bytes: int | None
     if runs < 1:
         raise ValueError(
             f"One run's replay buffer ({run_bytes / 1e9:.2f} GB) does not fit in {limit}: lower the runs' buffer_size "
-            "(--model-kwargs '{\"buffer_size\": ...}'), or train on a device with more memory."
+            '(model_kwargs={"buffer_size": ...}), or train on a device with more memory.'
         )
     return GroupSize(runs, run_bytes, limit)

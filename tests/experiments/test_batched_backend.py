@@ -273,10 +273,10 @@ def test_runs_a_group_cannot_train_are_refused_first(tmp_path: Path, capsys: pyt
     error = capsys.readouterr().err
     assert status == 2
     assert error.startswith(
-        "sb3-maddpg run: smoke/attention/seed_000 (and its other seeds) cannot train in a run group (--backend batched): "
+        "sb3-maddpg run: smoke/attention/seed_000 (and its other seeds) cannot train in a run group (the batched backends): "
         "Model 0's critics use a learned scheme"
     )
-    assert "--backend local" in error
+    assert 'on the local backend (backend="local")' in error
     assert not (tmp_path / "smoke").exists()  # nothing trained, nothing written
     for changes, cause in (
         ({"vec_env": "mpe2"}, "steps simple_spread's batched worlds only"),
@@ -308,9 +308,9 @@ def test_a_device_the_runs_cannot_train_on_is_refused_before_anything_is_written
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)  # this machine, as one without CUDA
     for backend in ("batched", "local"):
         for device, cause in (
-            ("cuda", r"^CUDA is not available on this machine, .*use --device cpu or auto"),
+            ("cuda", r"^CUDA is not available on this machine, .*use device=\"cpu\" or \"auto\" \(or the ray"),
             ("cuda:0", r"^CUDA is not available on this machine"),
-            ("gpu", r"^--device 'gpu' is not a device torch knows"),
+            ("gpu", r"^device 'gpu' is not a device torch knows .*: use \"cpu\", \"cuda\" or \"auto\"\.$"),
         ):
             with pytest.raises(BatchedRunRefused, match=cause):
                 run_sweep([tiny(seeds=(0,))], tmp_path, backend=backend, verbose=0, device=device)

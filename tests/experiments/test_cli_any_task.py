@@ -195,12 +195,12 @@ def user_errors(tmp_path: Path) -> list[tuple[list[str], str]]:
         (["tune", "--config", "smoke", "--env", "simple_nonsense"], "sb3-maddpg tune: Unknown env 'simple_nonsense'"),
         (["tune", "--config", "smoke", "--env-kwargs", "{"], "sb3-maddpg tune: argument --env-kwargs: '{' is not JSON"),
         (["tune", "--config", "smoke", "--neighbors", "x"], "--neighbors: 'x' is neither"),
-        (["tune", "--config", "smoke", "--objective", "speed"], "--objective 'speed' is not one of simple_spread's"),
+        (["tune", "--config", "smoke", "--objective", "speed"], "objective 'speed' is not one of simple_spread's"),
         (["tune", "--config", "smoke", "--scheme", "fulll"], "Unknown critic_sharing 'fulll'"),
         (
             ["tune", "--config", "smoke", "--evaluations", "2"],
-            "--last-evaluations (3) cannot exceed --evaluations (2): a trial scores its mean over its last evaluations, "
-            "so lower --last-evaluations or raise --evaluations",
+            "last_evaluations (3) cannot exceed n_evaluations (2): a trial scores its mean over its last evaluations, "
+            "so lower last_evaluations or raise n_evaluations",
         ),
         (["bogus"], "sb3-maddpg: argument command: invalid choice: 'bogus'"),
     ]

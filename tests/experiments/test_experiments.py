@@ -19,7 +19,7 @@ from sb3_maddpg.analysis.normalised_score import reference_scores
 from sb3_maddpg.experiments import EXP1, EXP1_TUNED, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
 from sb3_maddpg.experiments.backends import BACKENDS, Execution, make_backend
 from sb3_maddpg.experiments.cli import main
-from sb3_maddpg.experiments.config import N3_FULL, N3_PARTIAL, PAPER_NAMES, algorithm_argument, setting_label
+from sb3_maddpg.experiments.config import EXPERIMENTS, PAPER_NAMES, algorithm_argument, setting_label
 from sb3_maddpg.experiments.marl_eval import MARL_EVAL_FILE
 from sb3_maddpg.experiments.report import format_markdown
 from sb3_maddpg.experiments.results import (
@@ -96,11 +96,12 @@ def test_scheme_model_kwargs_and_the_n3_presets() -> None:
     assert ExperimentConfig.from_dict(json.loads(json.dumps(experiment.to_dict()))).runs()[4].same_as(experiment.runs()[4])
     with pytest.raises(ValueError, match=r"unknown scheme 'selectd': its keys must be schemes"):
         SMOKE.replace(scheme_model_kwargs={"selectd": {"selector": 1}})
-    for experiment in (N3_FULL, N3_PARTIAL):
+    n3_full, n3_partial = EXPERIMENTS["n3_full"], EXPERIMENTS["n3_partial"]
+    for experiment in (n3_full, n3_partial):
         runs = experiment.runs()
         assert len(runs) == 5 * 10 and runs[0].n_agents == 3 and runs[0].total_timesteps == 500_000
         assert {run.scheme: run.model_kwargs.get("selector") for run in runs}["selected"] == 1
-    assert (N3_FULL.num_agent_neighbors, N3_PARTIAL.num_agent_neighbors) == (None, 1)
+    assert (n3_full.num_agent_neighbors, n3_partial.num_agent_neighbors) == (None, 1)
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -73,3 +73,40 @@ def test_every_field_is_stored(config_type: type[Setting]) -> None:
     stored = config_type.STORED_KEYS
     assert sorted(stored) == sorted(field.name for field in dataclasses.fields(config_type))
     assert len(set(stored)) == len(stored)
+
+
+def test_a_config_written_now_holds_its_version_and_reads_back(tmp_path: Path) -> None:
+    from sb3_maddpg import __version__
+    from sb3_maddpg.compat import VERSION_KEY
+    from sb3_maddpg.experiments.results import EXPERIMENT_FILE, load_experiments, write_experiment
+    from sb3_maddpg.experiments.runner import start_run_directory
+
+    experiment = EXPERIMENTS["smoke"]
+    write_experiment(tmp_path, experiment.name, experiment.to_dict())
+    stored = json.loads((tmp_path / experiment.name / EXPERIMENT_FILE).read_text())
+    assert stored[VERSION_KEY] == __version__
+    assert load_experiments(tmp_path) == {experiment.name: json.loads(json.dumps(experiment.to_dict()))}
+    run = experiment.runs()[0]
+    start_run_directory(run, tmp_path / "run")
+    stored = json.loads((tmp_path / "run" / "config.json").read_text())
+    assert stored[VERSION_KEY] == __version__ and RunConfig.from_dict(stored) == run
+
+
+def test_a_config_is_migrated_by_the_version_that_wrote_it() -> None:
+    from sb3_maddpg import __version__
+    from sb3_maddpg.compat import VERSION_KEY
+
+    run = EXPERIMENTS["smoke"].runs()[0].to_dict()
+    fields = {key: value for key, value in run.items() if key not in ("vec_env", "n_envs")}
+    fields["model_kwargs"] = {**fields["model_kwargs"], "selection": 1}
+    # Without a version: written before 0.3.0, so it ran what those versions ran (one mpe2 env) under 0.2's names.
+    old = RunConfig.from_dict(fields)
+    assert (old.vec_env, old.n_envs, old.model_kwargs["selector"]) == ("mpe2", 1, 1)
+    assert "selection" not in old.model_kwargs
+    # With this version: this version's format, its defaults for what it leaves out, its names as they are.
+    now = RunConfig.from_dict({**fields, VERSION_KEY: __version__})
+    assert (now.vec_env, now.n_envs, now.model_kwargs["selection"]) == ("batched", 100, 1)
+    with pytest.raises(ValueError, match=r"written by sb3-maddpg 99\.1, newer than the installed .*: upgrade"):
+        RunConfig.from_dict({**fields, VERSION_KEY: "99.1"})
+    with pytest.raises(ValueError, match=r"'not-a-version', which is no version number"):
+        RunConfig.from_dict({**fields, VERSION_KEY: "not-a-version"})

@@ -192,7 +192,7 @@ def test_run_files_are_written_whole_and_done_last(tmp_path: Path, monkeypatch: 
     crash_before.add("experiment.json")
     with pytest.raises(OSError, match="simulated crash before experiment.json"):
         write_experiment(tmp_path, "exp", {"version": 2})
-    assert json.loads((tmp_path / "exp" / "experiment.json").read_text()) == {"version": 1}
+    assert json.loads((tmp_path / "exp" / "experiment.json").read_text())["version"] == 1
     assert not list(tmp_path.rglob("*.tmp"))  # no temporary file is left behind, crash or not
 
 
@@ -244,7 +244,7 @@ def test_a_killed_local_sweep_resumes_and_a_second_sweep_is_refused(
         log_before = (results / SWEEP_LOG).read_text()
         assert main(["run", "--config", str(tmp_path / "results.json"), "--results", str(results)]) == 1
         error = capsys.readouterr().err
-        assert f"in use by another sweep (PID {sweep.pid}" in error and "--results" in error
+        assert f"in use by another sweep (PID {sweep.pid}" in error and "another results directory" in error
         # The refused sweep wrote nothing; the first one's run lines may go on meanwhile (its next run can finish).
         log_after = (results / SWEEP_LOG).read_text()
         assert log_after.startswith(log_before) and "sweep of" not in log_after[len(log_before) :]

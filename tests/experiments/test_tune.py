@@ -237,13 +237,21 @@ def test_a_bad_thread_count_with_workers_is_refused_clearly(tmp_path: Path, caps
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        ({"objective": "speed"}, r"--objective 'speed' is not one of simple_spread's objectives: give one of min_dist_sum"),
-        ({"last_evaluations": 3}, r"--last-evaluations \(3\) cannot exceed --evaluations \(2\): .* raise --evaluations"),
-        ({"budget": 0}, r"--steps must be at least 1, got 0 \(TuneSettings.budget\)"),
-        ({"warmup_evaluations": -1}, r"--warmup-evaluations must be at least 0, got -1 .*: 0 lets the pruner stop"),
+        (
+            {"objective": "speed"},
+            r"^TuneSettings.objective 'speed' is not one of simple_spread's objectives: give one of min_dist_sum",
+        ),
+        (
+            {"last_evaluations": 3},
+            r"^TuneSettings.last_evaluations \(3\) cannot exceed n_evaluations \(2\): .* lower last_evaluations or raise "
+            r"n_evaluations\.$",
+        ),
+        ({"budget": 0}, r"^TuneSettings.budget must be at least 1, got 0\.$"),
+        ({"warmup_evaluations": -1}, r"^TuneSettings.warmup_evaluations must be at least 0, got -1: 0 lets the pruner stop"),
         (
             {"experiment": TINY.replace(env="simple_tag"), "objective": "min_dist_sum"},
-            r"'min_dist_sum' is not one of simple_tag's objectives: give one of collisions \(maximize\) \(group_return",
+            r"'min_dist_sum' is not one of simple_tag's objectives: give one of collisions \(maximize\) \(group_return needs "
+            r"the experiment's score_agents\)",
         ),
     ],
 )
@@ -279,10 +287,10 @@ def test_fixed_parameters_hold_in_every_trial_and_the_others_are_searched(tmp_pa
 @pytest.mark.parametrize(
     ("fixed", "message"),
     [
-        ({"hidden": 64}, r"--fix 'hidden' is not a sampled parameter: fix one of \['actor_reg_coef', 'batch_size'"),
-        ({"width": 96}, r"--fix width=96 is not one of its choices \[64, 128, 256\]"),
-        ({"learning_rate": 0.5}, r"--fix learning_rate=0.5 is outside its range \[0.0001, 0.02\]"),
-        ({"transitions_per_update": 25.0}, r"--fix transitions_per_update=25.0 is not one of its choices"),  # an int
+        ({"hidden": 64}, r"^fixed parameter 'hidden' is not a sampled parameter: fix one of \['actor_reg_coef', 'batch_size'"),
+        ({"width": 96}, r"^fixed parameter width=96 is not one of its choices \[64, 128, 256\]"),
+        ({"learning_rate": 0.5}, r"^fixed parameter learning_rate=0.5 is outside its range \[0.0001, 0.02\]"),
+        ({"transitions_per_update": 25.0}, r"^fixed parameter transitions_per_update=25.0 is not one of"),  # an int
     ],
 )
 def test_parameters_a_study_cannot_fix_are_refused(tmp_path: Path, fixed: dict, message: str) -> None:

@@ -273,6 +273,36 @@ def test_attributes_missing_from_a_save_by_version() -> None:
     assert len(dev) == 4  # the save's data is not changed
 
 
+def test_a_save_holds_the_version_that_wrote_it_and_is_read_by_it(tmp_path, monkeypatch) -> None:
+    from sb3_maddpg import __version__
+    from sb3_maddpg.compat import VERSION_KEY, migrate_saved_model, old_module_paths, read_saved_data
+
+    model = MADDPG("MlpPolicy", make_team(), **TRAINS_QUICKLY)
+    model.save(tmp_path / "model.zip")
+    data = read_saved_data(tmp_path / "model.zip")
+    assert data is not None and data[VERSION_KEY] == __version__
+    assert VERSION_KEY not in model.__dict__  # written into the save, not kept on the model
+    # A save of this version is read as it is: nothing filled in, even where a save before 0.3 would get 0.1's rules.
+    assert migrate_saved_model(data) == {}
+    assert migrate_saved_model({k: v for k, v in data.items() if k not in ("update_rule", "actor_reg_coef")}) == {}
+    loaded = MADDPG.load(tmp_path / "model.zip")
+    assert VERSION_KEY not in loaded.__dict__ and loaded.actor_reg_coef == model.actor_reg_coef
+    # Saves without a version are older ones: each committed one is migrated (its rules, 0.2's selector's name).
+    data_dir = Path(__file__).parents[1] / "data"
+    with old_module_paths():  # their classes are named by their version's paths
+        assert set(migrate_saved_model(read_saved_data(data_dir / "maddpg_0.1.0.zip"))) == {
+            "update_rule",
+            "actor_reg_coef",
+            "selector",
+        }
+        assert set(migrate_saved_model(read_saved_data(data_dir / "maddpg_0.2.0_selected.zip"))) == {"update_rule", "selector"}
+    # A save of a newer version is refused, saying to upgrade.
+    monkeypatch.setattr("sb3_maddpg.common.team_algorithm.__version__", "99.0.0")
+    model.save(tmp_path / "newer.zip")
+    with pytest.raises(ValueError, match=r"written by sb3-maddpg 99\.0\.0, newer than the installed .*: upgrade"):
+        MADDPG.load(tmp_path / "newer.zip")
+
+
 @pytest.mark.parametrize("scheme", ["full", "selected"])
 def test_policy_save_load_round_trip(tmp_path, scheme):
     """policy.save() / MADDPGPolicy.load(): SB3's policy-only round trip (no lr_schedule in the file, as TD3's)."""

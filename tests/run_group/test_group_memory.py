@@ -102,4 +102,4 @@ def test_a_sweep_warns_of_groups_asked_for_that_may_not_fit(tmp_path: Path, monk
     assert result.ok and len(result.completed) == 3  # as asked: one group of 3 (tiny buffers, no harm here)
     log = (tmp_path / "sweep.log").read_text()
     assert "in 1 run group(s) of up to 3 run(s)" in log
-    assert "tiny/full: groups of 3 runs (--runs-per-process) may not fit in memory: 2 fit by the package's estimate" in log
+    assert "tiny/full: groups of 3 runs (runs_per_process) may not fit in memory: 2 fit by the package's estimate" in log

@@ -531,7 +531,8 @@ def test_models_that_differ_in_more_than_their_seed_are_refused() -> None:
         (lambda: make_model(train_freq=1), r"^Model 0 was given train_freq or gradient_steps.*transitions_per_update"),
         (
             lambda: MADDPG("MlpPolicy", VecNormalize(SimpleSpreadVecEnv(2, n_agents=N_AGENTS), norm_reward=False), seed=0),
-            r"^Model 0's env is wrapped in VecNormalize.*--backend local \(MADDPG\.learn\)",
+            r"^Model 0's env is wrapped in VecNormalize.*train it with MADDPG\.learn \(a sweep's local backend, "
+            r"backend=\"local\"\)",
         ),
         (
             lambda: make_model(policy_kwargs={**SMALL, "optimizer_class": th.optim.SGD}),
