@@ -1,6 +1,10 @@
 """Command line: ``sb3-maddpg run ...`` (or ``python -m sb3_maddpg.experiments run ...``), ``... tune ...`` and
-``... report ...``. A user's error (a bad name, JSON or number, a missing file) ends the command with one line on
-stderr, its cause then what to do, and exit status 2."""
+``... report ...``, derived from the config model (:mod:`~sb3_maddpg.experiments.cli_options`): ``run``'s options are
+the fields of an experiment, each over every ``--config``'s
+(:class:`~sb3_maddpg.experiments.setting.ExperimentConfig`), and of its execution
+(:class:`~sb3_maddpg.experiments.backends.Execution`); ``tune``'s are the task's fields,
+:class:`~sb3_maddpg.experiments.tune.TuneSettings`' and :func:`~sb3_maddpg.experiments.tune.run_study`'s. A user's error
+(a bad name, value or file) ends the command with one line on stderr, its cause then what to do, and exit status 2."""
 
 import argparse
 import dataclasses
@@ -12,16 +16,19 @@ import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, Any, Literal
+
+from jsonargparse import ArgumentParser
 
 from sb3_maddpg.analysis.evaluation import side_return_key
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
-from sb3_maddpg.experiments.backends import BACKENDS
+from sb3_maddpg.experiments.backends import BACKENDS, Execution
+from sb3_maddpg.experiments.cli_options import add_options, flag, options_of
 from sb3_maddpg.experiments.config import EXPERIMENTS, algorithm_argument, load_experiment
-from sb3_maddpg.experiments.defaults import DEFAULT_ENV, DEFAULT_N_ENVS, VEC_ENVS
+from sb3_maddpg.experiments.defaults import ALGORITHMS, DEFAULT_ENV
 from sb3_maddpg.experiments.results import link_complete_seeds
-from sb3_maddpg.experiments.setting import ExperimentConfig, merge_model_kwargs, scaled_schedule
+from sb3_maddpg.experiments.setting import NOTE_KEEPING_FIELDS, ExperimentConfig, merge_model_kwargs, scaled_schedule
 from sb3_maddpg.experiments.stats import METRICS
 
 if TYPE_CHECKING:
@@ -32,94 +39,49 @@ DEFAULT_RESULTS = "runs/experiments"
 LEFT_OUT_SHOWN = 10
 """``report --complete-seeds`` names this many of the finished runs it leaves out (and counts them all)."""
 
-ALGORITHMS = {"maddpg": "sb3_maddpg:MADDPG", "matd3": "sb3_maddpg:MATD3"}
-"""``run --algo``'s names and the experiments' ``algorithm`` each sets."""
+TASK_FIELDS = ("env", "env_kwargs", "score_agents", "n_agents", "num_agent_neighbors")
+"""The fields of an experiment that ``tune`` takes over its ``--config``'s (the task and its team)."""
 
-SETTING_FLAGS = {
-    "env": "--env",
-    "env_kwargs": "--env-kwargs",
-    "n_agents": "--n-agents",
-    "neighbors": "--neighbors",
-    "episodes": "--episodes",
-    "n_checkpoints": "--n-checkpoints",
-    "eval_episodes": "--eval-episodes",
-    "curve_points": "--curve-points",
-    "curve_eval_episodes": "--curve-eval-episodes",
-    "algo": "--algo",
-    "model_kwargs": "--model-kwargs",
-    "scheme_model_kwargs": "--scheme-model-kwargs",
-    "score_agents": "--score-agents",
-    "normalize_observations": "--normalize-observations",
-}
-"""``run``'s options that change a setting (not only which of its runs, or where): given any, the experiment's
-description says its new values after ``"<config> with <options>"``."""
-
-SCHEDULE_FLAGS = {
-    "n_checkpoints": "--n-checkpoints",
-    "eval_episodes": "--eval-episodes",
-    "curve_points": "--curve-points",
-    "curve_eval_episodes": "--curve-eval-episodes",
-}
-"""The evaluation schedule's options: those not given follow ``--episodes`` (:func:`~.config.scaled_schedule`)."""
+LISTS = {"schemes", "score_agents"}
+"""Fields of names that also take a comma-separated list (``--schemes full,selected``)."""
 
 
-class _OneLineErrors(argparse.ArgumentParser):
-    """argparse's parser, whose errors are one line: the cause, then where the options are listed."""
-
-    def error(self, message: str) -> NoReturn:
-        """:param message: argparse's message; printed as ``<prog>: <message> (see <prog> --help)``, exit status 2."""
-        self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
+class UsageError(Exception):
+    """A command line the parser refuses (its message in one line)."""
 
 
-def _int_list(text: str) -> tuple[int, ...]:
-    try:
-        return tuple(int(item) for item in text.split(",") if item.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of integers, e.g. 0,5,7") from None
+class _Parser(ArgumentParser):
+    """jsonargparse's parser, whose errors are raised to :func:`main` (said there in one line) rather than exiting."""
+
+    def error(self, message: str, ex: Exception | None = None) -> Any:  # type: ignore[override]
+        """:param message: The parser's message, raised as a :class:`UsageError` of one line."""
+        message = " ".join(str(message).split())
+        message = re.sub(r'Parser key "(?:\w+\.)?(\w+)":', lambda key: flag(key.group(1)) + ":", message)
+        message = re.sub(r"Expected a typing\.Literal\[(.*?)\]", r"Expected one of \1", message)
+        raise UsageError(re.sub(r"<class '(\w+)'>", r"\1", message))
 
 
-def _str_list(text: str) -> tuple[str, ...]:
-    return tuple(item.strip() for item in text.split(",") if item.strip())
+def _setting_options(names: Sequence[str] | None = None) -> list[Any]:
+    """:return: The experiment's fields as options (``names`` only, if given), lists also comma-separated."""
+    options = []
+    for option in options_of(ExperimentConfig):
+        if names is not None and option.name not in names:
+            continue
+        if option.name in LISTS:
+            option = option._replace(hint=option.hint | str)
+        if option.name == "seeds":
+            option = option._replace(hint=option.hint | int, help=option.help + " An integer N: 0..N-1.")
+        options.append(option)
+    return options
 
 
-def _json_object(example: str) -> Any:
-    def parse(text: str) -> dict[str, Any]:
-        try:
-            value = json.loads(text)
-        except json.JSONDecodeError as error:
-            raise argparse.ArgumentTypeError(
-                f"{text!r} is not JSON ({error}): give an object, e.g. '{example}' (names and strings in double quotes)"
-            ) from None
-        if not isinstance(value, dict):
-            raise argparse.ArgumentTypeError(f"{text!r} is not a JSON object: give one, e.g. '{example}'")
-        return value
-
-    return parse
-
-
-def _count(least: int) -> Any:
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = least - 1
-        if value < least:
-            raise argparse.ArgumentTypeError(f"{text!r} is not an integer of at least {least}")
-        return value
-
-    return parse
-
-
-def _neighbors(text: str) -> int | str:
-    if text == "all":
-        return text
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{text!r} is neither a number of agents (0 or more) nor 'all'")
-    return value
+def _execution_options() -> list[Any]:
+    """:return: The execution's fields as options: a backend of :data:`BACKENDS`, workers by the backend if not given."""
+    changes: dict[str, dict[str, Any]] = {
+        "backend": {"hint": Literal[tuple(BACKENDS)]},
+        "workers": {"hint": int | None, "default": None},
+    }
+    return [option._replace(**changes.get(option.name, {})) for option in options_of(Execution, skip=("verbose",))]
 
 
 def report_metric_choices() -> list[str]:
@@ -128,75 +90,22 @@ def report_metric_choices() -> list[str]:
     return sorted({*METRICS, *sides})
 
 
-def _add_task_arguments(group: Any, default: str) -> None:
-    """
-    ``--env``, ``--env-kwargs`` and ``--score-agents``, as ``run`` and ``tune`` take them.
-
-    :param group: The parser or argument group to add them to.
-    :param default: What ``--env`` defaults to, for its help.
-    """
-    group.add_argument(
-        "--env",
-        help="the task: simple_spread, another MPE task (e.g. simple_tag; its own team size), a PettingZoo factory "
-        f"'module:function', or a gymnasium id ({default})",
-    )
-    group.add_argument(
-        "--env-kwargs", type=_json_object('{"num_adversaries": 4}'), help="JSON of the task constructor's keyword arguments"
-    )
-    group.add_argument(
-        "--score-agents", type=_str_list, help="comma-separated agent ids whose summed return is scored (group_return)"
-    )
-
-
-def _add_team_arguments(group: Any) -> None:
-    """
-    ``--n-agents`` and ``--neighbors``, as ``run`` and ``tune`` take them (:func:`_with_team` reads them).
-
-    :param group: The parser or argument group to add them to.
-    """
-    group.add_argument("--n-agents", type=_count(1), help="simple_spread's agents (and landmarks)")
-    group.add_argument("--neighbors", type=_neighbors, help="nearest other agents observed: an integer, or 'all'")
-
-
-def _with_team(experiment: ExperimentConfig, changes: dict[str, Any], args: argparse.Namespace) -> ExperimentConfig:
-    """
-    :param experiment: A loaded ``--config``.
-    :param changes: The other options' changes to it (``n_agents`` among them), for ``ExperimentConfig.replace``.
-    :param args: Parsed ``run`` or ``tune`` arguments (:func:`_add_team_arguments`).
-    :return: The experiment changed, ``--neighbors`` included; a ``ValueError`` first when ``--n-agents`` or
-        ``--neighbors`` is given for another task than simple_spread (whose team is its own).
-    """
-    task = args.env or experiment.env
-    given = [SETTING_FLAGS[dest] for dest in ("n_agents", "neighbors") if getattr(args, dest) is not None]
-    if task != DEFAULT_ENV and given:
-        raise ValueError(
-            f"{given[0]} sets simple_spread's team, but the task is {task}, whose team is its own: change it through "
-            "--env-kwargs (e.g. simple_tag's '{\"num_adversaries\": 4}'), or leave out " + " and ".join(given) + "."
-        )
-    experiment = experiment.replace(**changes)
-    if args.neighbors is not None:
-        experiment = dataclasses.replace(experiment, num_agent_neighbors=None if args.neighbors == "all" else args.neighbors)
-    return experiment
-
-
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> ArgumentParser:
     """:return: The argument parser of the ``sb3-maddpg`` command."""
-    parser = _OneLineErrors(
+    parser = _Parser(
         prog="sb3-maddpg",
         description="Reproduce the paper's experiments: train every scheme and seed, evaluate checkpoints, report Table 2.",
     )
-    commands = parser.add_subparsers(dest="command", required=True)
-    _add_run_parser(commands)
-    _add_tune_parser(commands)
-    _add_report_parser(commands)
+    commands = parser.add_subcommands(dest="command")
+    commands.add_subcommand("run", _run_parser(), help="run a sweep (finished runs are skipped: the same command resumes)")
+    commands.add_subcommand("tune", _tune_parser(), help="search the hyperparameters on Optuna (the same command resumes)")
+    commands.add_subcommand("report", _report_parser(), help="Table 2, the paper's findings, curves from a results directory")
     return parser
 
 
-def _add_run_parser(commands: Any) -> None:
-    """:param commands: The ``sb3-maddpg`` subparsers, given ``run``."""
-    run = commands.add_parser(
-        "run",
-        help="run a sweep (finished runs are skipped, so the same command resumes an interrupted sweep)",
+def _run_parser() -> ArgumentParser:
+    """:return: ``run``'s parser: the experiments, each field over theirs, and where they execute."""
+    run = _Parser(
         description="Run every (scheme, seed) of the experiments. Presets: "
         + "; ".join(f"{name}: {config.description}" for name, config in EXPERIMENTS.items()),
     )
@@ -204,209 +113,47 @@ def _add_run_parser(commands: Any) -> None:
         "--config",
         action="append",
         default=None,
-        help=f"a preset ({', '.join(EXPERIMENTS)}) or an experiment JSON file; repeat for several "
-        "(required: the paper's sweep is --config exp1 --config exp2, 310 runs)",
+        help=f"a preset ({', '.join(EXPERIMENTS)}), a preset file (.yml) or a stored experiment (.json); repeat for "
+        "several (required: the paper's sweep is --config exp1 --config exp2, 310 runs)",
     )
-    run.add_argument("--results", default=DEFAULT_RESULTS, help=f"results directory (default: {DEFAULT_RESULTS})")
-    _add_run_overrides(run.add_argument_group("overrides (applied to every --config)"))
-    _add_run_execution(run.add_argument_group("execution"))
+    run.add_argument("--results", default=DEFAULT_RESULTS, help="the results directory")
+    add_options(run.add_argument_group("the experiment (each option over every --config's)"), _setting_options(), True)
+    add_options(run.add_argument_group("execution"), _execution_options())
+    run.add_argument("--dry-run", action="store_true", help="list the runs and exit")
+    run.add_argument("--quiet", action="store_true", help="print only the sweep's progress, not each run's")
+    return run
 
 
-def _add_run_overrides(group: Any) -> None:
-    """:param group: ``run``'s argument group of the overrides."""
-    group.add_argument("--name", help="store the experiment under this name (one --config only)")
-    group.add_argument("--schemes", type=_str_list, help="comma-separated schemes, e.g. full,selected")
-    group.add_argument("--seeds", type=_count(1), help="number of seeds (0..N-1)")
-    group.add_argument("--seed-list", type=_int_list, help="comma-separated seeds (instead of --seeds)")
-    _add_team_arguments(group)
-    group.add_argument(
-        "--episodes",
-        type=_count(1),
-        help="training budget in episodes; a smaller budget than the config's shrinks the evaluation options below "
-        "that are not given (each by the square root of the budgets' ratio; see the reproduce guide)",
-    )
-    group.add_argument("--n-checkpoints", type=_count(1), help="checkpoints over the last 20%% of training")
-    group.add_argument("--eval-episodes", type=_count(1), help="episodes per checkpoint evaluation")
-    group.add_argument("--curve-points", type=_count(0), help="learning-curve evaluations per run")
-    group.add_argument("--curve-eval-episodes", type=_count(1), help="episodes per learning-curve evaluation")
-    group.add_argument(
-        "--algo",
-        choices=sorted(ALGORITHMS),
-        help="the algorithm every run trains (default: the config's, MADDPG for the presets); store a MATD3 sweep under "
-        "its own --name or --results, so that report tells it apart",
-    )
-    group.add_argument(
-        "--model-kwargs",
-        type=_json_object('{"batch_size": 256}'),
-        help="JSON merged into the MADDPG kwargs, e.g. '{\"batch_size\": 256}'",
-    )
-    group.add_argument(
-        "--scheme-model-kwargs",
-        type=_json_object('{"selected": {"selector": 1}}'),
-        help='JSON of MADDPG kwargs for one scheme only, merged per scheme, e.g. \'{"selected": {"selector": 1}}\'',
-    )
-    _add_task_arguments(group, "simple_spread by default")
-    group.add_argument(
-        "--vec-env",
-        choices=VEC_ENVS,
-        help="batched: SimpleSpreadVecEnv (the same MDP as mpe2, arrays; default); mpe2: DummyVecEnv over mpe2 itself",
-    )
-    group.add_argument("--n-envs", type=_count(1), help=f"worlds stepped together in training (default {DEFAULT_N_ENVS})")
-    group.add_argument("--keep-checkpoints", action=argparse.BooleanOptionalAction, default=None, help="keep model files")
-    group.add_argument(
-        "--normalize-observations",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="normalise the observations by their running mean and variance (SB3's VecNormalize; rewards raw)",
-    )
+def _tune_parser() -> ArgumentParser:
+    """:return: ``tune``'s parser: the setting, the study's settings and its workers."""
+    from sb3_maddpg.experiments.tune import TuneSettings, run_study
 
-
-def _add_run_execution(execution: Any) -> None:
-    """:param execution: ``run``'s argument group of where and how the runs execute."""
-    execution.add_argument(
-        "--backend",
-        choices=tuple(BACKENDS),
-        default="local",
-        help="; ".join(f"{name}: {entry.help}" for name, entry in BACKENDS.items()) + " (default: %(default)s)",
-    )
-    execution.add_argument(
-        "--device",
-        default="auto",
-        help="where the runs (or, batched, the run groups) train: cpu or cuda (default auto: cuda if there)",
-    )
-    execution.add_argument(
-        "--no-snapshots",
-        action="store_true",
-        help="local and ray: save no snapshot of a run's training state at each tenth of its budget (a killed run then "
-        "starts again from scratch; a snapshot takes about two replay buffers of disk per run in progress)",
-    )
-    execution.add_argument(
-        "--compile",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="batched: compile each run group's rounds (torch.compile, one graph per part; CUDA graphs on a GPU): faster "
-        "rounds after tens of seconds of compiling, said in the progress lines (default: where measured to pay, CPU "
-        "groups of runs of 1M env steps or more)",
-    )
-    execution.add_argument(
-        "--runs-per-process",
-        type=int,
-        default=None,
-        help="batched: the most runs in one group (default: all seeds of a setting and scheme, or as many as the "
-        "device's memory holds; with --ray: all seeds)",
-    )
-    execution.add_argument(
-        "--ray",
-        action="store_true",
-        help="batched: each run group a Ray task (one GPU each with --device cuda, else --threads CPUs), on a local "
-        "Ray instance or the cluster at --ray-address",
-    )
-    execution.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        help="parallel runs (local, default 1); CPUs of a local Ray instance (ray, batched --ray; default 0: all of "
-        "this machine's)",
-    )
-    execution.add_argument("--threads", type=int, default=1, help="torch threads per run (default: 1)")
-    execution.add_argument(
-        "--ray-address",
-        help="Ray cluster address for ray or batched --ray (e.g. auto, ray://head:10001); default: start a local one",
-    )
-    execution.add_argument("--dry-run", action="store_true", help="list the runs and exit")
-    execution.add_argument("--quiet", action="store_true", help="print only the sweep's progress, not each run's")
-
-
-def _add_tune_parser(commands: Any) -> None:
-    """:param commands: The ``sb3-maddpg`` subparsers, given ``tune``."""
-    tune = commands.add_parser(
-        "tune",
-        help="search MADDPG's hyperparameters on Optuna (a study in SQLite: the same command resumes it)",
+    tune = _Parser(
         description="Train trials of one setting with sampled hyperparameters, prune the poor ones, print the best as a "
         "preset. Several processes (--workers, or the same command in another shell) share the study.",
     )
-    setting = tune.add_argument_group("the setting")
-    setting.add_argument(
-        "--config", default="exp1", help="the setting: a preset or an experiment JSON file (default: %(default)s)"
-    )
-    _add_task_arguments(setting, "default: the setting's")
-    _add_team_arguments(setting)
-    setting.add_argument("--scheme", help="the critic_sharing scheme (default: the setting's first)")
-    _add_tune_study(tune.add_argument_group("the study"))
+    tune.add_argument("--config", default="exp1", help="the setting: a preset, a preset file or a stored experiment")
+    add_options(tune.add_argument_group("the task (over --config's)"), _setting_options(TASK_FIELDS), True)
+    tune.add_argument("--scheme", help="the critic_sharing scheme (default: the setting's first)")
+    defaults = {"study_name": None, "storage": "sqlite:///tune.db"}
+    study = [
+        option._replace(hint=option.hint | None, default=defaults[option.name]) if option.name in defaults else option
+        for option in options_of(TuneSettings, skip=("experiment", "pruner"))
+    ]
+    add_options(tune.add_argument_group("the study"), study)
+    add_options(tune.add_argument_group("the workers"), options_of(run_study))
+    tune.add_argument("--preset-out", help="also write the best trial's experiment (JSON) to this file")
+    return tune
 
 
-def _add_tune_study(study: Any) -> None:
-    """:param study: ``tune``'s argument group of the study, its trials and its workers."""
-    study.add_argument("--study-name", help="the study's name (default: <setting>[_<task>]_<objective>, then each --fix)")
-    study.add_argument("--storage", default="sqlite:///tune.db", help="Optuna storage URL (default: %(default)s)")
-    study.add_argument(
-        "--trials", type=_count(1), default=50, help="finished trials at which the study stops (default: %(default)s)"
-    )
-    study.add_argument("--steps", type=_count(1), default=1_000_000, help="env steps per trial (default: %(default)s)")
-    study.add_argument(
-        "--evaluations",
-        type=_count(1),
-        default=10,
-        help="evaluations per trial, each reported to the pruner (default: %(default)s)",
-    )
-    study.add_argument("--eval-episodes", type=_count(1), default=100, help="episodes per evaluation (default: %(default)s)")
-    study.add_argument(
-        "--last-evaluations",
-        type=_count(1),
-        default=3,
-        help="a trial scores its mean over its last this many evaluations, at most --evaluations (default: %(default)s)",
-    )
-    study.add_argument(
-        "--warmup-evaluations",
-        type=_count(0),
-        default=1,
-        help="first evaluations at which no trial is pruned (default: %(default)s)",
-    )
-    study.add_argument(
-        "--objective",
-        help="what a trial optimises (default: the task's first): on simple_spread min_dist_sum (lower is better), "
-        "normalised or return_mean; on another MPE task one of its metrics (sb3_maddpg.envs.MPE_TASK_METRICS, e.g. "
-        "simple_tag's collisions, the catches, higher) or return_mean; on any other task return_mean; group_return "
-        "with --score-agents",
-    )
-    study.add_argument(
-        "--seed", type=int, default=0, help="seed of the sampler and of every trial's run (default: %(default)s)"
-    )
-    study.add_argument(
-        "--workers", type=_count(1), default=1, help="parallel worker processes sharing the study (default: %(default)s)"
-    )
-    study.add_argument(
-        "--backend", choices=("local", "ray"), default="local", help="local processes or Ray tasks (default: %(default)s)"
-    )
-    study.add_argument("--address", default=None, help="Ray cluster address (with --backend ray; default: a local Ray)")
-    study.add_argument("--threads", type=int, default=1, help="torch threads per worker (default: %(default)s)")
-    study.add_argument(
-        "--heartbeat", type=_count(1), default=60, help="seconds between a trial's heartbeats (default: %(default)s)"
-    )
-    study.add_argument("--preset-out", help="also write the best trial's preset (experiment JSON) to this file")
-    study.add_argument(
-        "--fix",
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="hold a sampled parameter at one value in every trial (repeat for several), e.g. --fix "
-        "transitions_per_update=25 --fix width=64; the study's default name then says so",
-    )
-
-
-def _add_report_parser(commands: Any) -> None:
-    """:param commands: The ``sb3-maddpg`` subparsers, given ``report``."""
-    report = commands.add_parser(
-        "report",
-        help="Table 2 (Markdown, CSV), aggregates, the paper's findings asked of the runs, learning curves and "
-        "boxplots from a results directory",
-    )
-    report.add_argument("results", nargs="?", default=DEFAULT_RESULTS, help=f"results directory (default: {DEFAULT_RESULTS})")
+def _report_parser() -> ArgumentParser:
+    """:return: ``report``'s parser."""
+    report = _Parser(description="Table 2 (Markdown, CSV), aggregates, the paper's findings, curves and boxplots.")
+    report.add_argument("results", nargs="?", default=DEFAULT_RESULTS, help="the results directory")
     report.add_argument("--out", help="output directory (default: <results>/report)")
     report.add_argument(
         "--metric",
         action="append",
-        choices=report_metric_choices(),
         help="score(s) to tabulate and plot, repeat for several, e.g. min_dist_sum or a competitive task's "
         "return_adversaries (default: the task's main metrics: simple_spread's success_rate and min_dist_sum)",
     )
@@ -418,73 +165,70 @@ def _add_report_parser(commands: Any) -> None:
         f"like with like (the finished runs left out are counted, the first {LEFT_OUT_SHOWN} named; exit status 1 "
         "when no seed is complete)",
     )
+    return report
+
+
+def _given(args: argparse.Namespace, names: Sequence[str]) -> dict[str, Any]:
+    """:return: The fields among ``names`` that ``args`` holds (given), lists of names split at commas."""
+    given = {name: getattr(args, name) for name in names if hasattr(args, name)}
+    for name in LISTS & given.keys():
+        if isinstance(given[name], str):
+            given[name] = tuple(item.strip() for item in given[name].split(",") if item.strip())
+    if isinstance(given.get("seeds"), int):
+        if given["seeds"] < 1:
+            raise ValueError(f"--seeds {given['seeds']}: give a number of seeds of at least 1, or a list of seeds, e.g. [0].")
+        given["seeds"] = tuple(range(given["seeds"]))
+    return given
+
+
+def override(experiment: ExperimentConfig, given: dict[str, Any], config: str) -> ExperimentConfig:
+    """
+    :param experiment: A loaded ``--config``.
+    :param given: The fields given on the command line (:func:`_given`).
+    :param config: What ``--config`` said, for the description.
+    :return: The experiment with the given fields: ``model_kwargs`` merged over its own (``scheme_model_kwargs`` per
+        scheme); with ``--episodes``, each evaluation count not given follows the budget
+        (:func:`~sb3_maddpg.experiments.setting.scaled_schedule`); a setting changed is described by its new values
+        after ``"<config> with <options>"``. A ``ValueError`` for the team of a task other than simple_spread.
+    """
+    changes = dict(given)
+    task = changes.get("env", experiment.env)
+    team = [flag(name) for name in ("n_agents", "num_agent_neighbors") if name in changes]
+    if task != DEFAULT_ENV and team:
+        raise ValueError(
+            f"{team[0]} sets simple_spread's team, but the task is {task}, whose team is its own: change it through "
+            "--env-kwargs (e.g. simple_tag's '{\"num_adversaries\": 4}'), or leave out " + " and ".join(team) + "."
+        )
+    if "model_kwargs" in changes:
+        changes["model_kwargs"] = merge_model_kwargs(experiment.model_kwargs, changes["model_kwargs"])
+    if "scheme_model_kwargs" in changes:
+        changes["scheme_model_kwargs"] = {
+            scheme: merge_model_kwargs(experiment.scheme_model_kwargs.get(scheme, {}), kwargs)
+            for scheme, kwargs in {**experiment.scheme_model_kwargs, **changes["scheme_model_kwargs"]}.items()
+        }
+    scaled = False
+    if "episodes" in changes:
+        for name, value in scaled_schedule(experiment, changes["episodes"]).items():
+            if name not in changes:
+                changes[name] = value
+                scaled = scaled or value != getattr(experiment, name)
+    nulls: dict[str, Any] = {name: None for name, value in changes.items() if value is None}  # e.g. every neighbour
+    changed = dataclasses.replace(experiment.replace(**changes), **nulls)
+    flags = [flag(name) for name in given if name not in NOTE_KEEPING_FIELDS]
+    if not flags or "description" in given:
+        return changed
+    return changed.described(f"{config} with {' '.join(flags)}" + (" (evaluation scaled to the budget)" if scaled else ""))
 
 
 def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
     """
     :param args: Parsed ``run`` arguments.
-    :return: The experiments with the overrides applied; a ``ValueError`` that names the option for a user's error.
-        With ``--episodes``, each evaluation count not given follows the budget
-        (:func:`~sb3_maddpg.experiments.setting.scaled_schedule`); an experiment that options of ``SETTING_FLAGS``
-        changed is described by its new values, after ``"<config> with <options>"``.
+    :return: Each ``--config`` with the fields given over it (:func:`override`); a ``ValueError`` for a user's error.
     """
-    if args.name and len(args.config) != 1:
+    if hasattr(args, "name") and len(args.config) != 1:
         raise ValueError(f"--name renames one experiment, but {len(args.config)} --config are given: give one --config.")
-    return [_override_experiment(load_experiment(name), name, args) for name in args.config]
-
-
-def _override_experiment(experiment: ExperimentConfig, config: str, args: argparse.Namespace) -> ExperimentConfig:
-    """
-    :param experiment: A loaded ``--config``.
-    :param config: What ``--config`` said (a preset's name or a file), for the description.
-    :param args: Parsed ``run`` arguments.
-    :return: The experiment with ``args``' overrides (see :func:`experiments_from_args`).
-    """
-    changed = _with_team(experiment, _run_overrides(experiment, args), args)
-    flags = [flag for dest, flag in SETTING_FLAGS.items() if getattr(args, dest) is not None]
-    if not flags:
-        return changed
-    scaled = any(getattr(changed, dest) != getattr(experiment, dest) for dest in SCHEDULE_FLAGS if getattr(args, dest) is None)
-    return changed.described(f"{config} with {' '.join(flags)}" + (" (evaluation scaled to the budget)" if scaled else ""))
-
-
-def _run_overrides(experiment: ExperimentConfig, args: argparse.Namespace) -> dict[str, Any]:
-    """
-    :param experiment: A loaded ``--config``.
-    :param args: Parsed ``run`` arguments.
-    :return: :meth:`~sb3_maddpg.experiments.setting.ExperimentConfig.replace`'s changes (``None``: not given), the
-        evaluation schedule scaled to ``--episodes`` where it is not given.
-    """
-    seeds = args.seed_list or (tuple(range(args.seeds)) if args.seeds is not None else None)
-    model_kwargs = merge_model_kwargs(experiment.model_kwargs, args.model_kwargs) if args.model_kwargs else None
-    scheme_model_kwargs = None
-    if args.scheme_model_kwargs:
-        scheme_model_kwargs = {
-            scheme: merge_model_kwargs(experiment.scheme_model_kwargs.get(scheme, {}), kwargs)
-            for scheme, kwargs in {**experiment.scheme_model_kwargs, **args.scheme_model_kwargs}.items()
-        }
-    schedule = {dest: getattr(args, dest) for dest in SCHEDULE_FLAGS}
-    if args.episodes is not None:
-        scaled = scaled_schedule(experiment, args.episodes)
-        schedule = {dest: scaled[dest] if value is None else value for dest, value in schedule.items()}
-    return dict(
-        name=args.name,
-        schemes=args.schemes,
-        seeds=seeds,
-        n_agents=args.n_agents,
-        episodes=args.episodes,
-        **schedule,
-        model_kwargs=model_kwargs,
-        scheme_model_kwargs=scheme_model_kwargs,
-        env=args.env,
-        env_kwargs=args.env_kwargs,
-        score_agents=args.score_agents,
-        keep_checkpoints=args.keep_checkpoints,
-        normalize_observations=args.normalize_observations,
-        vec_env=args.vec_env,
-        n_envs=args.n_envs,
-        algorithm=ALGORITHMS[args.algo] if args.algo else None,
-    )
+    given = _given(args, [option.name for option in _setting_options()])
+    return [override(load_experiment(name), given, name) for name in args.config]
 
 
 def _check_experiments(experiments: Sequence[ExperimentConfig]) -> None:
@@ -537,9 +281,9 @@ def no_config_message() -> str:
         for name, config in EXPERIMENTS.items()
     )
     return (
-        "sb3-maddpg run: no experiment given: name one with --config (a preset below or an experiment JSON file; "
-        "repeat it for several). The paper's full sweep is --config exp1 --config exp2 (310 runs, days of CPU); "
-        f"add --dry-run to list the runs first.\n{presets}"
+        "sb3-maddpg run: no experiment given: name one with --config (a preset below, a preset file or a stored "
+        "experiment; repeat it for several). The paper's full sweep is --config exp1 --config exp2 (310 runs, days of "
+        f"CPU); add --dry-run to list the runs first.\n{presets}"
     )
 
 
@@ -549,11 +293,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     :return: The exit status: 0 when every run finished (or the report was written), 1 otherwise, 2 for a usage
         error (said in one line on stderr), 130 after Ctrl-C (the sweep resumes with the same command).
     """
+    argv = list(sys.argv[1:] if argv is None else argv)
     try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exit:  # argparse: --help (0), or a usage error said in one line (2)
+        parsed = build_parser().parse_args(argv)
+    except UsageError as error:
+        command = f"sb3-maddpg {argv[0]}" if argv and argv[0] in ("run", "tune", "report") else "sb3-maddpg"
+        print(f"{command}: {error} (see {command} --help)", file=sys.stderr)
+        return 2
+    except SystemExit as exit:  # --help
         return exit.code if isinstance(exit.code, int) else 2
-    if args.command == "run":
+    args = getattr(parsed, parsed.command)
+    if parsed.command == "run":
         if not args.config:
             print(no_config_message(), file=sys.stderr)
             return 2
@@ -562,7 +312,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         except KeyboardInterrupt:  # Ctrl-C before the sweep began (run_command handles it during the sweep)
             print("sb3-maddpg run: interrupted before the sweep started; nothing was run.", file=sys.stderr)
             return 130
-    if args.command == "tune":
+    if parsed.command == "tune":
         try:
             return tune_command(args)
         except KeyboardInterrupt:
@@ -571,63 +321,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     return report_command(args)
 
 
-def parse_fixed_params(items: list[str]) -> dict[str, Any]:
-    """
-    :param items: ``--fix`` values, ``NAME=VALUE`` each (the value as JSON: ``25``, ``1e-3``).
-    :return: The parameters to hold, by name (checked by the study's settings).
-    """
-    fixed: dict[str, Any] = {}
-    for item in items:
-        name, equals, text = item.partition("=")
-        if not equals or not name:
-            raise ValueError(f"--fix {item!r} is not NAME=VALUE: e.g. --fix transitions_per_update=25.")
-        try:
-            fixed[name.strip()] = json.loads(text)
-        except json.JSONDecodeError:
-            raise ValueError(f"--fix {item!r}: its value {text!r} is not a number (JSON), e.g. 25 or 1e-3.") from None
-    return fixed
-
-
-def _tune_experiment(args: argparse.Namespace) -> ExperimentConfig:
-    """
-    :param args: Parsed ``tune`` arguments.
-    :return: The setting the trials train in: ``--config`` with the task, team and scheme options over it.
-    """
-    scheme = (args.scheme,) if args.scheme else None
-    changes = {"env": args.env, "env_kwargs": args.env_kwargs, "score_agents": args.score_agents, "n_agents": args.n_agents}
-    experiment = _with_team(load_experiment(args.config), {**changes, "schemes": scheme}, args)
-    _check_experiments([experiment])
-    return experiment
-
-
 def _tune_settings(args: argparse.Namespace) -> Any:
     """
     :param args: Parsed ``tune`` arguments.
-    :return: The study's :class:`~sb3_maddpg.experiments.tune.TuneSettings`; a ``ValueError`` for a user's error.
+    :return: The study's :class:`~sb3_maddpg.experiments.tune.TuneSettings`: ``--config`` with the task's fields and
+        the scheme over it; a ``ValueError`` for a user's error.
     """
     from sb3_maddpg.experiments.tune import TuneSettings, default_study_name, task_objectives
 
-    experiment = _tune_experiment(args)
-    fixed = parse_fixed_params(args.fix)
+    given = _given(args, TASK_FIELDS) | ({"schemes": (args.scheme,)} if args.scheme else {})
+    experiment = override(load_experiment(args.config), given, args.config)
+    _check_experiments([experiment])
     setting = experiment.name
-    if args.env and args.env != load_experiment(args.config).env:  # another task than the config's: say it
-        setting += "_" + re.sub(r"[^A-Za-z0-9_.-]+", "_", args.env)
-    objective = args.objective or next(iter(task_objectives(experiment)))
-    return TuneSettings(
-        experiment=experiment,
-        study_name=args.study_name or default_study_name(setting, objective, fixed),
-        storage=args.storage,
-        n_trials=args.trials,
-        budget=args.steps,
-        n_evaluations=args.evaluations,
-        eval_episodes=args.eval_episodes,
-        last_evaluations=args.last_evaluations,
-        warmup_evaluations=args.warmup_evaluations,
-        objective=objective,
-        seed=args.seed,
-        heartbeat_seconds=args.heartbeat,
-        fixed_params=fixed,
-    )
+    if "env" in given and given["env"] != load_experiment(args.config).env:  # another task than the config's: say it
+        setting += "_" + re.sub(r"[^A-Za-z0-9_.-]+", "_", given["env"])
+    study = {option.name: getattr(args, option.name) for option in options_of(TuneSettings, skip=("experiment", "pruner"))}
+    study["objective"] = args.objective or next(iter(task_objectives(experiment)))
+    study["study_name"] = args.study_name or default_study_name(setting, study["objective"], args.fixed_params)
+    return TuneSettings(experiment=experiment, **study)
 
 
 def tune_command(args: argparse.Namespace) -> int:
@@ -643,7 +354,7 @@ def tune_command(args: argparse.Namespace) -> int:
         print(f"sb3-maddpg tune: {error}", file=sys.stderr)
         return 2
     experiment = settings.experiment
-    warning = _untrained_warning(experiment, settings.budget, "--steps")
+    warning = _untrained_warning(experiment, settings.budget, "--budget")
     if warning:
         print(f"sb3-maddpg tune: warning: {warning}", file=sys.stderr)
     if settings.fixed_params:
@@ -677,15 +388,10 @@ def tune_command(args: argparse.Namespace) -> int:
 
 def _check_execution(args: argparse.Namespace) -> None:
     """:param args: Parsed ``run`` arguments, whose execution options are refused (a ``ValueError``) if they clash."""
-    if args.ray and args.backend not in ("batched", "batched-ray"):
+    if args.ray_address and args.backend not in ("ray", "batched-ray"):
         raise ValueError(
-            f"--ray runs the batched backend's run groups as Ray tasks, but the backend is {args.backend}: use --backend "
-            "batched --ray, or --backend ray for one Ray task per run."
-        )
-    if args.ray_address and args.backend == "batched" and not args.ray:  # batched-ray is on Ray
-        raise ValueError(
-            "--ray-address is Ray's, but --backend batched without --ray trains in this process: add --ray to run the "
-            "groups as Ray tasks there."
+            f"--ray-address is Ray's, but --backend {args.backend} trains on this machine: use --backend ray (a Ray task "
+            "per run) or batched-ray (a Ray task per run group) to train there."
         )
     if Path(args.results).exists() and not Path(args.results).is_dir():
         raise ValueError(f"--results {args.results} is a file, not a directory: give a directory (new or a sweep's).")
@@ -724,21 +430,11 @@ def run_command(args: argparse.Namespace) -> int:
     if not args.quiet:
         for experiment in experiments:
             print(f"{experiment.name}: {experiment.description}")
+    execution = {option.name: getattr(args, option.name) for option in _execution_options()}
+    if execution["workers"] is None:
+        execution["workers"] = 1 if args.backend == "local" else 0
     try:
-        result = run_sweep(
-            experiments,
-            args.results,
-            backend=args.backend,
-            workers=args.workers if args.workers is not None else (1 if args.backend == "local" else 0),
-            threads=args.threads,
-            ray_address=args.ray_address,
-            verbose=1 if args.quiet else 2,
-            device=args.device,
-            runs_per_process=args.runs_per_process,
-            on_ray=args.ray and args.backend == "batched",
-            snapshots=not args.no_snapshots,
-            compile=args.compile,
-        )
+        result = run_sweep(experiments, args.results, verbose=1 if args.quiet else 2, **execution)
     except BatchedRunRefused as error:  # said before anything trained
         print(f"sb3-maddpg run: {error}", file=sys.stderr)
         return 2
@@ -769,6 +465,13 @@ def report_command(args: argparse.Namespace) -> int:
         print(
             f"sb3-maddpg report: no results directory {args.results}: give the directory a sweep wrote (sb3-maddpg run "
             f"--results DIR; default {DEFAULT_RESULTS}).",
+            file=sys.stderr,
+        )
+        return 2
+    unknown = [metric for metric in args.metric or () if metric not in report_metric_choices()]
+    if unknown:
+        print(
+            f"sb3-maddpg report: --metric {unknown[0]!r} is no score: give one of {', '.join(report_metric_choices())}.",
             file=sys.stderr,
         )
         return 2

@@ -10,6 +10,9 @@ SCHEMES = ("full", "independent", "observations", "actions", "selected")
 DEFAULT_ALGORITHM = "sb3_maddpg:MADDPG"
 """The algorithm every run trains, as ``"module:Class"``."""
 
+ALGORITHMS = {"maddpg": DEFAULT_ALGORITHM, "matd3": "sb3_maddpg:MATD3"}
+"""The package's algorithms by short name: a setting's ``algorithm`` may be given so (it stores ``"module:Class"``)."""
+
 
 VEC_ENVS = ("batched", "mpe2")
 """How a run steps simple_spread: ``"batched"`` (:class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`, the same MDP as

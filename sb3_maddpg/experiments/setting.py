@@ -13,6 +13,7 @@ from typing import Any, ClassVar, TypeVar
 
 from sb3_maddpg.compat import migrate_stored_config
 from sb3_maddpg.experiments.defaults import (
+    ALGORITHMS,
     DEFAULT_ALGORITHM,
     DEFAULT_ENV,
     DEFAULT_N_ENVS,
@@ -65,7 +66,8 @@ class Setting:
     :param curve_eval_episodes: Episodes per learning-curve evaluation.
     :param keep_checkpoints: Keep the checkpoint model files after they are evaluated.
     :param model_kwargs: Keyword arguments for the algorithm (overriding the paper's defaults).
-    :param algorithm: The algorithm class as ``"module:Class"``; it is built as
+    :param algorithm: The algorithm class as ``"module:Class"``, or ``"maddpg"`` or ``"matd3"`` (stored as their
+        ``"module:Class"``: :data:`~sb3_maddpg.experiments.defaults.ALGORITHMS`); it is built as
         ``Class("MlpPolicy", env, critic_sharing=scheme, seed=seed, **model_kwargs)``.
     :param vec_env: ``"batched"`` (:class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`) or ``"mpe2"`` (``DummyVecEnv``
         over mpe2 through the adapter): the same MDP, the first 92-152x faster to step with 64-256 worlds.
@@ -107,6 +109,7 @@ class Setting:
     normalize_observations: bool = False
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "algorithm", ALGORITHMS.get(self.algorithm, self.algorithm))
         _check_vec_env(self.vec_env, self.n_envs)
         check_env_name(self.env)
         object.__setattr__(self, "score_agents", tuple(self.score_agents))

@@ -27,7 +27,6 @@ from sb3_maddpg.compat import with_version
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES
 from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.local_pool import worker_pool
-from sb3_maddpg.experiments.ray_tasks import ray_session
 from sb3_maddpg.experiments.runner import build_model
 from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig, merge_model_kwargs
 from sb3_maddpg.experiments.tasks import declared_metrics, run_task, task_metrics
@@ -519,6 +518,8 @@ def run_study(
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}.")
     if backend == "ray":
+        from sb3_maddpg.experiments.ray_tasks import ray_session  # Ray's code only for Ray's workers
+
         # As a sweep reaches Ray: a local instance's workers at normal priority, and shut down with the study.
         with ray_session(address, None, verbose=1) as ray:
             remote = ray.remote(num_cpus=threads or 1)(_worker)

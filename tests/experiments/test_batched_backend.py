@@ -382,7 +382,7 @@ def test_compile_trains_the_groups_compiled_and_says_its_compile_time(tmp_path: 
     compiling took, and the runs finish as any batched run."""
     torch._dynamo.reset()
     try:
-        arguments = ["run", "--config", "smoke", "--schemes", "full", "--seed-list", "0,1", "--results", str(tmp_path)]
+        arguments = ["run", "--config", "smoke", "--schemes", "full", "--seeds", "[0, 1]", "--results", str(tmp_path)]
         status = main([*arguments, "--backend", "batched", "--device", "cpu", "--compile", "--quiet"])
     finally:
         torch._dynamo.reset()

@@ -34,14 +34,14 @@ every evaluation must agree exactly."""
 
 @pytest.fixture(scope="module")
 def both(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """The experiment through ``--backend batched`` in this process and through ``--ray`` on a local instance."""
+    """The experiment through ``--backend batched`` in this process and through ``batched-ray`` on a local instance."""
     pytest.importorskip("ray", reason="the Ray test needs ray (installed in CI through the dev extra)")
     config = tmp_path_factory.mktemp("config") / "tiny.json"
     config.write_text(json.dumps(WARM_UP_ONLY.to_dict()))
     results = {}
-    for name, extra in (("batched", []), ("ray", ["--ray", "--workers", "1"])):
+    for name, extra in (("batched", ["--backend", "batched"]), ("ray", ["--backend", "batched-ray", "--workers", "1"])):
         path = tmp_path_factory.mktemp(name)
-        args = ["run", "--config", str(config), "--results", str(path), "--backend", "batched", "--device", "cpu"]
+        args = ["run", "--config", str(config), "--results", str(path), "--device", "cpu"]
         assert main([*args, "--quiet", *extra]) == 0
         results[name] = path
     return results
@@ -155,7 +155,7 @@ def test_refusals_come_before_ray_starts(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray fails: the refusal must come before it
-    args = ["run", "--config", "smoke", "--results", str(tmp_path), "--backend", "batched", "--ray"]
+    args = ["run", "--config", "smoke", "--results", str(tmp_path), "--backend", "batched-ray"]
     assert main([*args, "--schemes", "attention"]) == 2
     assert capsys.readouterr().err.startswith(
         "sb3-maddpg run: smoke/attention/seed_000 (and its other seeds) cannot train in a run group"
@@ -164,11 +164,9 @@ def test_refusals_come_before_ray_starts(
         run_sweep([dataclasses.replace(WARM_UP_ONLY, vec_env="mpe2")], tmp_path, backend="batched", on_ray=True, verbose=0)
     assert not (tmp_path / "smoke").exists() and not (tmp_path / "tiny").exists()  # nothing trained or written
 
-    # --ray is the batched backend's; --ray-address without it would be ignored.
-    assert main(["run", "--config", "smoke", "--results", str(tmp_path), "--ray"]) == 2
-    assert "use --backend batched --ray, or --backend ray" in capsys.readouterr().err
-    assert main([*args[:-1], "--ray-address", "auto"]) == 2
-    assert "add --ray to run the groups as Ray tasks" in capsys.readouterr().err
+    # --ray-address is Ray's: with a backend that trains on this machine it would be ignored.
+    assert main([*args[:-1], "batched", "--ray-address", "auto"]) == 2
+    assert "--ray-address is Ray's, but --backend batched trains on this machine" in capsys.readouterr().err
     with pytest.raises(ValueError, match="on_ray runs the batched backend's groups"):
         run_sweep([WARM_UP_ONLY], tmp_path, backend="local", on_ray=True)
 

@@ -60,7 +60,7 @@ def test_a_presets_description_says_its_values_and_an_override_changes_them() ->
 def test_the_command_line_describes_what_it_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     experiment = dry_run(capsys, tmp_path, "--config", "exp1", "--env", "simple_tag", "--episodes", "2000")
     assert experiment["description"] == (
-        "exp1 with --env --episodes (evaluation scaled to the budget): simple_tag, 4 agents, 2,000 episodes (50,000 "
+        "exp1 with --episodes --env (evaluation scaled to the budget): simple_tag, 4 agents, 2,000 episodes (50,000 "
         "steps), 3 checkpoints x 15 episodes over the last 20%, 8 curve points x 5 episodes"
     )
     # A hand-written description (a JSON setting) is replaced too once an option changes the setting.
@@ -177,28 +177,29 @@ def user_errors(tmp_path: Path) -> list[tuple[list[str], str]]:
         ([*run, "--config", str(tmp_path / "none.json")], "No experiment file '"),
         ([*run, "--config", str(tmp_path / "broken.json")], "broken.json' is not JSON (Expecting property name"),
         ([*run, "--config", str(tmp_path / "unknown.json")], "has unknown key(s) ['bogus']: an experiment's keys are"),
-        ([*run, "--config", "smoke", "--model-kwargs", "{batch_size: 1}"], "--model-kwargs: '{batch_size: 1}' is not JSON"),
-        ([*run, "--config", "smoke", "--env-kwargs", "[1]"], "--env-kwargs: '[1]' is not a JSON object: give one, e.g."),
-        ([*run, "--config", "smoke", "--scheme-model-kwargs", "{"], "--scheme-model-kwargs: '{' is not JSON"),
+        ([*run, "--config", "smoke", "--model-kwargs", "{batch_size"], "--model-kwargs: Expected a dict. Got value: {batch"),
+        ([*run, "--config", "smoke", "--env-kwargs", "[1]"], "--env-kwargs: Expected a dict. Got value: [1]"),
+        ([*run, "--config", "smoke", "--scheme-model-kwargs", "{"], "--scheme-model-kwargs: Expected a dict. Got value: {"),
         ([*run, "--config", "smoke", "--env", "simple_nonsense"], "Unknown env 'simple_nonsense': use 'simple_spread', an"),
         ([*run, "--config", "smoke", "--env", "simple_tag", "--env-kwargs", '{"bogus": 1}'], "has no argument 'bogus'"),
         ([*run, "--config", "smoke", "--env", "simple_tag", "--n-agents", "3"], "--n-agents sets simple_spread's team"),
-        ([*run, "--config", "smoke", "--neighbors", "two"], "--neighbors: 'two' is neither a number of agents"),
-        ([*run, "--config", "smoke", "--seeds", "0"], "--seeds: '0' is not an integer of at least 1"),
+        ([*run, "--config", "smoke", "--num-agent-neighbors", "two"], "--num-agent-neighbors: Does not validate against"),
+        ([*run, "--config", "smoke", "--seeds", "0"], "--seeds 0: give a number of seeds of at least 1, or a list"),
+        ([*run, "--config", "smoke", "--episodes", "many"], "--episodes: Expected a int. Got value: many"),
         ([*run, "--config", "smoke", "--config", "exp1", "--name", "x"], "--name renames one experiment, but 2 --config"),
         ([*run, "--config", "smoke", "--episodes", "3", "--n-checkpoints", "2"], "2 checkpoints do not fit in the last"),
         ([*run, "--config", "smoke", "--schemes", "fulll"], "smoke: --schemes 'fulll': Unknown critic_sharing 'fulll'"),
         (["run", "--config", "smoke", "--results", str(tmp_path / "a_file")], "is a file, not a directory"),
         (["report", str(tmp_path / "missing")], "sb3-maddpg report: no results directory"),
-        (["report", str(tmp_path), "--metric", "speed"], "argument --metric: invalid choice: 'speed'"),
+        (["report", str(tmp_path), "--metric", "speed"], "--metric 'speed' is no score: give one of adversary_goal"),
         (["tune", "--config", "exp3"], "sb3-maddpg tune: Unknown experiment 'exp3'"),
         (["tune", "--config", "smoke", "--env", "simple_nonsense"], "sb3-maddpg tune: Unknown env 'simple_nonsense'"),
-        (["tune", "--config", "smoke", "--env-kwargs", "{"], "sb3-maddpg tune: argument --env-kwargs: '{' is not JSON"),
-        (["tune", "--config", "smoke", "--neighbors", "x"], "--neighbors: 'x' is neither"),
+        (["tune", "--config", "smoke", "--env-kwargs", "{"], "sb3-maddpg tune: --env-kwargs: Expected a dict. Got value: {"),
+        (["tune", "--config", "smoke", "--num-agent-neighbors", "x"], "--num-agent-neighbors: Does not validate"),
         (["tune", "--config", "smoke", "--objective", "speed"], "objective 'speed' is not one of simple_spread's"),
         (["tune", "--config", "smoke", "--scheme", "fulll"], "Unknown critic_sharing 'fulll'"),
         (
-            ["tune", "--config", "smoke", "--evaluations", "2"],
+            ["tune", "--config", "smoke", "--n-evaluations", "2"],
             "last_evaluations (3) cannot exceed n_evaluations (2): a trial scores its mean over its last evaluations, "
             "so lower last_evaluations or raise n_evaluations",
         ),

@@ -315,7 +315,7 @@ def test_one_registry_names_the_backends_that_run_takes(tmp_path: Path, capsys: 
     """``run --backend`` offers the names of :data:`BACKENDS`, each of which makes a backend that plans the runs it is
     given; a name not there is refused with the names."""
     assert main(["run", "--backend", "none"]) == 2
-    offered = capsys.readouterr().err.split("choose from ")[1].split(")")[0]
+    offered = capsys.readouterr().err.split("--backend: Expected one of ")[1].split(". Got value: none")[0]
     assert offered == ", ".join(repr(name) for name in BACKENDS)
     runs = dataclasses.replace(SMOKE, schemes=("full",)).runs()
     for name in BACKENDS:
@@ -401,7 +401,7 @@ def test_cli_run_and_report(tmp_path: Path, local_results: Path, capsys: pytest.
     argv = ["run", "--config", "smoke", "--results", str(results), "--schemes", "full,actions", "--seeds", "1"]
     assert main([*argv, "--dry-run"]) == 0
     assert "2 run(s) to do, 0 finished" in capsys.readouterr().out
-    assert main([*argv, "--episodes", "30", "--n-checkpoints", "3", "--neighbors", "1", "--quiet"]) == 0
+    assert main([*argv, "--episodes", "30", "--n-checkpoints", "3", "--num-agent-neighbors", "1", "--quiet"]) == 0
     output = capsys.readouterr().out
     assert "[2/2]" in output and "left" in output  # sweep progress: runs done of total, time left
     config = json.loads((results / "smoke" / "actions" / "seed_000" / "config.json").read_text())
@@ -559,7 +559,7 @@ def test_a_report_s_user_errors_are_one_line_naming_the_cause_and_the_fix_with_e
         err = refused("--out", str(tmp_path / where), "--metric", "min_dist_sum")
         assert f"the report's directory {tmp_path / where} " in err and "give --out a directory (new or existing)" in err
     # A metric --metric does not take, and a missing results directory, were refused so already.
-    assert "argument --metric: invalid choice: 'nonsense'" in refused("--metric", "nonsense")
+    assert "--metric 'nonsense' is no score: give one of" in refused("--metric", "nonsense")
     assert main(["report", str(tmp_path / "missing"), "--no-plots"]) == 2
     assert capsys.readouterr().err.startswith(f"sb3-maddpg report: no results directory {tmp_path / 'missing'}: give ")
     # The command itself, as a shell runs it: the status and the line, no traceback.

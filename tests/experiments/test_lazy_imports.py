@@ -26,7 +26,7 @@ def modules_imported(*args: str) -> list[str]:
 
 
 def test_a_dry_run_imports_no_run_group_report_or_ray_code(tmp_path: Path) -> None:
-    imported = modules_imported("run", "--config", "exp1", "--seed-list", "0", "--dry-run", "--results", str(tmp_path))
+    imported = modules_imported("run", "--config", "exp1", "--seeds", "[0]", "--dry-run", "--results", str(tmp_path))
     assert "sb3_maddpg.experiments.runner" in imported  # the run's own code is there
     for heavy in ("sb3_maddpg.run_group", "sb3_maddpg.experiments.report", "sb3_maddpg.experiments.ray_tasks"):
         assert heavy not in imported, heavy

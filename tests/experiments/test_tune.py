@@ -67,7 +67,7 @@ def test_the_sampler_gives_arguments_maddpg_takes() -> None:
 @pytest.mark.slow
 def test_a_tiny_study_runs_and_gives_a_preset_run_takes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     preset = tmp_path / "best.json"
-    argv = ["tune", "--config", "smoke", "--scheme", "full", "--trials", "2", "--steps", "800", "--evaluations", "2"]
+    argv = ["tune", "--config", "smoke", "--scheme", "full", "--n-trials", "2", "--budget", "800", "--n-evaluations", "2"]
     argv += ["--eval-episodes", "2", "--last-evaluations", "1", "--storage", f"sqlite:///{tmp_path / 'tune.db'}"]
     assert main([*argv, "--preset-out", str(preset)]) == 0
     out = capsys.readouterr().out
@@ -118,8 +118,8 @@ def test_the_callback_stops_training_when_the_pruner_says_so() -> None:
 def test_a_killed_study_resumes_and_retries_the_killed_trial(tmp_path: Path) -> None:
     db = tmp_path / "tune.db"
     argv = [sys.executable, "-m", "sb3_maddpg.experiments", "tune", "--config", "smoke", "--scheme", "full"]
-    argv += ["--trials", "2", "--steps", "3000", "--evaluations", "3", "--eval-episodes", "2", "--last-evaluations", "1"]
-    argv += ["--storage", f"sqlite:///{db}", "--heartbeat", "1", "--study-name", "killed"]
+    argv += ["--n-trials", "2", "--budget", "3000", "--n-evaluations", "3", "--eval-episodes", "2", "--last-evaluations", "1"]
+    argv += ["--storage", f"sqlite:///{db}", "--heartbeat-seconds", "1", "--study-name", "killed"]
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy"}
     process = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     study_settings = settings(tmp_path, study_name="killed", n_trials=2, budget=3000, n_evaluations=3)
@@ -194,9 +194,9 @@ def test_a_stopped_study_takes_its_workers_with_it(tmp_path: Path, stop: str) ->
     # whole process group: the study stops its workers and says how to resume, without a traceback.
     db, log = tmp_path / "tune.db", tmp_path / "tune.log"
     argv = [sys.executable, "-m", "sb3_maddpg.experiments", "tune", "--config", "smoke", "--scheme", "full"]
-    argv += ["--trials", "4", "--steps", "10000000", "--evaluations", "2", "--eval-episodes", "1"]
+    argv += ["--n-trials", "4", "--budget", "10000000", "--n-evaluations", "2", "--eval-episodes", "1"]
     # Heartbeats far apart: a loaded machine must not see one worker fail the other's trial as stale meanwhile.
-    argv += ["--last-evaluations", "1", "--storage", f"sqlite:///{db}", "--heartbeat", "60", "--workers", "2"]
+    argv += ["--last-evaluations", "1", "--storage", f"sqlite:///{db}", "--heartbeat-seconds", "60", "--workers", "2"]
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy"}
     with open(log, "w") as out:  # a file, not a pipe: an orphaned worker would hold a pipe open
         process = subprocess.Popen(argv, env=env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
@@ -229,7 +229,7 @@ def test_a_stopped_study_takes_its_workers_with_it(tmp_path: Path, stop: str) ->
 
 
 def test_a_bad_thread_count_with_workers_is_refused_clearly(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    argv = ["tune", "--config", "smoke", "--trials", "1", "--steps", "800", "--workers", "2", "--threads", "0"]
+    argv = ["tune", "--config", "smoke", "--n-trials", "1", "--budget", "800", "--workers", "2", "--threads", "0"]
     assert main([*argv, "--storage", f"sqlite:///{tmp_path / 'tune.db'}"]) == 2
     assert "threads must be a positive integer, got 0" in capsys.readouterr().err
 
@@ -300,16 +300,16 @@ def test_parameters_a_study_cannot_fix_are_refused(tmp_path: Path, fixed: dict, 
 
 def test_the_tune_command_takes_fixes_and_names_its_study_by_them(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     storage = f"sqlite:///{tmp_path / 'tune.db'}"
-    argv = ["tune", "--config", "smoke", "--scheme", "full", "--trials", "1", "--steps", "800", "--evaluations", "1"]
+    argv = ["tune", "--config", "smoke", "--scheme", "full", "--n-trials", "1", "--budget", "800", "--n-evaluations", "1"]
     argv += ["--eval-episodes", "2", "--last-evaluations", "1", "--storage", storage]
-    assert main([*argv, "--fix", "transitions_per_update=50", "--fix", "width=64"]) == 0
+    assert main([*argv, "--fixed-params", '{"transitions_per_update": 50, "width": 64}']) == 0
     assert "fixed in every trial: transitions_per_update=50, width=64" in capsys.readouterr().out
     names = optuna.study.get_all_study_names(storage)
     assert names == ["smoke_min_dist_sum_transitions_per_update=50_width=64"]
-    assert main([*argv, "--fix", "width=64", "--fix", "transitions_per_update=50"]) == 0  # the same study, resumed
+    assert main([*argv, "--fixed-params", "{width: 64, transitions_per_update: 50}"]) == 0  # the same study, resumed
     assert optuna.study.get_all_study_names(storage) == names
-    assert main([*argv, "--fix", "width"]) == 2
-    assert "--fix 'width' is not NAME=VALUE" in capsys.readouterr().err
+    assert main([*argv, "--fixed-params", "width"]) == 2
+    assert "--fixed-params: Expected a dict. Got value: width (see sb3-maddpg tune --help)" in capsys.readouterr().err
 
 
 def open_the_study_at_once(storage: str, barrier: Any) -> int:
@@ -373,8 +373,8 @@ def test_the_objectives_are_the_tasks_metrics_in_their_directions() -> None:
 @pytest.mark.slow
 def test_tune_on_another_task_optimises_that_tasks_metric(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     storage, preset = f"sqlite:///{tmp_path / 'tune.db'}", tmp_path / "best.json"
-    argv = ["tune", "--config", "smoke", "--env", "simple_tag", "--scheme", "full", "--trials", "2", "--steps", "800"]
-    argv += ["--evaluations", "2", "--eval-episodes", "2", "--last-evaluations", "1", "--storage", storage]
+    argv = ["tune", "--config", "smoke", "--env", "simple_tag", "--scheme", "full", "--n-trials", "2", "--budget", "800"]
+    argv += ["--n-evaluations", "2", "--eval-episodes", "2", "--last-evaluations", "1", "--storage", storage]
     assert main([*argv, "--preset-out", str(preset)]) == 0
     out = capsys.readouterr().out
     assert "on smoke (simple_tag, N=4, scheme full), objective collisions (maximize)" in out
@@ -392,18 +392,19 @@ def test_tunes_help_names_every_option_with_its_default(capsys: pytest.CaptureFi
     assert main(["tune", "--help"]) == 0
     help_text = " ".join(capsys.readouterr().out.split())
     for option, default in (
-        ("--trials", "50"),
-        ("--steps", "1000000"),
-        ("--evaluations", "10"),
+        ("--n-trials", "50"),
+        ("--budget", "1000000"),
+        ("--n-evaluations", "10"),
         ("--eval-episodes", "100"),
         ("--last-evaluations", "3"),
         ("--warmup-evaluations", "1"),
-        ("--heartbeat", "60"),
+        ("--heartbeat-seconds", "60"),
         ("--config", "exp1"),
     ):
-        # The option's own help (up to the next "(default:"), not the usage line's "[--trials TRIALS]".
-        assert re.search(rf"{option} [A-Z_]+ (?:(?!\(default:).)*\(default: {default}\)", help_text), option
-    assert "at most --evaluations" in help_text and "--env" in help_text and "collisions" in help_text
+        # The option's own help (up to the next "default:"), not the usage line's "[--n-trials N_TRIALS]".
+        assert re.search(rf"{option} [A-Z_]+ (?:(?!default:).)*default: {default}\)", help_text), option
+    for option in ("--env", "--num-agent-neighbors", "--objective", "--fixed-params", "--workers", "--address"):
+        assert f"{option} " in help_text, option
 
 
 @pytest.mark.filterwarnings("ignore:evaluate_team")  # simple_tag gives no min-dist sum: said once per evaluation

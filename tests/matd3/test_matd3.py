@@ -366,9 +366,9 @@ def test_the_experiments_runner_trains_matd3_with_algo(tmp_path: Path, capsys: p
     from sb3_maddpg.experiments.cli import main
 
     argv = ["run", "--config", "smoke", "--name", "smoke_matd3", "--results", str(tmp_path), "--schemes", "full"]
-    assert main([*argv, "--seeds", "1", "--algo", "matd3", "--dry-run"]) == 0
+    assert main([*argv, "--seeds", "1", "--algorithm", "matd3", "--dry-run"]) == 0
     assert '"algorithm": "sb3_maddpg:MATD3"' in capsys.readouterr().out
-    assert main([*argv, "--seeds", "1", "--algo", "matd3", "--episodes", "20", "--n-checkpoints", "2", "--quiet"]) == 0
+    assert main([*argv, "--seeds", "1", "--algorithm", "matd3", "--episodes", "20", "--n-checkpoints", "2", "--quiet"]) == 0
     run = tmp_path / "smoke_matd3" / "full" / "seed_000"
     assert json.loads((run / "config.json").read_text())["algorithm"] == "sb3_maddpg:MATD3"
     assert (run / "summary.json").exists()  # trained, checkpoints loaded by MATD3.load and evaluated
