@@ -37,6 +37,9 @@ from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.common.user_code import user_stacklevel
 from sb3_maddpg.version import __version__
 
+FIRST_VERSIONED = Version("0.3.0.dev0")
+"""The first version that wrote :data:`VERSION_KEY`: a file that names an earlier one is read as those wrote it."""
+
 VERSION_KEY = "sb3_maddpg_version"
 """The key of the version that wrote a file: an attribute of a saved model, a key of a stored config."""
 
@@ -145,7 +148,7 @@ def schedule_of_0_2_dev(attributes: dict[str, Any]) -> UpdateSchedule:
 def written_by(data: Mapping[str, Any], what: str) -> Version | None:
     """
     :param data: A saved model's attributes or a stored config.
-    :param what: What ``data`` is, for the error (e.g. ``"model saved"``).
+    :param what: What ``data`` is, for the error (e.g. ``"The model"``, or a file's path).
     :return: The sb3-maddpg version that wrote it (:data:`VERSION_KEY`), ``None`` for one written before 0.3.0; a
         ``ValueError`` for a version newer than the installed one, whose fields this one may not know.
     """
@@ -155,11 +158,11 @@ def written_by(data: Mapping[str, Any], what: str) -> Version | None:
     try:
         version = Version(str(stored))
     except InvalidVersion:
-        raise ValueError(f"The {what} says it was written by sb3-maddpg {stored!r}, which is no version number.") from None
+        raise ValueError(f"{what} says it was written by sb3-maddpg {stored!r}, which is no version number.") from None
     if version > Version(__version__):
         raise ValueError(
-            f"The {what} was written by sb3-maddpg {version}, newer than the installed {__version__}: upgrade "
-            "sb3-maddpg (pip install -U sb3-maddpg) to read it."
+            f"{what} was written by sb3-maddpg {version}, newer than the installed {__version__}: upgrade sb3-maddpg "
+            "(pip install -U sb3-maddpg) to read it."
         )
     return version
 
@@ -173,20 +176,21 @@ def with_version(stored: dict[str, Any]) -> dict[str, Any]:
     return {**stored, VERSION_KEY: __version__}
 
 
-def migrate_stored_config(data: Mapping[str, Any]) -> dict[str, Any]:
+def migrate_stored_config(data: Mapping[str, Any], source: str = "The stored config") -> dict[str, Any]:
     """
     The one reading of a stored experiment or run config (``experiment.json``, ``config.json``) of any version.
 
     :param data: The file's object.
+    :param source: What it is, for an error (e.g. its path).
     :return: Its fields as this version names them, :data:`VERSION_KEY` removed. A file written before 0.3.0 gets the
         values its version ran with for what it lacks (:data:`STORED_BEFORE_0_2`) and 0.3's names for renamed
         ``model_kwargs`` (:data:`RENAMED_IN_0_3`, in ``scheme_model_kwargs`` too); a file of 0.3.0 or later is this
         version's format. A file of a newer version is refused (:func:`written_by`).
     """
     fields = dict(data)
-    version = written_by(fields, "stored config")
+    version = written_by(fields, source)
     fields.pop(VERSION_KEY, None)
-    if version is not None:
+    if version is not None and version >= FIRST_VERSIONED:
         return fields
     fields = {**STORED_BEFORE_0_2, **fields}
     if isinstance(fields.get("model_kwargs"), dict):
@@ -210,7 +214,8 @@ def migrate_saved_model(data: Mapping[str, Any] | None) -> dict[str, Any]:
         (:data:`RENAMED_IN_0_3`); for a save of 0.3.0 or later, none. A save of a newer version is refused
         (:func:`written_by`). :func:`drop_old_attributes` then removes what the loaded model must not keep.
     """
-    if data is None or written_by(data, "model") is not None:
+    version = None if data is None else written_by(data, "The model")
+    if data is None or (version is not None and version >= FIRST_VERSIONED):
         return {}
     renamed = {new: data[old] for old, new in RENAMED_IN_0_3.items() if old in data}
     return {**attributes_missing_from(dict(data)), **renamed}

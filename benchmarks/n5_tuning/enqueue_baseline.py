@@ -12,7 +12,7 @@ import optuna
 from sb3_maddpg.experiments.tune import default_study_name
 
 FIXED = {"transitions_per_update": 25, "batch_size": 1024, "width": 64}
-"""The parameters ``run.sh`` fixes (its ``--fix`` options)."""
+"""The parameters ``run.sh`` fixes (its ``--fixed-params``)."""
 
 STUDY = default_study_name("n5_sorted_obs_utd25_shared_params", "min_dist_sum", FIXED)
 """The study ``run.sh`` runs (its default name: the setting, the objective and the fixed parameters)."""

@@ -22,7 +22,7 @@ if [ -z "${SKIP_TESTS:-}" ]; then
 fi
 RESULTS=/tmp/gpu_runs
 timeout "${RUN_TIMEOUT:-240}" python3 -m sb3_maddpg.experiments run --config benchmarks/paper_n5/exp1.json --name gpu_exp1 \
-    --schemes "$SCHEME" --seed-list "$SEEDS" --episodes "$EPISODES" --backend batched --device "$DEVICE" \
+    --schemes "$SCHEME" --seeds "$SEEDS" --episodes "$EPISODES" --backend batched --device "$DEVICE" \
     --results "$RESULTS" >"$OUT/run.log" 2>&1
 echo "run: exit $?"; tail -5 "$OUT/run.log"
 python3 benchmarks/paper_n5/gpu_summary.py "$RESULTS/gpu_exp1" | tee "$OUT/gpu_summary.md"

@@ -24,5 +24,5 @@ mkdir -p "$RESULTS"
 echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) study seeds $SEEDS workers $WORKERS" >>"$RESULTS/commits.log"
 export SDL_VIDEODRIVER=dummy
 nice -n 19 python -m sb3_maddpg.experiments run --config benchmarks/paper_n5_independent/exp1.json \
-    --config benchmarks/paper_n5_independent/exp2.json --seed-list "$SEEDS" \
+    --config benchmarks/paper_n5_independent/exp2.json --seeds "$SEEDS" \
     --results "$RESULTS" --workers "$WORKERS" --threads 1 --quiet

@@ -118,7 +118,7 @@ class BackendEntry:
     A backend in :data:`BACKENDS`.
 
     :param target: ``"module:Class"``, imported when the backend is made (a class taking an :class:`Execution`).
-    :param help: What it is, for ``sb3-maddpg run --help``.
+    :param help: What it is (``sb3-maddpg run --help`` lists it).
     """
 
     target: str
@@ -126,16 +126,16 @@ class BackendEntry:
 
 
 BACKENDS: dict[str, BackendEntry] = {
-    "local": BackendEntry("sb3_maddpg.experiments.backends:LocalBackend", "a local process pool (--workers)"),
+    "local": BackendEntry("sb3_maddpg.experiments.backends:LocalBackend", "a local process pool of workers"),
     "ray": BackendEntry("sb3_maddpg.experiments.backends:RayBackend", "one Ray task per run"),
     "batched": BackendEntry(
         "sb3_maddpg.experiments.batched:GroupBackend",
         "a setting and scheme's seeds trained together in this process (run groups, fixed schemes on the batched "
-        "simple_spread env; see --device, --runs-per-process)",
+        "simple_spread env; on the device, runs_per_process at most per group)",
     ),
     "batched-ray": BackendEntry(
         "sb3_maddpg.experiments.batched:GroupRayBackend",
-        "run groups as Ray tasks, one each (a GPU each with --device cuda, else --threads CPUs); also --backend batched --ray",
+        "run groups as Ray tasks, one each (a GPU each on a CUDA device, else threads CPUs)",
     ),
 }
 """The backends by name: the one registry that sweeps and ``sb3-maddpg run --backend`` read."""

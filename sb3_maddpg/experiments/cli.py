@@ -24,8 +24,8 @@ from sb3_maddpg.analysis.evaluation import side_return_key
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
 from sb3_maddpg.experiments.backends import BACKENDS, Execution
-from sb3_maddpg.experiments.cli_options import add_options, flag, options_of
-from sb3_maddpg.experiments.config import EXPERIMENTS, algorithm_argument, load_experiment
+from sb3_maddpg.experiments.cli_options import Option, add_options, flag, options_of
+from sb3_maddpg.experiments.config import EXPERIMENTS, algorithm_argument, load_algorithm, load_experiment
 from sb3_maddpg.experiments.defaults import ALGORITHMS, DEFAULT_ENV
 from sb3_maddpg.experiments.results import link_complete_seeds
 from sb3_maddpg.experiments.setting import NOTE_KEEPING_FIELDS, ExperimentConfig, merge_model_kwargs, scaled_schedule
@@ -42,8 +42,8 @@ LEFT_OUT_SHOWN = 10
 TASK_FIELDS = ("env", "env_kwargs", "score_agents", "n_agents", "num_agent_neighbors")
 """The fields of an experiment that ``tune`` takes over its ``--config``'s (the task and its team)."""
 
-LISTS = {"schemes", "score_agents"}
-"""Fields of names that also take a comma-separated list (``--schemes full,selected``)."""
+LISTS = {"schemes", "score_agents", "seeds"}
+"""Fields of lists that also take one comma-separated (``--schemes full,selected``, ``--seeds 0,5``)."""
 
 
 class UsageError(Exception):
@@ -58,28 +58,43 @@ class _Parser(ArgumentParser):
         message = " ".join(str(message).split())
         message = re.sub(r'Parser key "(?:\w+\.)?(\w+)":', lambda key: flag(key.group(1)) + ":", message)
         message = re.sub(r"Expected a typing\.Literal\[(.*?)\]", r"Expected one of \1", message)
+        union = re.match(
+            r"(--[\w-]+): Does not validate against any of the Union subtypes Subtypes: \[(.*?)\].*Given "
+            r"value: (.*)$",
+            message,
+        )
+        if union:
+            message = f"{union.group(1)}: {union.group(3)!r} is none of {union.group(2).replace('NoneType', 'null')}"
         raise UsageError(re.sub(r"<class '(\w+)'>", r"\1", message))
 
 
-def _setting_options(names: Sequence[str] | None = None) -> list[Any]:
+def _setting_options(names: Sequence[str] | None = None) -> list[Option]:
     """:return: The experiment's fields as options (``names`` only, if given), lists also comma-separated."""
     options = []
     for option in options_of(ExperimentConfig):
         if names is not None and option.name not in names:
             continue
+        if option.name == "seeds":  # an integer before a string: "3" is three seeds
+            option = option._replace(hint=option.hint | int, help=option.help + " An integer N: 0..N-1.")
         if option.name in LISTS:
             option = option._replace(hint=option.hint | str)
-        if option.name == "seeds":
-            option = option._replace(hint=option.hint | int, help=option.help + " An integer N: 0..N-1.")
+        if option.name == "num_agent_neighbors":
+            option = option._replace(help=option.help + " Give null for all.")
         options.append(option)
     return options
 
 
-def _execution_options() -> list[Any]:
+def _execution_options() -> list[Option]:
     """:return: The execution's fields as options: a backend of :data:`BACKENDS`, workers by the backend if not given."""
+    backends = "; ".join(f"{name}: {entry.help}" for name, entry in BACKENDS.items())
     changes: dict[str, dict[str, Any]] = {
-        "backend": {"hint": Literal[tuple(BACKENDS)]},
-        "workers": {"hint": int | None, "default": None},
+        "backend": {"hint": Literal[tuple(BACKENDS)], "help": backends},
+        "workers": {
+            "hint": int | None,
+            "default": None,
+            "help": "Parallel processes (local; default 1), or the CPUs of a "
+            "local Ray instance (ray, batched-ray; default 0: all).",
+        },
     }
     return [option._replace(**changes.get(option.name, {})) for option in options_of(Execution, skip=("verbose",))]
 
@@ -90,16 +105,28 @@ def report_metric_choices() -> list[str]:
     return sorted({*METRICS, *sides})
 
 
-def build_parser() -> ArgumentParser:
-    """:return: The argument parser of the ``sb3-maddpg`` command."""
+COMMANDS = {
+    "run": "run a sweep (finished runs are skipped: the same command resumes)",
+    "tune": "search the hyperparameters on Optuna (the same command resumes)",
+    "report": "Table 2, the paper's findings, curves and boxplots from a results directory",
+}
+"""The commands, and what each does."""
+
+
+def build_parser(commands: Sequence[str] = tuple(COMMANDS)) -> ArgumentParser:
+    """
+    :param commands: The commands to parse (by default all; :func:`main` builds only the one given, so that a run
+        imports no tuning code).
+    :return: The argument parser of the ``sb3-maddpg`` command.
+    """
     parser = _Parser(
         prog="sb3-maddpg",
         description="Reproduce the paper's experiments: train every scheme and seed, evaluate checkpoints, report Table 2.",
     )
-    commands = parser.add_subcommands(dest="command")
-    commands.add_subcommand("run", _run_parser(), help="run a sweep (finished runs are skipped: the same command resumes)")
-    commands.add_subcommand("tune", _tune_parser(), help="search the hyperparameters on Optuna (the same command resumes)")
-    commands.add_subcommand("report", _report_parser(), help="Table 2, the paper's findings, curves from a results directory")
+    subcommands = parser.add_subcommands(dest="command")
+    parsers = {"run": _run_parser, "tune": _tune_parser, "report": _report_parser}
+    for command in commands:
+        subcommands.add_subcommand(command, parsers[command](), help=COMMANDS[command])
     return parser
 
 
@@ -135,10 +162,16 @@ def _tune_parser() -> ArgumentParser:
     tune.add_argument("--config", default="exp1", help="the setting: a preset, a preset file or a stored experiment")
     add_options(tune.add_argument_group("the task (over --config's)"), _setting_options(TASK_FIELDS), True)
     tune.add_argument("--scheme", help="the critic_sharing scheme (default: the setting's first)")
-    defaults = {"study_name": None, "storage": "sqlite:///tune.db"}
+    changes: dict[str, dict[str, Any]] = {
+        "study_name": {
+            "hint": str | None,
+            "default": None,
+            "help": "The study's name in the storage (default: <setting>[_<task>]_<objective>, then each fixed parameter).",
+        },
+        "storage": {"default": "sqlite:///tune.db"},
+    }
     study = [
-        option._replace(hint=option.hint | None, default=defaults[option.name]) if option.name in defaults else option
-        for option in options_of(TuneSettings, skip=("experiment", "pruner"))
+        option._replace(**changes.get(option.name, {})) for option in options_of(TuneSettings, skip=("experiment", "pruner"))
     ]
     add_options(tune.add_argument_group("the study"), study)
     add_options(tune.add_argument_group("the workers"), options_of(run_study))
@@ -174,6 +207,11 @@ def _given(args: argparse.Namespace, names: Sequence[str]) -> dict[str, Any]:
     for name in LISTS & given.keys():
         if isinstance(given[name], str):
             given[name] = tuple(item.strip() for item in given[name].split(",") if item.strip())
+    if isinstance(given.get("seeds"), tuple):
+        try:
+            given["seeds"] = tuple(int(seed) for seed in given["seeds"])
+        except ValueError:
+            raise ValueError(f"--seeds {args.seeds!r}: give integers, e.g. 0,5 or [0, 5], or a number of seeds.") from None
     if isinstance(given.get("seeds"), int):
         if given["seeds"] < 1:
             raise ValueError(f"--seeds {given['seeds']}: give a number of seeds of at least 1, or a list of seeds, e.g. [0].")
@@ -242,6 +280,15 @@ def _check_experiments(experiments: Sequence[ExperimentConfig]) -> None:
     from sb3_maddpg.sharing.registry import validate_critic_sharing
 
     for experiment in experiments:
+        if not experiment.schemes or not experiment.seeds:
+            raise ValueError(f"{experiment.name}: no runs: give at least one scheme (--schemes) and one seed (--seeds).")
+        try:
+            load_algorithm(experiment.algorithm)
+        except (ImportError, AttributeError, ValueError) as error:
+            raise ValueError(
+                f"{experiment.name}: --algorithm {experiment.algorithm!r} cannot be imported ({error}): give maddpg, matd3 "
+                "or an importable 'module:Class'."
+            ) from None
         runs = experiment.runs()  # RunConfig checks each run's budget and schedule
         if experiment.algorithm in ALGORITHMS.values():
             for scheme, config in {config.scheme: config for config in runs}.items():
@@ -295,7 +342,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
-        parsed = build_parser().parse_args(argv)
+        parsed = build_parser([argv[0]] if argv and argv[0] in COMMANDS else tuple(COMMANDS)).parse_args(argv)
     except UsageError as error:
         command = f"sb3-maddpg {argv[0]}" if argv and argv[0] in ("run", "tune", "report") else "sb3-maddpg"
         print(f"{command}: {error} (see {command} --help)", file=sys.stderr)

@@ -11,6 +11,7 @@ from typing import Any, NamedTuple
 import torch as th
 
 from sb3_maddpg.common.progress import log_line
+from sb3_maddpg.compat import with_version
 from sb3_maddpg.experiments.results import CONFIG_FILE, LOG_FILE, read_json, run_directory, write_json_atomic
 from sb3_maddpg.experiments.run_cost import TrainingResources
 from sb3_maddpg.experiments.setting import RunConfig
@@ -155,7 +156,7 @@ def write_trained(
     :param resources: What trained it (its group's device, threads and size).
     """
     record = {
-        "config": config.to_dict(),
+        "config": with_version(config.to_dict()),
         "saved": [[steps, str(path)] for steps, path in saved],
         "train_time": train_time,
         "resources": resources.to_summary(),

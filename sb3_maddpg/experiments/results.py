@@ -155,7 +155,7 @@ def is_finished(results_dir: str | os.PathLike[str], config: RunConfig) -> bool:
     stored_config = read_json(directory / CONFIG_FILE)
     if read_summary(directory) is None or not isinstance(stored_config, dict):
         return False
-    stored = RunConfig.from_dict(stored_config)
+    stored = RunConfig.from_fields(migrate_stored_config(stored_config, str(directory / CONFIG_FILE)))
     if not stored.same_as(config):
         raise ValueError(
             f"{directory} holds a finished run with another config; use a new results directory for a "
@@ -308,7 +308,7 @@ def load_experiments(results_dir: str | os.PathLike[str]) -> dict[str, dict[str,
     experiments = {}
     for path in sorted(Path(results_dir).glob(f"*/{EXPERIMENT_FILE}")):
         with open(path) as file:
-            experiments[path.parent.name] = migrate_stored_config(json.load(file))
+            experiments[path.parent.name] = migrate_stored_config(json.load(file), str(path))
     return experiments
 
 

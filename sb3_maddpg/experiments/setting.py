@@ -111,6 +111,11 @@ class Setting:
     def __post_init__(self) -> None:
         object.__setattr__(self, "algorithm", ALGORITHMS.get(self.algorithm, self.algorithm))
         _check_vec_env(self.vec_env, self.n_envs)
+        if self.n_agents < 1 or (self.num_agent_neighbors is not None and self.num_agent_neighbors < 0):
+            raise ValueError(
+                f"n_agents must be at least 1 and num_agent_neighbors at least 0 (None: all), got {self.n_agents} and "
+                f"{self.num_agent_neighbors}."
+            )
         check_env_name(self.env)
         object.__setattr__(self, "score_agents", tuple(self.score_agents))
 
@@ -145,6 +150,8 @@ class Setting:
         data = dict(fields)
         for key in ("schemes", "seeds", "score_agents"):  # JSON and YAML have lists; the configs hold tuples
             if key in data:
+                if not isinstance(data[key], list | tuple):
+                    raise ValueError(f"{key} must be a list, e.g. {key}: [{data[key]}], got {data[key]!r}.")
                 data[key] = tuple(data[key])
         return cls(**data)
 
@@ -333,8 +340,8 @@ class ExperimentConfig(Setting):
 
     def replace(self, **changes: Any) -> "ExperimentConfig":
         """
-        :param changes: Fields to change (``None`` values are ignored, so CLI options can be passed as they are;
-            use :func:`dataclasses.replace` to set ``num_agent_neighbors=None``).
+        :param changes: Fields to change (``None`` values are ignored: use :func:`dataclasses.replace` to set
+            ``num_agent_neighbors=None``).
         :return: A copy with the changes. A task other than simple_spread sets ``n_agents`` to its own team size (read
             from one env) when the task, its ``env_kwargs`` or ``n_agents`` change. A description :meth:`described`
             wrote says the new values, and keeps its note only if the changes leave the setting as it was

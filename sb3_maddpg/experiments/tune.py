@@ -16,7 +16,7 @@ import os
 import time
 import warnings
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -501,7 +501,7 @@ def _worker(settings: TuneSettings, threads: int | None, worker: int) -> None:
 def run_study(
     settings: TuneSettings,
     workers: int = 1,
-    backend: str = "local",
+    backend: Literal["local", "ray"] = "local",
     threads: int | None = 1,
     address: str | None = None,
 ) -> Any:

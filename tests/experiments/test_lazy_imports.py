@@ -28,7 +28,8 @@ def modules_imported(*args: str) -> list[str]:
 def test_a_dry_run_imports_no_run_group_report_or_ray_code(tmp_path: Path) -> None:
     imported = modules_imported("run", "--config", "exp1", "--seeds", "[0]", "--dry-run", "--results", str(tmp_path))
     assert "sb3_maddpg.experiments.runner" in imported  # the run's own code is there
-    for heavy in ("sb3_maddpg.run_group", "sb3_maddpg.experiments.report", "sb3_maddpg.experiments.ray_tasks"):
+    heavy_modules = ("run_group", "experiments.report", "experiments.ray_tasks", "experiments.tune")
+    for heavy in (f"sb3_maddpg.{name}" for name in heavy_modules):
         assert heavy not in imported, heavy
 
 

@@ -65,7 +65,7 @@ def test_a_users_preset_runs_as_a_package_preset_does(tmp_path: Path, capsys: py
     [
         ("name: x\nepisode: 10\n", r"has unknown key\(s\) \['episode'\]: its keys are \['name'"),
         ("n_agents: 3\n", r"holds no experiment: give a YAML mapping with a name"),
-        ("name: x\ntuned: {name: y}\n", r"'s tuned has unknown key\(s\) \['name'\]"),
+        ("name: x\ntuned: {name: y}\n", r", in tuned, has unknown key\(s\) \['name'\]"),
         ("name: x\ntuned: 3\n", r"tuned must be a mapping"),
         ("name: x\nepisodes: [1\n", r"is not YAML \(line 3\)"),
         ("name: x\nvec_env: gpu\n", r"vec_env must be one of"),
@@ -94,3 +94,19 @@ def test_the_docs_preset_file_reads(tmp_path: Path) -> None:
     (experiment,) = read_preset_file(path)
     assert (experiment.name, experiment.n_agents, experiment.seeds) == ("n4_short", 4, (0, 1, 2))
     assert {run.scheme: run.model_kwargs.get("selector") for run in experiment.runs()} == {"full": None, "selected": 1}
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("name: x\ntuned: {model_kwargs: [1]}\n", r", tuned: model_kwargs must be a mapping, got \[1\]"),
+        ("name: x\ntuned: {env_kwargs: null}\n", r", tuned: env_kwargs must be a mapping, got None"),
+        ("name: x\nschemes: full\n", r"schemes must be a list, e.g. schemes: \[full\], got 'full'"),
+        ("name: x\nn_agents: 0\n", r"n_agents must be at least 1"),
+    ],
+)
+def test_a_bad_value_in_a_preset_file_is_refused_naming_the_field(tmp_path: Path, text: str, message: str) -> None:
+    path = tmp_path / "bad.yml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=rf"Preset file '{path}'.*{message}"):
+        read_preset_file(path)

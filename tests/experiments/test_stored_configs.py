@@ -106,6 +106,8 @@ def test_a_config_is_migrated_by_the_version_that_wrote_it() -> None:
     # With this version: this version's format, its defaults for what it leaves out, its names as they are.
     now = RunConfig.from_dict({**fields, VERSION_KEY: __version__})
     assert (now.vec_env, now.n_envs, now.model_kwargs["selection"]) == ("batched", 100, 1)
+    # A version before the first that wrote one (a file made by hand) is read as those versions wrote theirs.
+    assert RunConfig.from_dict({**fields, VERSION_KEY: "0.2.0"}).vec_env == "mpe2"
     with pytest.raises(ValueError, match=r"written by sb3-maddpg 99\.1, newer than the installed .*: upgrade"):
         RunConfig.from_dict({**fields, VERSION_KEY: "99.1"})
     with pytest.raises(ValueError, match=r"'not-a-version', which is no version number"):

@@ -32,12 +32,16 @@ TUNED_SUFFIX = "_tuned"
 
 def read_preset_file(path: str | Path | Traversable) -> list[ExperimentConfig]:
     """
+    Read a preset file. ``sb3-maddpg run --config my.yml`` runs its setting; its tuned preset is for the package's
+    own files (``exp1_tuned``) and for code (``read_preset_file("my.yml")[1]``).
+
     :param path: A preset file (YAML; JSON, a subset of YAML, reads too).
     :return: Its presets: the setting, then ``<name>_tuned`` if the file tunes it; a ``ValueError`` that names the
         file, the cause and what to give instead.
     """
+    path = path if isinstance(path, Traversable) else Path(path)
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8") if isinstance(path, Traversable) else Path(path).read_text())
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise ValueError(f"No preset file {str(path)!r}: give the path of an existing .yml file.") from None
     except OSError as error:
@@ -83,6 +87,9 @@ def _tuned(setting: ExperimentConfig, tuned: Any, source: str) -> ExperimentConf
     allowed = [key for key in ExperimentConfig.STORED_KEYS if key not in ("name", "description")]
     _refuse_unknown(tuned, (*allowed, "note"), source, "tuned")
     changes = {key: value for key, value in tuned.items() if key != "note"}
+    for key in ("env_kwargs", "model_kwargs"):
+        if not isinstance(changes.get(key, {}), dict):
+            raise ValueError(f"Preset file {source!r}, tuned: {key} must be a mapping, got {changes[key]!r}.")
     fields = {key: value for key, value in setting.to_dict().items() if key != "description"}
     fields |= changes | {"name": setting.name + TUNED_SUFFIX}
     fields["env_kwargs"] = {**setting.env_kwargs, **changes.get("env_kwargs", {})}
@@ -102,7 +109,7 @@ def _refuse_unknown(data: dict[str, Any], known: tuple[str, ...], source: str, w
     """Refuse the keys of ``data`` that are not ``known``, naming the file (and ``where`` in it) and the known keys."""
     unknown = sorted(set(data) - set(known))
     if unknown:
-        inside = f"'s {where}" if where else ""
+        inside = f", in {where}," if where else ""
         raise ValueError(f"Preset file {source!r}{inside} has unknown key(s) {unknown}: its keys are {list(known)}.")
 
 
