@@ -28,7 +28,15 @@ from sb3_maddpg.experiments.cli_options import Option, add_options, flag, option
 from sb3_maddpg.experiments.config import EXPERIMENTS, algorithm_argument, load_algorithm, load_experiment
 from sb3_maddpg.experiments.defaults import ALGORITHMS, DEFAULT_ENV
 from sb3_maddpg.experiments.results import link_complete_seeds
-from sb3_maddpg.experiments.setting import NOTE_KEEPING_FIELDS, ExperimentConfig, merge_model_kwargs, scaled_schedule
+from sb3_maddpg.experiments.setting import (
+    CONCERNS,
+    NOTE_KEEPING_FIELDS,
+    SETTING_KEYS,
+    ExperimentConfig,
+    TaskConfig,
+    merge_model_kwargs,
+    scaled_schedule,
+)
 from sb3_maddpg.experiments.stats import METRICS
 
 if TYPE_CHECKING:
@@ -39,8 +47,6 @@ DEFAULT_RESULTS = "runs/experiments"
 LEFT_OUT_SHOWN = 10
 """``report --complete-seeds`` names this many of the finished runs it leaves out (and counts them all)."""
 
-TASK_FIELDS = ("env", "env_kwargs", "score_agents", "n_agents", "num_agent_neighbors")
-"""The fields of an experiment that ``tune`` takes over its ``--config``'s (the task and its team)."""
 
 LISTS = {"schemes", "score_agents", "seeds"}
 """Fields of lists that also take one comma-separated (``--schemes full,selected``, ``--seeds 0,5``)."""
@@ -68,12 +74,18 @@ class _Parser(ArgumentParser):
         raise UsageError(re.sub(r"<class '(\w+)'>", r"\1", message))
 
 
-def _setting_options(names: Sequence[str] | None = None) -> list[Option]:
-    """:return: The experiment's fields as options (``names`` only, if given), lists also comma-separated."""
+EXPERIMENT_OWN = tuple(f.name for f in dataclasses.fields(ExperimentConfig) if f.name not in SETTING_KEYS)
+"""An experiment's fields beyond its setting's concerns: its name, schemes, seeds, description and per-scheme kwargs."""
+
+
+def _setting_options(concern: type = ExperimentConfig) -> list[Option]:
+    """
+    :param concern: A concern of a setting (:data:`~sb3_maddpg.experiments.setting.CONCERNS`), or
+        ``ExperimentConfig`` for every field of an experiment.
+    :return: Its fields as options, lists also comma-separated.
+    """
     options = []
-    for option in options_of(ExperimentConfig):
-        if names is not None and option.name not in names:
-            continue
+    for option in options_of(concern):
         if option.name == "seeds":  # an integer before a string: "3" is three seeds
             option = option._replace(hint=option.hint | int, help=option.help + " An integer N: 0..N-1.")
         if option.name in LISTS:
@@ -144,7 +156,11 @@ def _run_parser() -> ArgumentParser:
         "several (required: the paper's sweep is --config exp1 --config exp2, 310 runs)",
     )
     run.add_argument("--results", default=DEFAULT_RESULTS, help="the results directory")
-    add_options(run.add_argument_group("the experiment (each option over every --config's)"), _setting_options(), True)
+    for concern in CONCERNS:  # each option over every --config's
+        title = (concern.__doc__ or "").strip().split(":")[0].split("\n")[0].rstrip(".")
+        add_options(run.add_argument_group(title), _setting_options(concern), True)
+    own = [option for option in _setting_options() if option.name in EXPERIMENT_OWN]
+    add_options(run.add_argument_group("The experiment's runs"), own, True)
     add_options(run.add_argument_group("execution"), _execution_options())
     run.add_argument("--dry-run", action="store_true", help="list the runs and exit")
     run.add_argument("--quiet", action="store_true", help="print only the sweep's progress, not each run's")
@@ -160,7 +176,7 @@ def _tune_parser() -> ArgumentParser:
         "preset. Several processes (--workers, or the same command in another shell) share the study.",
     )
     tune.add_argument("--config", default="exp1", help="the setting: a preset, a preset file or a stored experiment")
-    add_options(tune.add_argument_group("the task (over --config's)"), _setting_options(TASK_FIELDS), True)
+    add_options(tune.add_argument_group("the task (over --config's)"), _setting_options(TaskConfig), True)
     tune.add_argument("--scheme", help="the critic_sharing scheme (default: the setting's first)")
     changes: dict[str, dict[str, Any]] = {
         "study_name": {
@@ -376,7 +392,8 @@ def _tune_settings(args: argparse.Namespace) -> Any:
     """
     from sb3_maddpg.experiments.tune import TuneSettings, default_study_name, task_objectives
 
-    given = _given(args, TASK_FIELDS) | ({"schemes": (args.scheme,)} if args.scheme else {})
+    task = [option.name for option in _setting_options(TaskConfig)]
+    given = _given(args, task) | ({"schemes": (args.scheme,)} if args.scheme else {})
     experiment = override(load_experiment(args.config), given, args.config)
     _check_experiments([experiment])
     setting = experiment.name

@@ -47,31 +47,10 @@ def _check_vec_env(vec_env: str, n_envs: int) -> None:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Setting:
+class TaskConfig:
     """
-    What an experiment and each of its runs share: the task, the budget, the evaluation protocol and the algorithm's
-    arguments. :class:`ExperimentConfig` adds the schemes and seeds, :class:`RunConfig` one scheme and one seed; both
-    take these fields as keywords.
+    The task and its env: what the team learns, which team, and how its envs are stepped in training.
 
-    :param n_agents: Number of agents and landmarks of simple_spread; another task's team size (its own: see
-        :meth:`ExperimentConfig.replace`).
-    :param num_agent_neighbors: Nearest other agents each agent observes, ``None`` for all.
-    :param episodes: Training budget in episodes (of ``episode_length`` steps).
-    :param episode_length: Steps per episode.
-    :param n_checkpoints: Models saved (evenly) over the last ``checkpoint_fraction`` of training,
-        the last one at the end; a run's score is the mean of their evaluations.
-    :param checkpoint_fraction: The final fraction of training over which checkpoints are saved.
-    :param eval_episodes: Episodes per checkpoint evaluation.
-    :param curve_points: Evaluations during training for the learning curve (evenly spaced, plus one at step 0).
-    :param curve_eval_episodes: Episodes per learning-curve evaluation.
-    :param keep_checkpoints: Keep the checkpoint model files after they are evaluated.
-    :param model_kwargs: Keyword arguments for the algorithm (overriding the paper's defaults).
-    :param algorithm: The algorithm class as ``"module:Class"``, or ``"maddpg"`` or ``"matd3"`` (stored as their
-        ``"module:Class"``: :data:`~sb3_maddpg.experiments.defaults.ALGORITHMS`); it is built as
-        ``Class("MlpPolicy", env, critic_sharing=scheme, seed=seed, **model_kwargs)``.
-    :param vec_env: ``"batched"`` (:class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`) or ``"mpe2"`` (``DummyVecEnv``
-        over mpe2 through the adapter): the same MDP, the first 92-152x faster to step with 64-256 worlds.
-    :param n_envs: Worlds (envs) stepped together during training.
     :param env: The task: ``"simple_spread"`` (the paper's; ``n_agents``, ``num_agent_neighbors`` and ``vec_env`` apply
         to it only), another MPE task of :data:`~sb3_maddpg.envs.MPE_TASKS` (scored by its
         :data:`~sb3_maddpg.envs.MPE_TASK_METRICS` too), a PettingZoo parallel env factory as ``"module:function"``, or a
@@ -79,37 +58,31 @@ class Setting:
     :param env_kwargs: Keyword arguments for the task's constructor (MPE tasks also get ``max_cycles=episode_length``;
         for simple_spread, those of :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv` beyond the fields above, e.g.
         ``{"continuous_actions": false}``).
+    :param n_agents: Number of agents and landmarks of simple_spread; another task's team size (its own: see
+        :meth:`ExperimentConfig.replace`).
+    :param num_agent_neighbors: Nearest other agents each agent observes, ``None`` for all.
+    :param episode_length: Steps per episode.
     :param score_agents: Agent ids whose summed return is scored as ``group_return`` (e.g. the adversaries of
         ``simple_tag``); empty for none.
     :param normalize_observations: Normalise the observations the model sees by their running mean and variance
         (SB3's ``VecNormalize``, rewards left raw: the critics learn from per-agent rewards); the statistics are saved
         beside each checkpoint, and each checkpoint is evaluated with its own.
+    :param vec_env: ``"batched"`` (:class:`~sb3_maddpg.envs.SimpleSpreadVecEnv`) or ``"mpe2"`` (``DummyVecEnv``
+        over mpe2 through the adapter): the same MDP, the first 92-152x faster to step with 64-256 worlds.
+    :param n_envs: Worlds (envs) stepped together during training.
     """
 
-    STORED_KEYS: ClassVar[tuple[str, ...]] = ()
-    """The keys of :meth:`to_dict`, in the order the files written so far have them."""
-
-    n_agents: int = 5
-    num_agent_neighbors: int | None = None
-    episodes: int = 100_000
-    episode_length: int = EPISODE_LENGTH
-    n_checkpoints: int = 20
-    checkpoint_fraction: float = 0.2
-    eval_episodes: int = 100
-    curve_points: int = 50
-    curve_eval_episodes: int = 20
-    keep_checkpoints: bool = True
-    model_kwargs: dict[str, Any] = field(default_factory=dict)
-    algorithm: str = DEFAULT_ALGORITHM
-    vec_env: str = "batched"
-    n_envs: int = DEFAULT_N_ENVS
     env: str = DEFAULT_ENV
     env_kwargs: dict[str, Any] = field(default_factory=dict)
+    n_agents: int = 5
+    num_agent_neighbors: int | None = None
+    episode_length: int = EPISODE_LENGTH
     score_agents: tuple[str, ...] = ()
     normalize_observations: bool = False
+    vec_env: str = "batched"
+    n_envs: int = DEFAULT_N_ENVS
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "algorithm", ALGORITHMS.get(self.algorithm, self.algorithm))
         _check_vec_env(self.vec_env, self.n_envs)
         if self.n_agents < 1 or (self.num_agent_neighbors is not None and self.num_agent_neighbors < 0):
             raise ValueError(
@@ -118,6 +91,92 @@ class Setting:
             )
         check_env_name(self.env)
         object.__setattr__(self, "score_agents", tuple(self.score_agents))
+
+
+@dataclass(frozen=True, kw_only=True)
+class AlgorithmConfig:
+    """
+    The algorithm and its hyperparameters.
+
+    :param algorithm: The algorithm class as ``"module:Class"``, or ``"maddpg"`` or ``"matd3"`` (stored as their
+        ``"module:Class"``: :data:`~sb3_maddpg.experiments.defaults.ALGORITHMS`); it is built as
+        ``Class("MlpPolicy", env, critic_sharing=scheme, seed=seed, **model_kwargs)``.
+    :param model_kwargs: Keyword arguments for the algorithm (overriding the paper's defaults).
+    """
+
+    algorithm: str = DEFAULT_ALGORITHM
+    model_kwargs: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "algorithm", ALGORITHMS.get(self.algorithm, self.algorithm))
+
+
+@dataclass(frozen=True, kw_only=True)
+class ProtocolConfig:
+    """
+    The training budget and the evaluation protocol: the paper's evaluates checkpoints saved over the last 20% of
+    training, each on seeded episodes.
+
+    :param episodes: Training budget in episodes (of ``episode_length`` steps).
+    :param n_checkpoints: Models saved (evenly) over the last ``checkpoint_fraction`` of training,
+        the last one at the end; a run's score is the mean of their evaluations.
+    :param checkpoint_fraction: The final fraction of training over which checkpoints are saved.
+    :param eval_episodes: Episodes per checkpoint evaluation.
+    :param curve_points: Evaluations during training for the learning curve (evenly spaced, plus one at step 0).
+    :param curve_eval_episodes: Episodes per learning-curve evaluation.
+    :param keep_checkpoints: Keep the checkpoint model files after they are evaluated.
+    """
+
+    episodes: int = 100_000
+    n_checkpoints: int = 20
+    checkpoint_fraction: float = 0.2
+    eval_episodes: int = 100
+    curve_points: int = 50
+    curve_eval_episodes: int = 20
+    keep_checkpoints: bool = True
+
+
+CONCERNS = (TaskConfig, AlgorithmConfig, ProtocolConfig)
+"""The concerns a setting is made of, each a dataclass of its own fields."""
+
+SETTING_KEYS = (
+    "n_agents",
+    "num_agent_neighbors",
+    "episodes",
+    "episode_length",
+    "n_checkpoints",
+    "checkpoint_fraction",
+    "eval_episodes",
+    "curve_points",
+    "curve_eval_episodes",
+    "keep_checkpoints",
+    "model_kwargs",
+    "algorithm",
+    "vec_env",
+    "n_envs",
+    "env",
+    "env_kwargs",
+    "score_agents",
+    "normalize_observations",
+)
+"""A setting's fields in the order the files written so far hold them."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class Setting(TaskConfig, AlgorithmConfig, ProtocolConfig):
+    """
+    What an experiment and each of its runs share: a task (:class:`TaskConfig`), an algorithm and its hyperparameters
+    (:class:`AlgorithmConfig`) and a budget with its evaluation protocol (:class:`ProtocolConfig`), their fields as
+    keywords. :class:`ExperimentConfig` adds the schemes and seeds, :class:`RunConfig` one scheme and one seed.
+    """
+
+    STORED_KEYS: ClassVar[tuple[str, ...]] = ()
+    """The keys of :meth:`to_dict`, in the order the files written so far have them."""
+
+    def __post_init__(self) -> None:
+        for concern in CONCERNS:
+            if "__post_init__" in vars(concern):
+                vars(concern)["__post_init__"](self)
 
     def setting(self) -> dict[str, Any]:
         """:return: The :class:`Setting` fields' values (the same objects), by name."""
@@ -167,12 +226,7 @@ class RunConfig(Setting):
     :param seed: The run's seed: the model's seed; the evaluation env is seeded from it too.
     """
 
-    STORED_KEYS: ClassVar[tuple[str, ...]] = (
-        "experiment",
-        "scheme",
-        "seed",
-        *(f.name for f in dataclasses.fields(Setting)),
-    )
+    STORED_KEYS: ClassVar[tuple[str, ...]] = ("experiment", "scheme", "seed", *SETTING_KEYS)
 
     experiment: str
     scheme: str

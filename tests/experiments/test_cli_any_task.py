@@ -2,6 +2,7 @@
 team size, an evaluation schedule that follows the budget, the docs' examples sized to train, and a user's error said
 in one line with exit status 2 in every subcommand."""
 
+import dataclasses
 import importlib.util
 import json
 import re
@@ -242,3 +243,23 @@ def test_the_small_scale_command_is_the_committed_comparisons_setting(
     experiment = dry_run(capsys, tmp_path, *shlex.split(module.SCALES["small"]))
     for name in ("name", "n_agents", "episodes", "seeds", *SCHEDULE):
         assert experiment[name] == committed[name], name
+
+
+def test_every_field_of_the_config_model_is_an_option(capsys: pytest.CaptureFixture[str]) -> None:
+    from sb3_maddpg.experiments.backends import Execution
+    from sb3_maddpg.experiments.setting import TaskConfig
+    from sb3_maddpg.experiments.tune import TuneSettings
+
+    def options(command: str) -> set[str]:
+        assert main([command, "--help"]) == 0
+        return set(re.findall(r"--[a-z][a-z-]*", capsys.readouterr().out))
+
+    def flags(config: type, skip: tuple[str, ...] = ()) -> set[str]:
+        return {"--" + f.name.replace("_", "-") for f in dataclasses.fields(config) if f.name not in skip}
+
+    assert flags(ExperimentConfig) | flags(Execution, ("verbose",)) <= options("run")
+    assert flags(TaskConfig) | flags(TuneSettings, ("experiment", "pruner")) <= options("tune")
+    # Booleans both ways; each option explained by its field's docstring.
+    assert {"--keep-checkpoints", "--no-keep-checkpoints", "--snapshots", "--no-snapshots"} <= options("run")
+    assert main(["run", "--help"]) == 0
+    assert "The final fraction of training over which checkpoints are saved" in " ".join(capsys.readouterr().out.split())

@@ -112,3 +112,11 @@ def test_a_config_is_migrated_by_the_version_that_wrote_it() -> None:
         RunConfig.from_dict({**fields, VERSION_KEY: "99.1"})
     with pytest.raises(ValueError, match=r"'not-a-version', which is no version number"):
         RunConfig.from_dict({**fields, VERSION_KEY: "not-a-version"})
+
+
+def test_a_setting_is_made_of_its_concerns() -> None:
+    from sb3_maddpg.experiments.setting import CONCERNS, SETTING_KEYS
+
+    owned = [f.name for concern in CONCERNS for f in dataclasses.fields(concern)]
+    assert len(owned) == len(set(owned))  # each field in one concern
+    assert set(owned) == {f.name for f in dataclasses.fields(Setting)} == set(SETTING_KEYS)
