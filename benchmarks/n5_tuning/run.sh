@@ -25,4 +25,4 @@ nice -n 19 python -m sb3_maddpg.experiments tune --config benchmarks/n5_diagnosi
     --fixed-params '{"transitions_per_update": 25, "batch_size": 1024, "width": 64}' \
     --budget 400000 --n-evaluations 8 --last-evaluations 2 --warmup-evaluations 3 --eval-episodes 50 \
     --objective min_dist_sum --n-trials "$TRIALS" --workers "$WORKERS" --threads 1 --seed 0 \
-    --storage sqlite:///benchmarks/n5_tuning/results/tune.db --preset-out benchmarks/n5_tuning/results/best_preset.json
+    --storage sqlite:///benchmarks/n5_tuning/results/tune.db --preset-out benchmarks/n5_tuning/results/best_preset.yml

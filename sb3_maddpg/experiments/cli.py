@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
+import yaml
 from jsonargparse import ArgumentParser
 
 from sb3_maddpg.analysis.evaluation import side_return_key
@@ -191,7 +192,7 @@ def _tune_parser() -> ArgumentParser:
     ]
     add_options(tune.add_argument_group("the study"), study)
     add_options(tune.add_argument_group("the workers"), options_of(run_study))
-    tune.add_argument("--preset-out", help="also write the best trial's experiment (JSON) to this file")
+    tune.add_argument("--preset-out", help="also write the best trial's preset to this YAML file (.yml)")
     return tune
 
 
@@ -413,6 +414,8 @@ def tune_command(args: argparse.Namespace) -> int:
     from sb3_maddpg.experiments.tune import best_preset, describe_best, finished_trials, run_study
 
     try:
+        if args.preset_out and not args.preset_out.endswith((".yml", ".yaml")):
+            raise ValueError(f"--preset-out {args.preset_out}: a preset is a YAML file: give a name ending in .yml.")
         settings = _tune_settings(args)
     except ValueError as error:
         print(f"sb3-maddpg tune: {error}", file=sys.stderr)
@@ -443,9 +446,7 @@ def tune_command(args: argparse.Namespace) -> int:
     for line in describe_best(study, settings):
         print(line)
     if args.preset_out:
-        with open(args.preset_out, "w") as file:
-            json.dump(best_preset(study, settings), file, indent=2)
-            file.write("\n")
+        Path(args.preset_out).write_text(yaml.safe_dump(best_preset(study, settings), sort_keys=False))
         print(f"preset written to {args.preset_out}: sb3-maddpg run --config {args.preset_out}")
     return 0
 

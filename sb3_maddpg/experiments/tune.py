@@ -19,11 +19,11 @@ from collections.abc import Callable, Sequence
 from typing import Any, Literal
 
 import numpy as np
+import yaml
 
 from sb3_maddpg.analysis.evaluation import TeamEvalCallback
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.common.torch_threads import use_torch_threads
-from sb3_maddpg.compat import with_version
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES
 from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.local_pool import worker_pool
@@ -541,10 +541,10 @@ def best_preset(study: Any, settings: TuneSettings) -> dict[str, Any]:
     """
     :param study: A study with a complete trial.
     :param settings: The study's settings.
-    :return: The best trial as a stored experiment config (JSON-ready, with the version that wrote it, for
-        ``sb3-maddpg run --config``): the experiment with the trial's ``model_kwargs`` over its own, named
-        ``<study>_best`` (not ``<experiment>_tuned``: the package's own ``exp1_tuned`` and ``exp2_tuned`` presets hold
-        those names and their results' directories).
+    :return: The best trial as a preset (:mod:`~sb3_maddpg.experiments.presets`: YAML-ready, for ``sb3-maddpg run
+        --config``): the experiment's fields with the trial's ``model_kwargs`` over its own, named ``<study>_best``
+        (not ``<experiment>_tuned``: the package's own ``exp1_tuned`` and ``exp2_tuned`` presets hold those names and
+        their results' directories), and a note on the study that found it.
     """
     best = study.best_trial
     model_kwargs = merge_model_kwargs(settings.experiment.model_kwargs, best.user_attrs["model_kwargs"])
@@ -554,7 +554,8 @@ def best_preset(study: Any, settings: TuneSettings) -> dict[str, Any]:
         f"{settings.n_evaluations} evaluations, {settings.budget:,} steps)"
     )
     tuned = dataclasses.replace(settings.experiment, name=f"{settings.study_name}_best", model_kwargs=model_kwargs)
-    return with_version(tuned.described(note).to_dict())
+    fields = {key: value for key, value in tuned.to_dict().items() if key not in ("name", "description")}
+    return {"name": tuned.name, "note": note, **fields}
 
 
 def describe_best(study: Any, settings: TuneSettings) -> Sequence[str]:
@@ -566,5 +567,5 @@ def describe_best(study: Any, settings: TuneSettings) -> Sequence[str]:
         f"{finished_trials(study)} finished trials",
         "parameters: " + ", ".join(f"{key}={value}" for key, value in best.params.items()),
         "preset:",
-        json.dumps(best_preset(study, settings), indent=2),
+        yaml.safe_dump(best_preset(study, settings), sort_keys=False).rstrip(),
     ]

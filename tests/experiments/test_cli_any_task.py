@@ -150,7 +150,7 @@ def test_the_docs_run_commands_pass_a_dry_run_without_the_train_nothing_warning(
     where: str, argv: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.chdir(REPO)  # JSON settings named relative to the repository
-    made_before = [arg for arg in argv if arg.endswith(".json") and not Path(arg).exists()]
+    made_before = [arg for arg in argv if arg.endswith((".json", ".yml")) and not Path(arg).exists()]
     if made_before:
         pytest.skip(f"{made_before[0]} is written by an earlier command (e.g. tune --preset-out)")
     assert main(["run", *argv, "--results", str(tmp_path / "r"), "--dry-run"]) == 0, where

@@ -2,7 +2,6 @@
 trial failed and retried), prunes, and prints the best trial as a preset that `sb3-maddpg run` takes."""
 
 import contextlib
-import json
 import multiprocessing
 import os
 import re
@@ -23,7 +22,7 @@ from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import make_simple_spread
 from sb3_maddpg.experiments import SMOKE
 from sb3_maddpg.experiments.cli import main
-from sb3_maddpg.experiments.setting import ExperimentConfig
+from sb3_maddpg.experiments.presets import read_preset_file
 from sb3_maddpg.experiments.tune import (
     TrialEvalCallback,
     TuneSettings,
@@ -66,14 +65,14 @@ def test_the_sampler_gives_arguments_maddpg_takes() -> None:
 
 @pytest.mark.slow
 def test_a_tiny_study_runs_and_gives_a_preset_run_takes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    preset = tmp_path / "best.json"
+    preset = tmp_path / "best.yml"
     argv = ["tune", "--config", "smoke", "--scheme", "full", "--n-trials", "2", "--budget", "800", "--n-evaluations", "2"]
     argv += ["--eval-episodes", "2", "--last-evaluations", "1", "--storage", f"sqlite:///{tmp_path / 'tune.db'}"]
     assert main([*argv, "--preset-out", str(preset)]) == 0
     out = capsys.readouterr().out
     assert "best trial" in out and "(lower is better) of 2 finished trials" in out
     assert re.search(r"trial 1: 400/800 steps, min_dist_sum \d+\.\d{4}, \d+\.\d min\n", out)  # progress per evaluation
-    config = ExperimentConfig.from_dict(json.loads(preset.read_text()))
+    (config,) = read_preset_file(preset)
     study = load_study(settings(tmp_path, study_name="smoke_min_dist_sum"))
     assert (
         config.name == "smoke_min_dist_sum_best" and config.model_kwargs["learning_rate"] == study.best_params["learning_rate"]
@@ -372,7 +371,7 @@ def test_the_objectives_are_the_tasks_metrics_in_their_directions() -> None:
 
 @pytest.mark.slow
 def test_tune_on_another_task_optimises_that_tasks_metric(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    storage, preset = f"sqlite:///{tmp_path / 'tune.db'}", tmp_path / "best.json"
+    storage, preset = f"sqlite:///{tmp_path / 'tune.db'}", tmp_path / "best.yml"
     argv = ["tune", "--config", "smoke", "--env", "simple_tag", "--scheme", "full", "--n-trials", "2", "--budget", "800"]
     argv += ["--n-evaluations", "2", "--eval-episodes", "2", "--last-evaluations", "1", "--storage", storage]
     assert main([*argv, "--preset-out", str(preset)]) == 0
@@ -384,7 +383,7 @@ def test_tune_on_another_task_optimises_that_tasks_metric(tmp_path: Path, capsys
     for trial in study.trials:  # each trial scores its last evaluation's catches per episode (2 episodes)
         assert trial.value == trial.intermediate_values[max(trial.intermediate_values)]
         assert trial.value >= 0 and (2 * trial.value).is_integer()
-    config = ExperimentConfig.from_dict(json.loads(preset.read_text()))
+    (config,) = read_preset_file(preset)
     assert (config.env, config.n_agents) == ("simple_tag", 4) and "simple_tag, 4 agents" in config.description
 
 
