@@ -24,3 +24,6 @@ DEFAULT_N_ENVS = 100
 
 DEFAULT_ENV = "simple_spread"
 """The paper's task."""
+
+DEFAULT_RESULTS = "runs/experiments"
+"""Where ``sb3-maddpg run`` writes a sweep and ``report`` reads one, unless told."""

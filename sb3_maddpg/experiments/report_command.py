@@ -1,0 +1,162 @@
+"""``sb3-maddpg report``: the report of a results directory (:func:`~sb3_maddpg.experiments.report.make_report`),
+or of the seeds every scheme has finished, with each user's error said in one line."""
+
+import argparse
+import importlib.util
+import os
+import sys
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from sb3_maddpg.analysis.evaluation import side_return_key
+from sb3_maddpg.common.install_hint import extra_install_command
+from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
+from sb3_maddpg.experiments.cli import LEFT_OUT_SHOWN
+from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS
+from sb3_maddpg.experiments.results import link_complete_seeds
+from sb3_maddpg.experiments.stats import METRICS
+
+if TYPE_CHECKING:
+    from sb3_maddpg.experiments.report import UnscoredMetricError
+
+
+def report_metric_choices() -> list[str]:
+    """:return: What ``report --metric`` takes: every score's key, and each competitive MPE task's sides' returns."""
+    sides = {side_return_key(side) for task_sides in MPE_TASK_SIDES.values() for side in task_sides}
+    return sorted({*METRICS, *sides})
+
+
+def no_matplotlib_message() -> str:
+    """:return: What ``report`` says without matplotlib: the install command for this install, or ``--no-plots``."""
+    return (
+        "sb3-maddpg report: the figures need matplotlib, which is not installed. Install the experiments extra, "
+        f"{extra_install_command('experiments')}, or add --no-plots for the tables only."
+    )
+
+
+def report_command(args: argparse.Namespace) -> int:
+    """
+    :param args: Parsed ``report`` arguments.
+    :return: The exit status.
+    """
+    if not Path(args.results).is_dir():
+        print(
+            f"sb3-maddpg report: no results directory {args.results}: give the directory a sweep wrote (sb3-maddpg run "
+            f"--results DIR; default {DEFAULT_RESULTS}).",
+            file=sys.stderr,
+        )
+        return 2
+    unknown = [metric for metric in args.metric or () if metric not in report_metric_choices()]
+    if unknown:
+        print(
+            f"sb3-maddpg report: --metric {unknown[0]!r} is no score: give one of {', '.join(report_metric_choices())}.",
+            file=sys.stderr,
+        )
+        return 2
+    plots = not args.no_plots
+    if plots and importlib.util.find_spec("matplotlib") is None:  # said before any table is written
+        print(no_matplotlib_message(), file=sys.stderr)
+        return 1
+    out = args.out or f"{args.results.rstrip('/')}/report"
+    unwritable = unwritable_out_message(out)
+    if unwritable is not None:
+        print(unwritable, file=sys.stderr)
+        return 2
+    if not args.complete_seeds:
+        return _write_report(args.results, out, args.metric, plots)
+    with tempfile.TemporaryDirectory(prefix="sb3_maddpg_report_") as view:
+        complete = str(Path(view) / "complete_seeds")
+        left_out = link_complete_seeds(args.results, complete)
+        if not Path(complete).is_dir():
+            print(
+                f"sb3-maddpg report: no seed in {args.results} is finished by every scheme of its setting "
+                + (
+                    f"({len(left_out)} finished run(s)): report them without --complete-seeds, or once every scheme "
+                    "of a setting has finished a seed."
+                    if left_out
+                    else "(no finished runs): report it once a sweep has finished runs there (sb3-maddpg run --results DIR)."
+                ),
+                file=sys.stderr,
+            )
+            return 1
+        if left_out:
+            shown = ", ".join(left_out[:LEFT_OUT_SHOWN]) + (", ..." if len(left_out) > LEFT_OUT_SHOWN else "")
+            print(
+                f"sb3-maddpg report: --complete-seeds leaves out {len(left_out)} finished run(s), their seed not "
+                f"finished by every scheme of their setting: {shown}",
+                file=sys.stderr,
+            )
+        return _write_report(complete, out, args.metric, plots, shown_as=args.results)
+
+
+def unwritable_out_message(out: str) -> str | None:
+    """
+    :param out: The report's directory (``--out``, or ``<results>/report``).
+    :return: Why ``report`` cannot write there, in one line with what to do (the directory, or the first of its
+        parents that exists, is a file or not writable); ``None`` when it can.
+    """
+    existing = Path(out)
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if existing.exists() and not existing.is_dir():
+        where = "is a file" if existing == Path(out) else f"is inside {existing}, a file"
+        return f"sb3-maddpg report: the report's directory {out} {where}: give --out a directory (new or existing)."
+    if existing.is_dir() and not os.access(existing, os.W_OK | os.X_OK):
+        return (
+            f"sb3-maddpg report: cannot write the report's directory {out} ({existing} is not writable): give --out a "
+            "directory you can write to."
+        )
+    return None
+
+
+def unscored_metric_message(error: "UnscoredMetricError", directory: str) -> str:
+    """
+    :param error: :func:`~sb3_maddpg.experiments.report.make_report`'s refusal of a metric no run scores.
+    :param directory: The results directory, as the user named it.
+    :return: ``report``'s line: the metric(s) no run scores, those that ``--metric`` could take instead, what to do.
+    """
+    asked = ", ".join(error.unscored)
+    choices = set(report_metric_choices())
+    instead = [metric for metric in error.scored if metric in choices]
+    radii = any(
+        metric not in ("success_rate", "coverage") and metric.startswith(("success_rate_", "coverage_"))
+        for metric in error.unscored
+    )
+    old_runs = " (runs written before 0.2 have no success or coverage at other radii)" if radii else ""
+    fix = (
+        f"the runs there score {', '.join(instead)}: give --metric one of those, or leave --metric out for each task's "
+        "main metrics."
+        if instead
+        else "leave --metric out for each task's main metrics."
+    )
+    return f"sb3-maddpg report: no run in {directory} scores --metric {asked}{old_runs}; {fix}"
+
+
+def _write_report(results: str, out: str, metrics: list[str] | None, plots: bool, shown_as: str | None = None) -> int:
+    """
+    :param results: The results directory to report.
+    :param out: Where to write the report.
+    :param metrics: ``--metric``'s scores (``None``: the tasks' main ones).
+    :param plots: Draw the figures too.
+    :param shown_as: The directory an error names instead of ``results`` (``--complete-seeds``' temporary view of the
+        user's directory); ``None``: ``results``.
+    :return: The exit status.
+    """
+    from sb3_maddpg.experiments.report import UnscoredMetricError, make_report
+
+    try:
+        for path in make_report(results, out, metrics=metrics, plots=plots):
+            print(path)
+    except UnscoredMetricError as error:  # a user's error: said before anything is written
+        print(unscored_metric_message(error, shown_as or results), file=sys.stderr)
+        return 2
+    except ModuleNotFoundError as error:  # a part of matplotlib missing: the same advice
+        if error.name is None or error.name.split(".")[0] != "matplotlib":
+            raise
+        print(no_matplotlib_message(), file=sys.stderr)
+        return 1
+    except (FileNotFoundError, ValueError) as error:  # no finished runs, or runs that cannot be read
+        print(f"sb3-maddpg report: {str(error).replace(results, shown_as or results)}", file=sys.stderr)
+        return 1
+    return 0
