@@ -7,7 +7,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from sb3_maddpg.experiments.cli import execution_options, given_fields, override, setting_options
+from sb3_maddpg.experiments.cli_options import execution_options, given_fields, override, setting_options
 from sb3_maddpg.experiments.config import EXPERIMENTS, algorithm_argument, load_algorithm, load_experiment
 from sb3_maddpg.experiments.defaults import ALGORITHMS
 from sb3_maddpg.experiments.setting import ExperimentConfig

@@ -9,8 +9,7 @@ from typing import Any
 
 import yaml
 
-from sb3_maddpg.experiments.cli import given_fields, override, setting_options
-from sb3_maddpg.experiments.cli_options import options_of
+from sb3_maddpg.experiments.cli_options import given_fields, options_of, override, setting_options
 from sb3_maddpg.experiments.config import load_experiment
 from sb3_maddpg.experiments.run_command import check_experiments, untrained_warning
 from sb3_maddpg.experiments.setting import TaskConfig
