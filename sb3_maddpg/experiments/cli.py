@@ -22,7 +22,6 @@ from sb3_maddpg.experiments.cli_options import (
 )
 from sb3_maddpg.experiments.config import EXPERIMENTS
 from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS
-from sb3_maddpg.experiments.report_command import LEFT_OUT_SHOWN
 from sb3_maddpg.experiments.setting import (
     CONCERNS,
     TaskConfig,
@@ -145,8 +144,8 @@ def _report_parser() -> ArgumentParser:
         "--complete-seeds",
         action="store_true",
         help="report only the seeds that every scheme of a setting has finished, so that a sweep in progress compares "
-        f"like with like (the finished runs left out are counted, the first {LEFT_OUT_SHOWN} named; exit status 1 "
-        "when no seed is complete)",
+        "like with like (the finished runs left out are counted, the first of them named; exit status 1 when no seed "
+        "is complete)",
     )
     return report
 
