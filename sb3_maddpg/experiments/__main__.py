@@ -1,4 +1,4 @@
-"""``python -m sb3_maddpg.experiments run|report ...``: see :mod:`sb3_maddpg.experiments.cli`."""
+"""``python -m sb3_maddpg.experiments run|tune|report ...``: see :mod:`sb3_maddpg.experiments.cli`."""
 
 import sys
 

@@ -21,9 +21,10 @@ from sb3_maddpg.experiments.cli_options import (
     setting_options,
 )
 from sb3_maddpg.experiments.config import EXPERIMENTS
-from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS
+from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS, LEFT_OUT_SHOWN
 from sb3_maddpg.experiments.setting import (
     CONCERNS,
+    AlgorithmConfig,
     TaskConfig,
 )
 
@@ -58,6 +59,11 @@ COMMANDS = {
 """The commands, and what each does."""
 
 
+def _title(concern: type) -> str:
+    """:return: A concern's first words (its docstring's, up to a colon or full stop), as its options' heading."""
+    return re.split(r"[:.]", " ".join((concern.__doc__ or "").split()), maxsplit=1)[0]
+
+
 def build_parser(commands: Sequence[str] = tuple(COMMANDS)) -> ArgumentParser:
     """
     :param commands: The commands to parse (by default all; :func:`main` builds only the one given, so that a run
@@ -90,11 +96,10 @@ def _run_parser() -> ArgumentParser:
     )
     run.add_argument("--results", default=DEFAULT_RESULTS, help="the results directory")
     for concern in CONCERNS:  # each option over every --config's
-        title = (concern.__doc__ or "").strip().split(":")[0].split("\n")[0].rstrip(".")
-        add_options(run.add_argument_group(title), setting_options(concern), True)
+        add_options(run.add_argument_group(_title(concern)), setting_options(concern), True)
     own = [option for option in setting_options() if option.name in EXPERIMENT_OWN]
     add_options(run.add_argument_group("The experiment's runs"), own, True)
-    add_options(run.add_argument_group("execution"), execution_options())
+    add_options(run.add_argument_group("Where the runs execute"), execution_options())
     run.add_argument("--dry-run", action="store_true", help="list the runs and exit")
     run.add_argument("--quiet", action="store_true", help="print only the sweep's progress, not each run's")
     return run
@@ -109,8 +114,9 @@ def _tune_parser() -> ArgumentParser:
         "preset. Several processes (--workers, or the same command in another shell) share the study.",
     )
     tune.add_argument("--config", default="exp1", help="the setting: a preset, a preset file or a stored experiment")
-    add_options(tune.add_argument_group("the task (over --config's)"), setting_options(TaskConfig), True)
-    tune.add_argument("--scheme", help="the critic_sharing scheme (default: the setting's first)")
+    for concern in (TaskConfig, AlgorithmConfig):  # each option over --config's; the trials sample over the algorithm's
+        add_options(tune.add_argument_group(_title(concern)), setting_options(concern), True)
+    tune.add_argument("--scheme", help="the critic_sharing scheme; null: the setting's first")
     changes: dict[str, dict[str, Any]] = {
         "study_name": {
             "hint": str | None,
@@ -122,8 +128,8 @@ def _tune_parser() -> ArgumentParser:
     study = [
         option._replace(**changes.get(option.name, {})) for option in options_of(TuneSettings, skip=("experiment", "pruner"))
     ]
-    add_options(tune.add_argument_group("the study"), study)
-    add_options(tune.add_argument_group("the workers"), options_of(run_study))
+    add_options(tune.add_argument_group("The study"), study)
+    add_options(tune.add_argument_group("The workers"), options_of(run_study))
     tune.add_argument("--preset-out", help="also write the best trial's preset to this YAML file (.yml)")
     return tune
 
@@ -144,8 +150,8 @@ def _report_parser() -> ArgumentParser:
         "--complete-seeds",
         action="store_true",
         help="report only the seeds that every scheme of a setting has finished, so that a sweep in progress compares "
-        "like with like (the finished runs left out are counted, the first of them named; exit status 1 when no seed "
-        "is complete)",
+        f"like with like (the finished runs left out are counted, the first {LEFT_OUT_SHOWN} named; exit status 1 "
+        "when no seed is complete)",
     )
     return report
 

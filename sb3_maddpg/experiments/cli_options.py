@@ -161,7 +161,7 @@ def given_fields(args: argparse.Namespace, names: Sequence[str]) -> dict[str, An
 def override(experiment: ExperimentConfig, given: dict[str, Any], config: str) -> ExperimentConfig:
     """
     :param experiment: A loaded ``--config``.
-    :param given: The fields given on the command line (:func:`_given`).
+    :param given: The fields given on the command line (:func:`given_fields`).
     :param config: What ``--config`` said, for the description.
     :return: The experiment with the given fields: ``model_kwargs`` merged over its own (``scheme_model_kwargs`` per
         scheme); with ``--episodes``, each evaluation count not given follows the budget

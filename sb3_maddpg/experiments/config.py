@@ -160,7 +160,7 @@ def load_experiment(name_or_path: str) -> ExperimentConfig:
     except json.JSONDecodeError as error:
         raise ValueError(
             f"Experiment file {name_or_path!r} is not JSON ({error}): write ExperimentConfig.to_dict() to it with "
-            "json.dump (as a tuning study's best_preset is written)."
+            "json.dump, or write a .yml preset file."
         ) from None
     return _experiment_from_file(name_or_path, data)
 
@@ -169,7 +169,8 @@ def _experiment_from_file(path: str, data: Any) -> ExperimentConfig:
     """:func:`load_experiment`'s config from a file's JSON, with the file named in any error."""
     fields = [field.name for field in dataclasses.fields(ExperimentConfig)]
     if not isinstance(data, dict) or "name" not in data:
-        raise ValueError(f'Experiment file {path!r} holds no experiment: give a JSON object with a "name" and {fields[1:]}.')
+        others = [name for name in fields if name != "name"]
+        raise ValueError(f'Experiment file {path!r} holds no experiment: give a JSON object with a "name" and {others}.')
     unknown = sorted(set(data) - {*fields, VERSION_KEY})
     if unknown:
         raise ValueError(f"Experiment file {path!r} has unknown key(s) {unknown}: an experiment's keys are {fields}.")

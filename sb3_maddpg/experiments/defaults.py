@@ -27,3 +27,6 @@ DEFAULT_ENV = "simple_spread"
 
 DEFAULT_RESULTS = "runs/experiments"
 """Where ``sb3-maddpg run`` writes a sweep and ``report`` reads one, unless told."""
+
+LEFT_OUT_SHOWN = 10
+"""``report --complete-seeds`` names this many of the finished runs it leaves out (and counts them all)."""

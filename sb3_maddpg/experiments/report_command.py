@@ -12,15 +12,12 @@ from typing import TYPE_CHECKING
 from sb3_maddpg.analysis.evaluation import side_return_key
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
-from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS
+from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS, LEFT_OUT_SHOWN
 from sb3_maddpg.experiments.results import link_complete_seeds
 from sb3_maddpg.experiments.stats import METRICS
 
 if TYPE_CHECKING:
     from sb3_maddpg.experiments.report import UnscoredMetricError
-
-LEFT_OUT_SHOWN = 10
-"""``report --complete-seeds`` names this many of the finished runs it leaves out (and counts them all)."""
 
 
 def report_metric_choices() -> list[str]:

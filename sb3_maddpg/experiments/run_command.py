@@ -10,7 +10,7 @@ from pathlib import Path
 from sb3_maddpg.experiments.cli_options import execution_options, given_fields, override, setting_options
 from sb3_maddpg.experiments.config import EXPERIMENTS, algorithm_argument, load_algorithm, load_experiment
 from sb3_maddpg.experiments.defaults import ALGORITHMS
-from sb3_maddpg.experiments.setting import ExperimentConfig
+from sb3_maddpg.experiments.setting import CONCERNS, ExperimentConfig
 
 
 def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
@@ -20,7 +20,8 @@ def experiments_from_args(args: argparse.Namespace) -> list[ExperimentConfig]:
     """
     if hasattr(args, "name") and len(args.config) != 1:
         raise ValueError(f"--name renames one experiment, but {len(args.config)} --config are given: give one --config.")
-    given = given_fields(args, [option.name for option in setting_options()])
+    names = [option.name for concern in (*CONCERNS, ExperimentConfig) for option in setting_options(concern)]
+    given = given_fields(args, list(dict.fromkeys(names)))  # in the concerns' order, as --help lists them
     return [override(load_experiment(name), given, name) for name in args.config]
 
 

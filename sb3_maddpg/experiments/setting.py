@@ -1,7 +1,7 @@
-"""The configuration types: :class:`Setting` (a task, a budget and an evaluation protocol, defined once), an
-experiment (a setting with its schemes and seeds) and a run (a setting with one scheme and one seed), the one way both
-are read back from JSON, and a setting's values in words (:func:`describe_setting`) and for another budget
-(:func:`scaled_schedule`)."""
+"""The configuration types: one dataclass per concern (:class:`TaskConfig`, :class:`AlgorithmConfig`,
+:class:`ProtocolConfig`), :class:`Setting` (their fields together, defined once), an experiment (a setting with its
+schemes and seeds) and a run (a setting with one scheme and one seed), the one way both are read back from JSON, and a
+setting's values in words (:func:`describe_setting`) and for another budget (:func:`scaled_schedule`)."""
 
 import copy
 import dataclasses
@@ -84,6 +84,8 @@ class TaskConfig:
 
     def __post_init__(self) -> None:
         _check_vec_env(self.vec_env, self.n_envs)
+        if self.episode_length < 1:
+            raise ValueError(f"episode_length must be positive, got {self.episode_length}.")
         if self.n_agents < 1 or (self.num_agent_neighbors is not None and self.num_agent_neighbors < 0):
             raise ValueError(
                 f"n_agents must be at least 1 and num_agent_neighbors at least 0 (None: all), got {self.n_agents} and "
@@ -135,8 +137,18 @@ class ProtocolConfig:
     curve_eval_episodes: int = 20
     keep_checkpoints: bool = True
 
+    def __post_init__(self) -> None:
+        if self.episodes < 1:
+            raise ValueError(f"episodes must be positive, got {self.episodes}.")
+        if not 0 < self.checkpoint_fraction <= 1:
+            raise ValueError(f"checkpoint_fraction must be in (0, 1], got {self.checkpoint_fraction}.")
+        if self.n_checkpoints < 1:
+            raise ValueError(f"n_checkpoints must be at least 1, got {self.n_checkpoints}.")
+        if self.eval_episodes < 1 or self.curve_eval_episodes < 1 or self.curve_points < 0:
+            raise ValueError("eval_episodes and curve_eval_episodes must be positive and curve_points non-negative.")
 
-CONCERNS = (TaskConfig, AlgorithmConfig, ProtocolConfig)
+
+CONCERNS = (TaskConfig, AlgorithmConfig, ProtocolConfig)  # Setting's bases, in this order
 """The concerns a setting is made of, each a dataclass of its own fields."""
 
 SETTING_KEYS = (
@@ -175,8 +187,9 @@ class Setting(TaskConfig, AlgorithmConfig, ProtocolConfig):
 
     def __post_init__(self) -> None:
         for concern in CONCERNS:
-            if "__post_init__" in vars(concern):
-                vars(concern)["__post_init__"](self)
+            check = getattr(concern, "__post_init__", None)
+            if check is not None:
+                check(self)
 
     def setting(self) -> dict[str, Any]:
         """:return: The :class:`Setting` fields' values (the same objects), by name."""
@@ -233,20 +246,12 @@ class RunConfig(Setting):
     seed: int
 
     def __post_init__(self) -> None:
-        super().__post_init__()
-        if self.episodes < 1 or self.episode_length < 1:
-            raise ValueError(f"episodes and episode_length must be positive, got {self.episodes}, {self.episode_length}.")
-        if not 0 < self.checkpoint_fraction <= 1:
-            raise ValueError(f"checkpoint_fraction must be in (0, 1], got {self.checkpoint_fraction}.")
-        if self.n_checkpoints < 1:
-            raise ValueError(f"n_checkpoints must be at least 1, got {self.n_checkpoints}.")
-        if self.n_checkpoints > self.episodes * self.checkpoint_fraction:
+        super().__post_init__()  # each concern's checks
+        if self.n_checkpoints > self.episodes * self.checkpoint_fraction:  # an experiment may be shrunk in steps
             raise ValueError(
                 f"{self.n_checkpoints} checkpoints do not fit in the last {self.checkpoint_fraction:.0%} of "
                 f"{self.episodes} episodes: lower n_checkpoints or raise episodes."
             )
-        if self.eval_episodes < 1 or self.curve_eval_episodes < 1 or self.curve_points < 0:
-            raise ValueError("eval_episodes and curve_eval_episodes must be positive and curve_points non-negative.")
 
     def __getstate__(self) -> dict[str, Any]:
         # A config sent to a worker travels as its fields alone: what was derived from them and kept beside them (its

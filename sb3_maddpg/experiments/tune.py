@@ -24,12 +24,14 @@ import yaml
 from sb3_maddpg.analysis.evaluation import TeamEvalCallback
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.common.torch_threads import use_torch_threads
+from sb3_maddpg.compat import VERSION_KEY
 from sb3_maddpg.experiments.config import TUNE_OBJECTIVES
 from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.local_pool import worker_pool
 from sb3_maddpg.experiments.runner import build_model
 from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig, merge_model_kwargs
 from sb3_maddpg.experiments.tasks import declared_metrics, run_task, task_metrics
+from sb3_maddpg.version import __version__
 
 HEARTBEAT_SECONDS = 60
 """How often a running trial tells the study it is alive; a trial silent for twice as long is failed and retried."""
@@ -555,7 +557,7 @@ def best_preset(study: Any, settings: TuneSettings) -> dict[str, Any]:
     )
     tuned = dataclasses.replace(settings.experiment, name=f"{settings.study_name}_best", model_kwargs=model_kwargs)
     fields = {key: value for key, value in tuned.to_dict().items() if key not in ("name", "description")}
-    return {"name": tuned.name, "note": note, **fields}
+    return {"name": tuned.name, "note": note, **fields, VERSION_KEY: __version__}
 
 
 def describe_best(study: Any, settings: TuneSettings) -> Sequence[str]:
@@ -567,5 +569,5 @@ def describe_best(study: Any, settings: TuneSettings) -> Sequence[str]:
         f"{finished_trials(study)} finished trials",
         "parameters: " + ", ".join(f"{key}={value}" for key, value in best.params.items()),
         "preset:",
-        yaml.safe_dump(best_preset(study, settings), sort_keys=False).rstrip(),
+        yaml.safe_dump(best_preset(study, settings), sort_keys=False, width=120).rstrip(),
     ]

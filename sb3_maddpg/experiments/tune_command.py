@@ -12,7 +12,7 @@ import yaml
 from sb3_maddpg.experiments.cli_options import given_fields, options_of, override, setting_options
 from sb3_maddpg.experiments.config import load_experiment
 from sb3_maddpg.experiments.run_command import check_experiments, untrained_warning
-from sb3_maddpg.experiments.setting import TaskConfig
+from sb3_maddpg.experiments.setting import AlgorithmConfig, TaskConfig
 
 
 def _tune_settings(args: argparse.Namespace) -> Any:
@@ -23,12 +23,13 @@ def _tune_settings(args: argparse.Namespace) -> Any:
     """
     from sb3_maddpg.experiments.tune import TuneSettings, default_study_name, task_objectives
 
-    task = [option.name for option in setting_options(TaskConfig)]
-    given = given_fields(args, task) | ({"schemes": (args.scheme,)} if args.scheme else {})
-    experiment = override(load_experiment(args.config), given, args.config)
+    names = [option.name for concern in (TaskConfig, AlgorithmConfig) for option in setting_options(concern)]
+    given = given_fields(args, names) | ({"schemes": (args.scheme,)} if args.scheme else {})
+    loaded = load_experiment(args.config)
+    experiment = override(loaded, given, args.config)
     check_experiments([experiment])
     setting = experiment.name
-    if "env" in given and given["env"] != load_experiment(args.config).env:  # another task than the config's: say it
+    if "env" in given and given["env"] != loaded.env:  # another task than the config's: say it
         setting += "_" + re.sub(r"[^A-Za-z0-9_.-]+", "_", given["env"])
     study = {option.name: getattr(args, option.name) for option in options_of(TuneSettings, skip=("experiment", "pruner"))}
     study["objective"] = args.objective or next(iter(task_objectives(experiment)))
@@ -46,6 +47,8 @@ def tune_command(args: argparse.Namespace) -> int:
     try:
         if args.preset_out and not args.preset_out.endswith((".yml", ".yaml")):
             raise ValueError(f"--preset-out {args.preset_out}: a preset is a YAML file: give a name ending in .yml.")
+        if args.preset_out and not Path(args.preset_out).resolve().parent.is_dir():
+            raise ValueError(f"--preset-out {args.preset_out}: its directory does not exist: create it, or name another.")
         settings = _tune_settings(args)
     except ValueError as error:
         print(f"sb3-maddpg tune: {error}", file=sys.stderr)
@@ -76,6 +79,6 @@ def tune_command(args: argparse.Namespace) -> int:
     for line in describe_best(study, settings):
         print(line)
     if args.preset_out:
-        Path(args.preset_out).write_text(yaml.safe_dump(best_preset(study, settings), sort_keys=False))
+        Path(args.preset_out).write_text(yaml.safe_dump(best_preset(study, settings), sort_keys=False, width=120))
         print(f"preset written to {args.preset_out}: sb3-maddpg run --config {args.preset_out}")
     return 0

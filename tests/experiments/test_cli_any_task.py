@@ -61,7 +61,7 @@ def test_a_presets_description_says_its_values_and_an_override_changes_them() ->
 def test_the_command_line_describes_what_it_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     experiment = dry_run(capsys, tmp_path, "--config", "exp1", "--env", "simple_tag", "--episodes", "2000")
     assert experiment["description"] == (
-        "exp1 with --episodes --env (evaluation scaled to the budget): simple_tag, 4 agents, 2,000 episodes (50,000 "
+        "exp1 with --env --episodes (evaluation scaled to the budget): simple_tag, 4 agents, 2,000 episodes (50,000 "
         "steps), 3 checkpoints x 15 episodes over the last 20%, 8 curve points x 5 episodes"
     )
     # A hand-written description (a JSON setting) is replaced too once an option changes the setting.
@@ -247,7 +247,7 @@ def test_the_small_scale_command_is_the_committed_comparisons_setting(
 
 def test_every_field_of_the_config_model_is_an_option(capsys: pytest.CaptureFixture[str]) -> None:
     from sb3_maddpg.experiments.backends import Execution
-    from sb3_maddpg.experiments.setting import TaskConfig
+    from sb3_maddpg.experiments.setting import AlgorithmConfig, TaskConfig
     from sb3_maddpg.experiments.tune import TuneSettings
 
     def options(command: str) -> set[str]:
@@ -258,7 +258,7 @@ def test_every_field_of_the_config_model_is_an_option(capsys: pytest.CaptureFixt
         return {"--" + f.name.replace("_", "-") for f in dataclasses.fields(config) if f.name not in skip}
 
     assert flags(ExperimentConfig) | flags(Execution, ("verbose",)) <= options("run")
-    assert flags(TaskConfig) | flags(TuneSettings, ("experiment", "pruner")) <= options("tune")
+    assert flags(TaskConfig) | flags(AlgorithmConfig) | flags(TuneSettings, ("experiment", "pruner")) <= options("tune")
     # Booleans both ways; each option explained by its field's docstring.
     assert {"--keep-checkpoints", "--no-keep-checkpoints", "--snapshots", "--no-snapshots"} <= options("run")
     assert main(["run", "--help"]) == 0

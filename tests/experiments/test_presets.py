@@ -98,3 +98,14 @@ def test_the_docs_preset_file_reads(tmp_path: Path) -> None:
     (experiment,) = read_preset_file(path)
     assert (experiment.name, experiment.n_agents, experiment.seeds) == ("n4_short", 4, (0, 1, 2))
     assert {run.scheme: run.model_kwargs.get("selector") for run in experiment.runs()} == {"full": None, "selected": 1}
+
+
+def test_a_preset_with_a_version_reads_unless_newer(tmp_path: Path) -> None:
+    from sb3_maddpg import __version__
+
+    path = tmp_path / "best.yml"
+    path.write_text(f"name: best\nn_agents: 3\nsb3_maddpg_version: {__version__}\n")
+    assert read_preset_file(path)[0].n_agents == 3
+    path.write_text("name: best\nsb3_maddpg_version: '99.0'\n")
+    with pytest.raises(ValueError, match=rf"Preset file '{path}' was written by sb3-maddpg 99.0, newer than the installed"):
+        read_preset_file(path)

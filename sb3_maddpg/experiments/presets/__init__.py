@@ -4,11 +4,12 @@ The experiments' presets in one format, YAML: one file per setting beside this m
 my_setting.yml``).
 
 A preset file is a mapping of an experiment's fields (:class:`~sb3_maddpg.experiments.setting.ExperimentConfig`'s;
-those left out keep their defaults) with two more keys: ``note``, the few words before the setting's values in its
-description (a ``description`` written out is kept as it is instead), and ``tuned``, optional: the fields that tune the
-setting (``env_kwargs`` and ``model_kwargs`` merged over the setting's, any other field replaced) and their own
-``note``, with the measurement that put them there in the file's comments. A file with ``tuned`` gives two presets:
-``<name>`` and ``<name>_tuned`` (the setting, its protocol and its budget at the tuned values).
+those left out keep their defaults; ``sb3_maddpg_version`` where a tuning study wrote it) with two more keys:
+``note``, the few words before the setting's values in its description (a ``description`` written out is kept as it
+is instead), and ``tuned``, optional: the fields that tune the setting (``env_kwargs`` and ``model_kwargs`` merged
+over the setting's, any other field replaced) and their own ``note``, with the measurement that put them there in the
+file's comments. A file with ``tuned`` gives two presets: ``<name>`` and ``<name>_tuned`` (the setting, its protocol
+and its budget at the tuned values).
 """
 
 from importlib import resources
@@ -18,6 +19,7 @@ from typing import Any
 
 import yaml
 
+from sb3_maddpg.compat import VERSION_KEY, written_by
 from sb3_maddpg.experiments.setting import ExperimentConfig, merge_model_kwargs
 
 PACKAGE_PRESETS = ("exp1", "exp2", "n3_full", "n3_partial", "smoke")
@@ -64,8 +66,9 @@ def presets_of(data: Any, source: str) -> list[ExperimentConfig]:
         raise ValueError(
             f"Preset file {source!r} holds no experiment: give a YAML mapping with a name and any of {fields[1:]}."
         )
-    _refuse_unknown(data, (*fields, *PRESET_KEYS), source)
-    setting_fields = {key: value for key, value in data.items() if key not in PRESET_KEYS}
+    _refuse_unknown(data, (*fields, *PRESET_KEYS, VERSION_KEY), source)
+    written_by(data, f"Preset file {source!r}")  # a newer version's preset is refused
+    setting_fields = {key: value for key, value in data.items() if key not in (*PRESET_KEYS, VERSION_KEY)}
     try:
         setting = _described(ExperimentConfig.from_fields(setting_fields), setting_fields, data.get("note"))
     except (TypeError, ValueError) as error:
