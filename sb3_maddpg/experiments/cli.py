@@ -33,22 +33,30 @@ class UsageError(Exception):
     """A command line the parser refuses (its message in one line)."""
 
 
+EXPECTED = {
+    "int": "an integer",
+    "float": "a number",
+    "bool": "true or false",
+    "dict": """a mapping (JSON or YAML, e.g. '{"batch_size": 256}')""",
+}
+"""What a value of each type is, in a refusal's words."""
+
+
 class _Parser(ArgumentParser):
     """jsonargparse's parser, whose errors are raised to :func:`main` (said there in one line) rather than exiting."""
 
     def error(self, message: str, ex: Exception | None = None) -> Any:  # type: ignore[override]
         """:param message: The parser's message, raised as a :class:`UsageError` of one line."""
-        message = " ".join(str(message).split())
+        message = re.sub(r"<class '(\w+)'>", r"\1", " ".join(str(message).split()))
         message = re.sub(r'Parser key "(?:\w+\.)?(\w+)":', lambda key: flag(key.group(1)) + ":", message)
-        message = re.sub(r"Expected a typing\.Literal\[(.*?)\]", r"Expected one of \1", message)
-        union = re.match(
-            r"(--[\w-]+): Does not validate against any of the Union subtypes Subtypes: \[(.*?)\].*Given "
-            r"value: (.*)$",
-            message,
-        )
+        union = re.match(r"(--[\w-]+): Does not .* Union subtypes Subtypes: \[(.*?)\].*Given value: (.*)$", message)
         if union:
             message = f"{union.group(1)}: {union.group(3)!r} is none of {union.group(2).replace('NoneType', 'null')}"
-        raise UsageError(re.sub(r"<class '(\w+)'>", r"\1", message))
+        one = re.match(r"(--[\w-]+): Expected a (typing\.Literal\[(.*)\]|\w+)\. Got value: (.*)$", message)
+        if one:
+            expected = f"one of {one.group(3)}" if one.group(3) else EXPECTED.get(one.group(2), f"a {one.group(2)}")
+            message = f"{one.group(1)}: {one.group(4)!r} is not {expected}"
+        raise UsageError(message)
 
 
 COMMANDS = {

@@ -315,7 +315,7 @@ def test_one_registry_names_the_backends_that_run_takes(tmp_path: Path, capsys: 
     """``run --backend`` offers the names of :data:`BACKENDS`, each of which makes a backend that plans the runs it is
     given; a name not there is refused with the names."""
     assert main(["run", "--backend", "none"]) == 2
-    offered = capsys.readouterr().err.split("--backend: Expected one of ")[1].split(". Got value: none")[0]
+    offered = capsys.readouterr().err.split("--backend: 'none' is not one of ")[1].split(" (see ")[0]
     assert offered == ", ".join(repr(name) for name in BACKENDS)
     runs = dataclasses.replace(SMOKE, schemes=("full",)).runs()
     for name in BACKENDS:

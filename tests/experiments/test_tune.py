@@ -308,7 +308,7 @@ def test_the_tune_command_takes_fixes_and_names_its_study_by_them(tmp_path: Path
     assert main([*argv, "--fixed-params", "{width: 64, transitions_per_update: 50}"]) == 0  # the same study, resumed
     assert optuna.study.get_all_study_names(storage) == names
     assert main([*argv, "--fixed-params", "width"]) == 2
-    assert "--fixed-params: Expected a dict. Got value: width (see sb3-maddpg tune --help)" in capsys.readouterr().err
+    assert "--fixed-params: 'width' is not a mapping (JSON or YAML" in capsys.readouterr().err
 
 
 def open_the_study_at_once(storage: str, barrier: Any) -> int:
