@@ -20,10 +20,11 @@ if TYPE_CHECKING:  # what the names below are, for type checkers and editors; im
         load_experiment,
     )
     from sb3_maddpg.experiments.defaults import SCHEMES
+    from sb3_maddpg.experiments.presets import read_preset_file
     from sb3_maddpg.experiments.report import make_report
     from sb3_maddpg.experiments.results import ResultsDirectoryLocked
     from sb3_maddpg.experiments.runner import execute_run
-    from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig
+    from sb3_maddpg.experiments.setting import AlgorithmConfig, ExperimentConfig, ProtocolConfig, RunConfig, TaskConfig
     from sb3_maddpg.experiments.stats import aggregate, mann_whitney, significance_stars
     from sb3_maddpg.experiments.sweep import SweepInterrupted, SweepResult, run_sweep
 
@@ -33,7 +34,8 @@ _HOMES = {
     ),
     "load_experiment": "config",
     "SCHEMES": "defaults",
-    **dict.fromkeys(["ExperimentConfig", "RunConfig"], "setting"),
+    **dict.fromkeys(["AlgorithmConfig", "ExperimentConfig", "ProtocolConfig", "RunConfig", "TaskConfig"], "setting"),
+    "read_preset_file": "presets",
     "make_report": "report",
     "ResultsDirectoryLocked": "results",
     "execute_run": "runner",
@@ -66,16 +68,20 @@ __all__ = [
     "PAPER_NAMES",
     "SCHEMES",
     "SMOKE",
+    "AlgorithmConfig",
     "ExperimentConfig",
+    "ProtocolConfig",
     "ResultsDirectoryLocked",
     "RunConfig",
     "SweepInterrupted",
     "SweepResult",
+    "TaskConfig",
     "aggregate",
     "execute_run",
     "load_experiment",
     "make_report",
     "mann_whitney",
+    "read_preset_file",
     "run_sweep",
     "significance_stars",
 ]

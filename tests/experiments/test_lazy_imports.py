@@ -33,7 +33,7 @@ def test_a_dry_run_imports_no_run_group_report_or_ray_code(tmp_path: Path) -> No
         assert heavy not in imported, heavy
 
 
-@pytest.mark.parametrize("name", ["make_report", "run_sweep", "EXP1", "RunConfig"])
+@pytest.mark.parametrize("name", ["make_report", "run_sweep", "EXP1", "RunConfig", "TaskConfig", "read_preset_file"])
 def test_the_packages_names_import_when_first_used(name: str) -> None:
     import sb3_maddpg.experiments as experiments
 
