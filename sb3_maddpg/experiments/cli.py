@@ -49,7 +49,8 @@ class _Parser(ArgumentParser):
         """:param message: The parser's message, raised as a :class:`UsageError` of one line."""
         message = re.sub(r"<class '(\w+)'>", r"\1", " ".join(str(message).split()))
         message = re.sub(r'Parser key "(?:\w+\.)?(\w+)":', lambda key: flag(key.group(1)) + ":", message)
-        union = re.match(r"(--[\w-]+): Does not .* Union subtypes Subtypes: \[(.*?)\].*Given value: (.*)$", message)
+        unions = re.sub(r"typing\.Literal\[([^\]]*)\]", r"\1", message)  # a choice among the types: its values
+        union = re.match(r"(--[\w-]+): Does not .* Union subtypes Subtypes: \[(.*?)\].*Given value: (.*)$", unions)
         if union:
             message = f"{union.group(1)}: {union.group(3)!r} is none of {union.group(2).replace('NoneType', 'null')}"
         one = re.match(r"(--[\w-]+): Expected a (typing\.Literal\[(.*)\]|\w+)\. Got value: (.*)$", message)

@@ -119,8 +119,8 @@ def setting_options(concern: type = ExperimentConfig) -> list[Option]:
             option = option._replace(hint=option.hint | int, help=option.help + " An integer N: 0..N-1.")
         if option.name in LISTS:
             option = option._replace(hint=option.hint | str)
-        if option.name == "num_agent_neighbors":
-            option = option._replace(help=option.help + " Give null for all.")
+        if option.name == "num_agent_neighbors":  # "all", as the option said before 0.3
+            option = option._replace(hint=option.hint | Literal["all"], help=option.help + " Give null or all for all.")
         options.append(option)
     return options
 
@@ -151,6 +151,8 @@ def given_fields(args: argparse.Namespace, names: Sequence[str]) -> dict[str, An
             given["seeds"] = tuple(int(seed) for seed in given["seeds"])
         except ValueError:
             raise ValueError(f"--seeds {args.seeds!r}: give integers, e.g. 0,5 or [0, 5], or a number of seeds.") from None
+    if given.get("num_agent_neighbors") == "all":
+        given["num_agent_neighbors"] = None
     if isinstance(given.get("seeds"), int):
         if given["seeds"] < 1:
             raise ValueError(f"--seeds {given['seeds']}: give a number of seeds of at least 1, or a list of seeds, e.g. [0].")

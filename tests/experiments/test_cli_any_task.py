@@ -184,10 +184,9 @@ def user_errors(tmp_path: Path) -> list[tuple[list[str], str]]:
         ([*run, "--config", "smoke", "--env", "simple_nonsense"], "Unknown env 'simple_nonsense': use 'simple_spread', an"),
         ([*run, "--config", "smoke", "--env", "simple_tag", "--env-kwargs", '{"bogus": 1}'], "has no argument 'bogus'"),
         ([*run, "--config", "smoke", "--env", "simple_tag", "--n-agents", "3"], "--n-agents sets simple_spread's team"),
-        ([*run, "--config", "smoke", "--num-agent-neighbors", "two"], "--num-agent-neighbors: 'two' is none of int, null"),
+        ([*run, "--config", "smoke", "--num-agent-neighbors", "two"], "'two' is none of int, 'all', null"),
         ([*run, "--config", "smoke", "--seeds", "0"], "--seeds 0: give a number of seeds of at least 1, or a list"),
         ([*run, "--config", "smoke", "--episodes", "many"], "--episodes: 'many' is not an integer"),
-        ([*run, "--config", "smoke", "--num-agent-neighbors", "all"], "--num-agent-neighbors: 'all' is none of int, null"),
         ([*run, "--config", "smoke", "--seeds", "0,x"], "--seeds '0,x': give integers, e.g. 0,5 or [0, 5]"),
         ([*run, "--config", "smoke", "--seeds", "[]"], "smoke: no runs: give at least one scheme (--schemes) and one seed"),
         ([*run, "--config", "smoke", "--algorithm", "foo"], "smoke: --algorithm 'foo' cannot be imported"),
@@ -202,7 +201,7 @@ def user_errors(tmp_path: Path) -> list[tuple[list[str], str]]:
         (["tune", "--config", "exp3"], "sb3-maddpg tune: Unknown experiment 'exp3'"),
         (["tune", "--config", "smoke", "--env", "simple_nonsense"], "sb3-maddpg tune: Unknown env 'simple_nonsense'"),
         (["tune", "--config", "smoke", "--env-kwargs", "{"], "sb3-maddpg tune: --env-kwargs: '{' is not a mapping"),
-        (["tune", "--config", "smoke", "--num-agent-neighbors", "x"], "--num-agent-neighbors: 'x' is none of int, null"),
+        (["tune", "--config", "smoke", "--num-agent-neighbors", "x"], "'x' is none of int, 'all', null"),
         (["tune", "--config", "smoke", "--objective", "speed"], "objective 'speed' is not one of simple_spread's"),
         (["tune", "--config", "smoke", "--scheme", "fulll"], "Unknown critic_sharing 'fulll'"),
         (
@@ -263,3 +262,9 @@ def test_every_field_of_the_config_model_is_an_option(capsys: pytest.CaptureFixt
     assert {"--keep-checkpoints", "--no-keep-checkpoints", "--snapshots", "--no-snapshots"} <= options("run")
     assert main(["run", "--help"]) == 0
     assert "The final fraction of training over which checkpoints are saved" in " ".join(capsys.readouterr().out.split())
+
+
+def test_all_neighbours_may_be_said_as_all_or_null(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for value in ("all", "null"):
+        assert dry_run(capsys, tmp_path, "--config", "exp2", "--num-agent-neighbors", value)["num_agent_neighbors"] is None
+    assert dry_run(capsys, tmp_path, "--config", "exp1", "--num-agent-neighbors", "2")["num_agent_neighbors"] == 2
