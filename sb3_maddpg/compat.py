@@ -61,17 +61,6 @@ RENAMED_IN_0_3 = {"selection": "selector"}
 """Attributes of models saved by sb3-maddpg < 0.3 that 0.3 renamed: old name -> new name."""
 
 
-def drop_names_before_0_3(attributes: dict[str, Any]) -> None:
-    """
-    Remove the attributes a save of sb3-maddpg < 0.3 holds under an old name (:data:`RENAMED_IN_0_3`) from a loaded
-    model: :meth:`~sb3_maddpg.common.team_algorithm.TeamOffPolicyAlgorithm.load` passed their values under the new name.
-
-    :param attributes: A loaded model's ``__dict__``.
-    """
-    for old in RENAMED_IN_0_3:
-        attributes.pop(old, None)
-
-
 def renamed_in_0_3(kwargs: dict[str, Any]) -> dict[str, Any]:
     """
     :param kwargs: Keyword arguments of the algorithm written before 0.3, e.g. a stored run's ``model_kwargs``.
@@ -230,8 +219,8 @@ def drop_old_attributes(attributes: dict[str, Any]) -> None:
 
     :param attributes: A loaded model's ``__dict__``.
     """
-    attributes.pop(VERSION_KEY, None)
-    drop_names_before_0_3(attributes)
+    for name in (VERSION_KEY, *RENAMED_IN_0_3):
+        attributes.pop(name, None)
     pop_0_2_dev_schedule(attributes)
 
 
