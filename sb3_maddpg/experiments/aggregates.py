@@ -74,7 +74,19 @@ def probability_of_improvement(x: Scores, y: Scores, axis: int = -1) -> np.ndarr
     return ((a > b) + 0.5 * (a == b)).mean(axis=(-2, -1))
 
 
-def _interval(data: tuple[np.ndarray, ...], statistic: Callable[..., np.ndarray], seed: int) -> IntervalEstimate:
+def bootstrap_interval(
+    data: tuple[np.ndarray, ...], statistic: Callable[..., np.ndarray], seed: int = 0
+) -> IntervalEstimate:
+    """
+    A statistic of independent samples with its 95% percentile bootstrap interval, each sample resampled on its own
+    (every interval of this module is one of these).
+
+    :param data: The samples (e.g. two methods' per-run scores), each 1-D.
+    :param statistic: ``statistic(*samples, axis=-1)``, vectorised over leading resample axes.
+    :param seed: Seed of the resampling.
+    :return: The statistic of ``data`` and its interval: ``nan`` ends when a sample has fewer than 2 runs, a zero-width
+        interval when no sample has any spread.
+    """
     value = float(statistic(*data, axis=-1))
     if min(sample.size for sample in data) < 2:  # one run says nothing about the spread
         return IntervalEstimate(value, math.nan, math.nan)
@@ -108,7 +120,7 @@ def iqm_interval(strata: Sequence[Scores], seed: int = 0) -> IntervalEstimate:
     def statistic(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
         return np.asarray(iqm(np.concatenate([np.moveaxis(sample, axis, -1) for sample in samples], axis=-1), axis=-1))
 
-    return _interval(data, statistic, seed)
+    return bootstrap_interval(data, statistic, seed)
 
 
 def improvement_interval(strata_x: Sequence[Scores], strata_y: Sequence[Scores], seed: int = 0) -> IntervalEstimate:
@@ -131,4 +143,4 @@ def improvement_interval(strata_x: Sequence[Scores], strata_y: Sequence[Scores],
         pairs = [probability_of_improvement(samples[i], samples[i + 1], axis=axis) for i in range(0, len(samples), 2)]
         return np.mean(pairs, axis=0)
 
-    return _interval(data, statistic, seed)
+    return bootstrap_interval(data, statistic, seed)

@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Issue 43's reading from the committed runs, written into docs/_static/paper_n5_independent: the study's report (the
+# seeds every scheme of a setting has finished; its settings only, not the learning curve's runs beside them) and the
+# 2 x 2 of networks x the target's selection rule against the shared study (two_by_two.md). Run it from the repository
+# root in every commit that adds finished runs: tests/experiments/test_experiments.py fails on a stale report and
+# tests/experiments/test_two_by_two.py on a stale two_by_two.md.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+export SDL_VIDEODRIVER=dummy
+OUT=docs/_static/paper_n5_independent
+VIEW=$(mktemp -d)
+trap 'rm -rf "$VIEW"' EXIT
+for experiment in paper_n5i_exp1 paper_n5i_exp2; do
+  ln -s "$PWD/benchmarks/paper_n5_independent/results/$experiment" "$VIEW/$experiment"
+done
+python -m sb3_maddpg.experiments report "$VIEW" --complete-seeds --out "$OUT" \
+    --metric success_rate_r0.3 --metric success_rate --metric min_dist_sum --metric return_mean
+rm -f "$OUT/marl_eval.json"  # marl-eval's input, not shown in the docs
+python benchmarks/paper_n5_independent/two_by_two.py --out "$OUT/two_by_two.md"

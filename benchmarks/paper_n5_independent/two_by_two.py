@@ -1,0 +1,283 @@
+"""Issue 43's 2 x 2: networks (shared, independent) x the target's selection rule (stored, next), each as the gap of
+its `selected` runs against `full` in the same study, in both N=5 settings (writes two_by_two.md).
+
+    python benchmarks/paper_n5_independent/two_by_two.py --out docs/_static/paper_n5_independent/two_by_two.md
+
+The shared study (``benchmarks/paper_n5``: one actor and one critic for the five agents, 1M env steps) found the
+paper's `selected` (Algorithm 3: the target's two nearest agents stored with the transition) far worse than `full`,
+and `selected_next` (the target's agents selected again from the next observation) not told apart from it. Two
+explanations compete: the stored rule itself, or the shared networks feeding one critic's guesses to every agent. This
+study's independent networks (1.75M env steps) tell them apart:
+
+- a **cell** is the gap of one selection rule's runs against `full`'s, in one study (mean over runs, in the metric's
+  units: positive is worse for the min-dist sum, better for a success rate), with a 95% bootstrap interval (each
+  scheme's runs resampled on their own) and the two-sided Mann-Whitney U test the paper uses;
+- **the rule's effect** (stored minus next) within each study, **sharing's effect on the stored rule** (its gap with
+  shared networks minus with independent ones) and their **interaction** (the rule's effect with shared networks minus
+  with independent ones) are differences of means with the same kind of interval;
+- **the reading**: if with independent networks the stored rule is still worse than `full` (p < .05) and the next rule
+  is not, the reversal belongs to the rule; if the stored rule is worse only with shared networks, it needs the
+  sharing; else it is not decided at these seeds.
+
+Each study is read at its own budget (its protocol score: the checkpoints over the last 20%, 100 episodes each) and at
+a matched one: the mean of each run's learning-curve points from 800k to 1M env steps (20 greedy episodes each; 11
+points in the shared study, 6 in the independent one), where the shared study's protocol window is. Runs are those
+whose seed `full`, `selected` and `selected_next` have all finished in that study and setting. With 5 runs a
+percentile interval is narrower than it should be; read it beside the test, not instead of it.
+"""
+
+import argparse
+import math
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sb3_maddpg.experiments.aggregates import IntervalEstimate, bootstrap_interval
+from sb3_maddpg.experiments.results import load_summaries, read_curve
+from sb3_maddpg.experiments.stats import METRICS, mann_whitney
+
+REPO = Path(__file__).resolve().parents[2]
+STUDIES = {"shared": REPO / "benchmarks/paper_n5/results", "independent": REPO / "benchmarks/paper_n5_independent/results"}
+"""Each study's results directory, by how its agents hold their networks."""
+SETTINGS = {
+    "Exp. 1 (all agents observed)": {"shared": "paper_n5_exp1", "independent": "paper_n5i_exp1"},
+    "Exp. 2 (two nearest agents observed)": {"shared": "paper_n5_exp2", "independent": "paper_n5i_exp2"},
+}
+"""Each setting's experiment in each study."""
+RULES = {"stored (Algorithm 3, `selected`)": "selected", "next (`selected_next`)": "selected_next"}
+"""The target's selection rules, by the scheme that runs each."""
+BASELINE = "full"
+MATCHED_WINDOW = (800_000.0, 1_000_000.0)
+"""The env steps (inclusive) whose learning-curve points give the matched-budget score."""
+READ_METRICS = ("min_dist_sum", "success_rate_r0.3", "success_rate")
+"""The metrics read: the min-dist sum and success within 0.3 carry the N=5 comparison; within 0.1 is the paper's."""
+SIGNIFICANCE = 0.05
+
+Scores = dict[str, dict[int, float]]
+"""Per scheme, per seed: a run's score."""
+
+
+def read_scores(results: Path, experiment: str, metric: str, window: tuple[float, float] | None = None) -> Scores:
+    """
+    :param results: A study's results directory.
+    :param experiment: The setting's experiment there.
+    :param metric: The score read.
+    :param window: ``None``: each run's protocol score; else the mean of its learning-curve points in these env steps.
+    :return: The scores of `full`, `selected` and `selected_next` on the seeds all three have finished.
+    """
+    schemes = (BASELINE, *RULES.values())
+    runs: dict[str, dict[int, dict[str, Any]]] = {scheme: {} for scheme in schemes}
+    for summary in load_summaries(results):
+        if summary["experiment"] == experiment and summary["scheme"] in runs:
+            runs[summary["scheme"]][int(summary["seed"])] = summary
+    common = sorted(set.intersection(*(set(by_seed) for by_seed in runs.values())))
+    return {scheme: {seed: _score(runs[scheme][seed], metric, window) for seed in common} for scheme in schemes}
+
+
+def _score(summary: dict[str, Any], metric: str, window: tuple[float, float] | None) -> float:
+    if window is None:
+        return float(summary["score"][metric])
+    points = [row[metric] for row in read_curve(summary["directory"]) if window[0] <= row["timesteps"] <= window[1]]
+    if not points:
+        raise ValueError(
+            f"{summary['directory']} has no learning-curve point between {window[0]:g} and {window[1]:g} env steps."
+        )
+    return float(np.mean(points))
+
+
+def mean_difference(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
+    """mean(a) - mean(b) for two samples; (mean(a) - mean(b)) - (mean(c) - mean(d)) for four."""
+    means = [np.mean(sample, axis=axis) for sample in samples]
+    if len(means) == 2:
+        return np.asarray(means[0] - means[1])
+    return np.asarray((means[0] - means[1]) - (means[2] - means[3]))
+
+
+def difference(samples: Sequence[Sequence[float]]) -> IntervalEstimate:
+    """
+    :param samples: Two samples (a - b) or four ((a - b) - (c - d)) of per-run scores.
+    :return: The difference of their means with its 95% bootstrap interval.
+    """
+    return bootstrap_interval(tuple(np.asarray(sample, dtype=float) for sample in samples), mean_difference)
+
+
+@dataclass(frozen=True)
+class Cell:
+    """
+    One selection rule against `full` in one study.
+
+    :param variant: The rule's runs' scores.
+    :param baseline: `full`'s runs' scores on the same seeds.
+    :param gap: mean(variant) - mean(baseline) with its interval.
+    :param p_value: Two-sided Mann-Whitney U of the rule's runs against `full`'s.
+    """
+
+    variant: list[float]
+    baseline: list[float]
+    gap: IntervalEstimate
+    p_value: float
+
+    def worse(self, higher_is_better: bool) -> bool:
+        """:return: The rule's runs are worse than `full`'s at p < .05."""
+        return self.p_value < SIGNIFICANCE and (self.gap.value < 0) == higher_is_better
+
+    def better(self, higher_is_better: bool) -> bool:
+        """:return: The rule's runs are better than `full`'s at p < .05."""
+        return self.p_value < SIGNIFICANCE and (self.gap.value > 0) == higher_is_better
+
+
+def cell(scores: Scores, scheme: str) -> Cell:
+    """:return: ``scheme``'s cell against `full` (``scores`` from :func:`read_scores`)."""
+    variant, baseline = list(scores[scheme].values()), list(scores[BASELINE].values())
+    if not variant:  # no seed finished by all three schemes yet
+        return Cell(variant, baseline, IntervalEstimate(math.nan, math.nan, math.nan), math.nan)
+    return Cell(variant, baseline, difference([variant, baseline]), mann_whitney(variant, baseline)[1])
+
+
+def reading(cells: Mapping[tuple[str, str], Cell], higher_is_better: bool) -> str:
+    """
+    :param cells: The four cells, by (networks, scheme).
+    :param higher_is_better: The metric's direction.
+    :return: Which of the rule and the sharing the reversal belongs to, by the rule in the module docstring.
+    """
+    if any(len(c.variant) < 2 for c in cells.values()):
+        return "too few seeds to read (a cell has fewer than 2 runs)"
+    shared_stored, independent_stored = cells["shared", "selected"], cells["independent", "selected"]
+    independent_next = cells["independent", "selected_next"]
+    if not shared_stored.worse(higher_is_better):
+        return "no reversal to explain: with shared networks the stored rule is not worse than `full` here"
+    if independent_stored.worse(higher_is_better) and not independent_next.worse(higher_is_better):
+        return "the rule: with independent networks too the stored rule is worse than `full` and the next rule is not"
+    if not independent_stored.worse(higher_is_better):
+        return "the sharing: with independent networks the stored rule is not told apart from `full`"
+    return "not decided: with independent networks both rules are worse than `full`"
+
+
+def _number(value: float, scale: float, signed: bool = False) -> str:
+    if math.isnan(value):
+        return "nan"
+    digits = 1 if scale != 1.0 else 2
+    return f"{value * scale:{'+' if signed else ''}.{digits}f}"
+
+
+def _mean(values: Sequence[float], scale: float) -> str:
+    return _number(float(np.mean(values)), scale) if len(values) else "no runs yet"
+
+
+def _interval(estimate: IntervalEstimate, scale: float) -> str:
+    text = _number(estimate.value, scale, signed=True)
+    if math.isnan(estimate.low):
+        return text
+    return f"{text} [{_number(estimate.low, scale, signed=True)}, {_number(estimate.high, scale, signed=True)}]"
+
+
+def _p(p_value: float) -> str:
+    return "nan" if math.isnan(p_value) else ("< .001" if p_value < 0.001 else f"{p_value:.3f}".lstrip("0"))
+
+
+def setting_table(scores: Mapping[str, Scores], metric: str) -> list[str]:
+    """
+    :param scores: Each study's scores in one setting (:func:`read_scores`), by networks.
+    :param metric: Their metric.
+    :return: The setting's markdown lines: the four cells, the three effects and the reading.
+    """
+    info = METRICS[metric]
+    scale = info.scale
+    cells = {(networks, scheme): cell(scores[networks], scheme) for networks in scores for scheme in RULES.values()}
+    lines = [
+        "| networks | target's selection | runs | `selected` runs' mean | `full`'s mean | gap [95% CI] | p |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for (networks, scheme), c in cells.items():
+        rule = next(name for name, rule_scheme in RULES.items() if rule_scheme == scheme)
+        lines.append(
+            f"| {networks} | {rule} | {len(c.variant)} | {_mean(c.variant, scale)} | {_mean(c.baseline, scale)} | "
+            f"{_interval(c.gap, scale)} | {_p(c.p_value)} |"
+        )
+
+    def runs(networks: str, scheme: str) -> list[float]:
+        return list(scores[networks][scheme].values())
+
+    effects = {
+        "the rule's effect with shared networks (stored minus next)": [
+            runs("shared", "selected"),
+            runs("shared", "selected_next"),
+        ],
+        "the rule's effect with independent networks (stored minus next)": [
+            runs("independent", "selected"),
+            runs("independent", "selected_next"),
+        ],
+        "sharing's effect on the stored rule's gap (shared minus independent)": [
+            runs("shared", "selected"),
+            runs("shared", BASELINE),
+            runs("independent", "selected"),
+            runs("independent", BASELINE),
+        ],
+        "interaction (the rule's effect, shared minus independent)": [
+            runs("shared", "selected"),
+            runs("shared", "selected_next"),
+            runs("independent", "selected"),
+            runs("independent", "selected_next"),
+        ],
+    }
+    lines.append("")
+    for name, samples in effects.items():
+        if any(len(sample) == 0 for sample in samples):
+            lines.append(f"- {name}: no runs yet")
+            continue
+        lines.append(f"- {name}: {_interval(difference(samples), scale)}")
+    lines.append(f"- **which explains the reversal**: {reading(cells, info.higher_is_better)}")
+    return lines
+
+
+def write_two_by_two(studies: Mapping[str, Path] = STUDIES, metrics: Sequence[str] = READ_METRICS) -> str:
+    """
+    :param studies: Each study's results directory, by networks (``shared``, ``independent``).
+    :param metrics: The metrics read.
+    :return: The markdown page: per setting, metric and budget, the 2 x 2 with its effects and reading.
+    """
+    lines = [
+        "# Networks x the target's selection rule: `selected` against `full` at N=5",
+        "",
+        "Made by `python benchmarks/paper_n5_independent/two_by_two.py` (its docstring states the method). A gap is "
+        "mean(`selected` runs) - mean(`full` runs) in the same study and setting, in the metric's units, with a 95% "
+        "bootstrap interval; p: two-sided Mann-Whitney U. Shared networks: `benchmarks/paper_n5` (1M env steps); "
+        "independent: `benchmarks/paper_n5_independent` (1.75M).",
+    ]
+    budgets = {
+        "each study at its own budget (protocol score, last 20%)": None,
+        "matched budget (learning-curve points, {:g}M-{:g}M env steps)".format(
+            *(step / 1e6 for step in MATCHED_WINDOW)
+        ): MATCHED_WINDOW,
+    }
+    for setting, experiments in SETTINGS.items():
+        for metric in metrics:
+            info = METRICS[metric]
+            direction = "higher is better" if info.higher_is_better else "lower is better"
+            for budget, window in budgets.items():
+                scores = {
+                    networks: read_scores(studies[networks], experiments[networks], metric, window) for networks in studies
+                }
+                lines += ["", f"#### {setting}: {info.label} ({direction}), {budget}", "", *setting_table(scores, metric)]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", help="write the page here (default: print it)")
+    args = parser.parse_args(argv)
+    page = write_two_by_two()
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(page)
+    else:
+        sys.stdout.write(page)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,178 @@
+"""Issue 43's 2 x 2 reading (``benchmarks/paper_n5_independent/two_by_two.py``): its gaps, effects and p-values against
+a hand computation, which runs it reads, its reading of which factor turns `selected` around, and the committed page
+against the committed runs."""
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+from scipy.stats import mannwhitneyu
+
+REPO = Path(__file__).resolve().parents[2]
+SCRIPT = REPO / "benchmarks" / "paper_n5_independent" / "two_by_two.py"
+COMMITTED = REPO / "docs" / "_static" / "paper_n5_independent" / "two_by_two.md"
+
+
+@pytest.fixture(scope="module")
+def two_by_two() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("two_by_two", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["two_by_two"] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+def write_run(
+    results: Path,
+    experiment: str,
+    scheme: str,
+    seed: int,
+    score: float,
+    curve: list[tuple[float, float]] | None = None,
+    done: bool = True,
+) -> None:
+    """A finished run's files as a sweep writes them: its summary (min-dist sum ``score``), curve and done marker."""
+    directory = results / experiment / scheme / f"seed_{seed:03d}"
+    directory.mkdir(parents=True)
+    summary = {"experiment": experiment, "scheme": scheme, "seed": seed, "score": {"min_dist_sum": score}}
+    (directory / "summary.json").write_text(json.dumps(summary))
+    rows = curve or [(0.0, 3.0)]
+    (directory / "learning_curve.csv").write_text("timesteps,min_dist_sum\n" + "".join(f"{s},{v}\n" for s, v in rows))
+    if done:
+        (directory / "done").write_text("")
+
+
+def write_study(results: Path, experiment: str, runs: dict[str, list[float]]) -> None:
+    for scheme, scores in runs.items():
+        for seed, score in enumerate(scores):
+            write_run(results, experiment, scheme, seed, score)
+
+
+SHARED = {
+    "full": [0.5, 0.6, 0.55, 0.52, 0.58],
+    "selected": [2.0, 2.5, 3.0, 2.2, 2.8],
+    "selected_next": [0.6, 0.5, 0.7, 0.62, 0.66],
+}
+
+
+def studies(tmp_path: Path, independent: dict[str, list[float]]) -> dict[str, Path]:
+    write_study(tmp_path / "shared", "paper_n5_exp1", SHARED)
+    write_study(tmp_path / "independent", "paper_n5i_exp1", independent)
+    return {"shared": tmp_path / "shared", "independent": tmp_path / "independent"}
+
+
+def setting_scores(module: ModuleType, paths: dict[str, Path]) -> dict[str, dict[str, dict[int, float]]]:
+    experiments = {"shared": "paper_n5_exp1", "independent": "paper_n5i_exp1"}
+    return {networks: module.read_scores(paths[networks], experiments[networks], "min_dist_sum") for networks in paths}
+
+
+def test_gaps_effects_and_tests_match_a_hand_computation(two_by_two: ModuleType, tmp_path: Path) -> None:
+    independent = {
+        "full": [0.4, 0.45, 0.5, 0.42, 0.48],
+        "selected": [0.9, 1.0, 1.1, 0.95, 1.05],
+        "selected_next": [0.41, 0.5, 0.44, 0.47, 0.43],
+    }
+    scores = setting_scores(two_by_two, studies(tmp_path, independent))
+    mean = {
+        (networks, scheme): np.mean(values)
+        for networks, runs in (("shared", SHARED), ("independent", independent))
+        for scheme, values in runs.items()
+    }
+
+    stored = two_by_two.cell(scores["shared"], "selected")
+    assert stored.gap.value == pytest.approx(mean["shared", "selected"] - mean["shared", "full"])
+    assert stored.p_value == pytest.approx(mannwhitneyu(SHARED["selected"], SHARED["full"], alternative="two-sided").pvalue)
+    assert stored.gap.low < stored.gap.value < stored.gap.high and stored.gap.low > 0  # every stored run is worse
+
+    interaction = two_by_two.difference(
+        [independent["selected"], independent["selected_next"], SHARED["selected"], SHARED["selected_next"]]
+    )
+    by_hand = (mean["independent", "selected"] - mean["independent", "selected_next"]) - (
+        mean["shared", "selected"] - mean["shared", "selected_next"]
+    )
+    assert interaction.value == pytest.approx(by_hand)
+    assert interaction.low <= interaction.value <= interaction.high
+
+    lines = two_by_two.setting_table(scores, "min_dist_sum")
+    sharing = (mean["shared", "selected"] - mean["shared", "full"]) - (
+        mean["independent", "selected"] - mean["independent", "full"]
+    )
+    assert any(
+        line.startswith("- sharing's effect on the stored rule's gap") and f"{sharing:+.2f} [" in line for line in lines
+    )
+    row = next(line for line in lines if line.startswith("| independent | stored"))
+    assert f"| 5 | {mean['independent', 'selected']:.2f} | {mean['independent', 'full']:.2f} | " in row
+
+
+@pytest.mark.parametrize(
+    ("independent_selected", "expected"),
+    [
+        ([0.9, 1.0, 1.1, 0.95, 1.05], "the rule:"),  # worse than full with independent networks too
+        ([0.47, 0.41, 0.5, 0.39, 0.44], "the sharing:"),  # among full's runs: no reversal without sharing
+    ],
+)
+def test_reading_names_the_factor_the_reversal_belongs_to(
+    two_by_two: ModuleType, tmp_path: Path, independent_selected: list[float], expected: str
+) -> None:
+    independent = {
+        "full": [0.4, 0.45, 0.5, 0.42, 0.48],
+        "selected": independent_selected,
+        "selected_next": [0.41, 0.5, 0.44, 0.47, 0.43],
+    }
+    scores = setting_scores(two_by_two, studies(tmp_path, independent))
+    cells = {
+        (networks, scheme): two_by_two.cell(scores[networks], scheme)
+        for networks in scores
+        for scheme in ("selected", "selected_next")
+    }
+    assert two_by_two.reading(cells, higher_is_better=False).startswith(expected)
+    # The same runs read as a score where higher is better: the stored rule is then better than `full`, not worse.
+    assert two_by_two.reading(cells, higher_is_better=True).startswith("no reversal")
+
+
+def test_reading_waits_for_two_runs_a_cell(two_by_two: ModuleType, tmp_path: Path) -> None:
+    scores = setting_scores(two_by_two, studies(tmp_path, {"full": [0.4], "selected": [1.0], "selected_next": [0.4]}))
+    cells = {
+        (networks, scheme): two_by_two.cell(scores[networks], scheme)
+        for networks in scores
+        for scheme in ("selected", "selected_next")
+    }
+    assert two_by_two.reading(cells, higher_is_better=False).startswith("too few seeds")
+
+
+def test_scores_are_the_seeds_all_three_schemes_finished_and_the_window_mean(two_by_two: ModuleType, tmp_path: Path) -> None:
+    results = tmp_path / "results"
+    curve = [(700_000.0, 9.0), (800_000.0, 1.0), (900_000.0, 2.0), (1_000_000.0, 3.0), (1_100_000.0, 9.0)]
+    for scheme in ("full", "selected", "selected_next"):
+        for seed in (0, 1):
+            write_run(results, "exp", scheme, seed, 0.5, curve)
+    write_run(results, "exp", "full", 2, 0.5)  # seed 2 of `full` only
+    write_run(results, "exp", "selected", 3, 0.5, done=False)  # still running
+    write_run(results, "other", "full", 0, 7.0)  # another setting
+    assert two_by_two.read_scores(results, "exp", "min_dist_sum") == {
+        scheme: {0: 0.5, 1: 0.5} for scheme in ("full", "selected", "selected_next")
+    }
+    windowed = two_by_two.read_scores(results, "exp", "min_dist_sum", two_by_two.MATCHED_WINDOW)
+    assert windowed["selected"] == {0: pytest.approx(2.0), 1: pytest.approx(2.0)}  # 800k-1M inclusive, nothing else
+    with pytest.raises(ValueError, match="no learning-curve point between 2e\\+06 and 3e\\+06"):
+        two_by_two.read_scores(results, "exp", "min_dist_sum", (2e6, 3e6))
+
+
+def test_an_empty_cell_reads_no_runs_yet(two_by_two: ModuleType, tmp_path: Path) -> None:
+    write_study(tmp_path / "shared", "paper_n5_exp1", SHARED)
+    (tmp_path / "independent").mkdir()
+    paths = {"shared": tmp_path / "shared", "independent": tmp_path / "independent"}
+    lines = two_by_two.setting_table(setting_scores(two_by_two, paths), "min_dist_sum")
+    assert "| independent | next (`selected_next`) | 0 | no runs yet | no runs yet | nan | nan |" in lines
+    assert "- the rule's effect with independent networks (stored minus next): no runs yet" in lines
+
+
+@pytest.mark.skipif(not COMMITTED.exists(), reason="no committed 2 x 2 page")
+def test_the_committed_page_is_the_committed_runs_reading(two_by_two: ModuleType) -> None:
+    # benchmarks/paper_n5_independent/report.sh writes it: run it in each commit that adds finished runs.
+    assert two_by_two.write_two_by_two() == COMMITTED.read_text()
