@@ -189,13 +189,14 @@ def setting_table(scores: Mapping[str, Scores], metric: str) -> list[str]:
     scale = info.scale
     cells = {(networks, scheme): cell(scores[networks], scheme) for networks in scores for scheme in RULES.values()}
     lines = [
-        "| networks | target's selection | runs | `selected` runs' mean | `full`'s mean | gap [95% CI] | p |",
-        "|---|---|---|---|---|---|---|",
+        "| networks | target's selection | runs | `selected` runs, by seed | their mean | `full`'s mean | gap [95% CI] | p |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for (networks, scheme), c in cells.items():
         rule = next(name for name, rule_scheme in RULES.items() if rule_scheme == scheme)
         lines.append(
-            f"| {networks} | {rule} | {len(c.variant)} | {_mean(c.variant, scale)} | {_mean(c.baseline, scale)} | "
+            f"| {networks} | {rule} | {len(c.variant)} | {', '.join(_number(value, scale) for value in c.variant) or '-'} | "
+            f"{_mean(c.variant, scale)} | {_mean(c.baseline, scale)} | "
             f"{_interval(c.gap, scale)} | {_p(c.p_value)} |"
         )
 

@@ -106,7 +106,8 @@ def test_gaps_effects_and_tests_match_a_hand_computation(two_by_two: ModuleType,
         line.startswith("- sharing's effect on the stored rule's gap") and f"{sharing:+.2f} [" in line for line in lines
     )
     row = next(line for line in lines if line.startswith("| independent | stored"))
-    assert f"| 5 | {mean['independent', 'selected']:.2f} | {mean['independent', 'full']:.2f} | " in row
+    by_seed = ", ".join(f"{value:.2f}" for value in independent["selected"])
+    assert f"| 5 | {by_seed} | {mean['independent', 'selected']:.2f} | {mean['independent', 'full']:.2f} | " in row
 
 
 @pytest.mark.parametrize(
@@ -168,7 +169,7 @@ def test_an_empty_cell_reads_no_runs_yet(two_by_two: ModuleType, tmp_path: Path)
     (tmp_path / "independent").mkdir()
     paths = {"shared": tmp_path / "shared", "independent": tmp_path / "independent"}
     lines = two_by_two.setting_table(setting_scores(two_by_two, paths), "min_dist_sum")
-    assert "| independent | next (`selected_next`) | 0 | no runs yet | no runs yet | nan | nan |" in lines
+    assert "| independent | next (`selected_next`) | 0 | - | no runs yet | no runs yet | nan | nan |" in lines
     assert "- the rule's effect with independent networks (stored minus next): no runs yet" in lines
 
 
