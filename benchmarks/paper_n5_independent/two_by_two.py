@@ -10,20 +10,24 @@ explanations compete: the stored rule itself, or the shared networks feeding one
 study's independent networks (1.75M env steps) tell them apart:
 
 - a **cell** is the gap of one selection rule's runs against `full`'s, in one study (mean over runs, in the metric's
-  units: positive is worse for the min-dist sum, better for a success rate), with a 95% bootstrap interval (each
-  scheme's runs resampled on their own) and the two-sided Mann-Whitney U test the paper uses;
+  units, percentage points for rates: positive is worse for the min-dist sum, better for a success rate), with a 95%
+  bootstrap interval (each scheme's runs resampled on their own) and the two-sided Mann-Whitney U test the paper uses;
 - **the rule's effect** (stored minus next) within each study, **sharing's effect on the stored rule** (its gap with
   shared networks minus with independent ones) and their **interaction** (the rule's effect with shared networks minus
-  with independent ones) are differences of means with the same kind of interval;
-- **the reading**: if with independent networks the stored rule is still worse than `full` (p < .05) and the next rule
-  is not, the reversal belongs to the rule; if the stored rule is worse only with shared networks, it needs the
-  sharing; else it is not decided at these seeds.
+  with independent ones) are differences of means with the same kind of interval, signed as the gaps are;
+- **the reading**, from the two effects that separate the explanations: with shared networks the stored rule must be
+  worse than `full` (p < .05), else there is no reversal to explain on that metric. Then the reversal belongs to
+  *the rule* if the rule's effect with independent networks is harmful (its interval excludes 0 on the worse side);
+  to *the sharing* if it is not and sharing's effect on the stored rule's gap is harmful; to *both* (the rule harms
+  without sharing, and sharing makes its harm larger) if both are; else it is not decided at these seeds. A cell of
+  fewer than 2 runs is not read.
 
 Each study is read at its own budget (its protocol score: the checkpoints over the last 20%, 100 episodes each) and at
 a matched one: the mean of each run's learning-curve points from 800k to 1M env steps (20 greedy episodes each; 11
 points in the shared study, 6 in the independent one), where the shared study's protocol window is. Runs are those
 whose seed `full`, `selected` and `selected_next` have all finished in that study and setting. With 5 runs a
-percentile interval is narrower than it should be; read it beside the test, not instead of it.
+percentile interval is narrower than it should be, and the page reads 12 tables (2 settings x 3 metrics x 2 budgets):
+where their readings disagree, none of them is the answer.
 """
 
 import argparse
@@ -123,11 +127,12 @@ class Cell:
 
     def worse(self, higher_is_better: bool) -> bool:
         """:return: The rule's runs are worse than `full`'s at p < .05."""
-        return self.p_value < SIGNIFICANCE and (self.gap.value < 0) == higher_is_better
+        return self.p_value < SIGNIFICANCE and harmful(self.gap.value, higher_is_better)
 
-    def better(self, higher_is_better: bool) -> bool:
-        """:return: The rule's runs are better than `full`'s at p < .05."""
-        return self.p_value < SIGNIFICANCE and (self.gap.value > 0) == higher_is_better
+
+def harmful(value: float, higher_is_better: bool) -> bool:
+    """:return: A difference of scores ``value`` (first minus second) says the first does worse."""
+    return value > 0 if not higher_is_better else value < 0
 
 
 def cell(scores: Scores, scheme: str) -> Cell:
@@ -138,23 +143,69 @@ def cell(scores: Scores, scheme: str) -> Cell:
     return Cell(variant, baseline, difference([variant, baseline]), mann_whitney(variant, baseline)[1])
 
 
-def reading(cells: Mapping[tuple[str, str], Cell], higher_is_better: bool) -> str:
+RULE_SHARED = "the rule's effect with shared networks (stored minus next)"
+RULE_INDEPENDENT = "the rule's effect with independent networks (stored minus next)"
+SHARING = "sharing's effect on the stored rule's gap (shared minus independent)"
+INTERACTION = "interaction (the rule's effect, shared minus independent)"
+
+
+def effect_samples(scores: Mapping[str, Scores]) -> dict[str, list[list[float]]]:
+    """:return: Each effect's samples, in :func:`mean_difference`'s order, by its name."""
+
+    def runs(networks: str, scheme: str) -> list[float]:
+        return list(scores[networks][scheme].values())
+
+    stored, following = RULES["stored (Algorithm 3, `selected`)"], RULES["next (`selected_next`)"]
+    return {
+        RULE_SHARED: [runs("shared", stored), runs("shared", following)],
+        RULE_INDEPENDENT: [runs("independent", stored), runs("independent", following)],
+        SHARING: [
+            runs("shared", stored),
+            runs("shared", BASELINE),
+            runs("independent", stored),
+            runs("independent", BASELINE),
+        ],
+        INTERACTION: [
+            runs("shared", stored),
+            runs("shared", following),
+            runs("independent", stored),
+            runs("independent", following),
+        ],
+    }
+
+
+def reading(cells: Mapping[tuple[str, str], Cell], effects: Mapping[str, IntervalEstimate], higher_is_better: bool) -> str:
     """
     :param cells: The four cells, by (networks, scheme).
+    :param effects: The effects, by name (:data:`RULE_INDEPENDENT`, :data:`SHARING`, ...).
     :param higher_is_better: The metric's direction.
     :return: Which of the rule and the sharing the reversal belongs to, by the rule in the module docstring.
     """
     if any(len(c.variant) < 2 for c in cells.values()):
         return "too few seeds to read (a cell has fewer than 2 runs)"
-    shared_stored, independent_stored = cells["shared", "selected"], cells["independent", "selected"]
-    independent_next = cells["independent", "selected_next"]
-    if not shared_stored.worse(higher_is_better):
+    if not cells["shared", "selected"].worse(higher_is_better):
         return "no reversal to explain: with shared networks the stored rule is not worse than `full` here"
-    if independent_stored.worse(higher_is_better) and not independent_next.worse(higher_is_better):
-        return "the rule: with independent networks too the stored rule is worse than `full` and the next rule is not"
-    if not independent_stored.worse(higher_is_better):
-        return "the sharing: with independent networks the stored rule is not told apart from `full`"
-    return "not decided: with independent networks both rules are worse than `full`"
+
+    def excludes_zero_harmfully(effect: IntervalEstimate) -> bool:
+        return harmful(effect.low, higher_is_better) and harmful(effect.high, higher_is_better)
+
+    rule, sharing = excludes_zero_harmfully(effects[RULE_INDEPENDENT]), excludes_zero_harmfully(effects[SHARING])
+    if rule and sharing:
+        return (
+            "both: with independent networks too the stored rule does worse than the next one, and sharing makes its "
+            "gap to `full` larger"
+        )
+    if rule:
+        return (
+            "the rule: with independent networks too the stored rule does worse than the next one; sharing's effect on "
+            "its gap is not told apart from 0"
+        )
+    if sharing:
+        return (
+            "the sharing: with independent networks the two rules are not told apart, and sharing makes the stored "
+            "rule's gap to `full` larger"
+        )
+    return "not decided at these seeds: neither the rule's effect without sharing nor sharing's effect excludes 0"
 
 
 def _number(value: float, scale: float, signed: bool = False) -> str:
@@ -170,68 +221,52 @@ def _mean(values: Sequence[float], scale: float) -> str:
 
 def _interval(estimate: IntervalEstimate, scale: float) -> str:
     text = _number(estimate.value, scale, signed=True)
-    if math.isnan(estimate.low):
+    if math.isnan(estimate.value):
         return text
+    if math.isnan(estimate.low):
+        return f"{text} (single runs: no interval)"
     return f"{text} [{_number(estimate.low, scale, signed=True)}, {_number(estimate.high, scale, signed=True)}]"
 
 
-def _p(p_value: float) -> str:
-    return "nan" if math.isnan(p_value) else ("< .001" if p_value < 0.001 else f"{p_value:.3f}".lstrip("0"))
+def _p(p_value: float, runs: int) -> str:
+    if runs < 2:
+        return "n/a (1 run)" if runs else "nan"
+    return "< .001" if p_value < 0.001 else f"{p_value:.3f}".lstrip("0")
 
 
 def setting_table(scores: Mapping[str, Scores], metric: str) -> list[str]:
     """
     :param scores: Each study's scores in one setting (:func:`read_scores`), by networks.
     :param metric: Their metric.
-    :return: The setting's markdown lines: the four cells, the three effects and the reading.
+    :return: The setting's markdown lines: the four cells, the effects and the reading.
     """
     info = METRICS[metric]
     scale = info.scale
+    units = "percentage points" if scale == 100.0 else "the metric's units"
+    worse_sign = "negative" if info.higher_is_better else "positive"
     cells = {(networks, scheme): cell(scores[networks], scheme) for networks in scores for scheme in RULES.values()}
     lines = [
-        "| networks | target's selection | runs | `selected` runs, by seed | their mean | `full`'s mean | gap [95% CI] | p |",
+        f"Gaps and effects in {units}; {worse_sign} is worse.",
+        "",
+        "| networks | target's selection | runs | the rule's runs, by seed | their mean | `full`'s mean | gap [95% CI] | p |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for (networks, scheme), c in cells.items():
         rule = next(name for name, rule_scheme in RULES.items() if rule_scheme == scheme)
+        by_seed = ", ".join(_number(value, scale) for value in c.variant) or "-"
         lines.append(
-            f"| {networks} | {rule} | {len(c.variant)} | {', '.join(_number(value, scale) for value in c.variant) or '-'} | "
-            f"{_mean(c.variant, scale)} | {_mean(c.baseline, scale)} | "
-            f"{_interval(c.gap, scale)} | {_p(c.p_value)} |"
+            f"| {networks} | {rule} | {len(c.variant)} | {by_seed} | {_mean(c.variant, scale)} | "
+            f"{_mean(c.baseline, scale)} | {_interval(c.gap, scale)} | {_p(c.p_value, len(c.variant))} |"
         )
-
-    def runs(networks: str, scheme: str) -> list[float]:
-        return list(scores[networks][scheme].values())
-
-    effects = {
-        "the rule's effect with shared networks (stored minus next)": [
-            runs("shared", "selected"),
-            runs("shared", "selected_next"),
-        ],
-        "the rule's effect with independent networks (stored minus next)": [
-            runs("independent", "selected"),
-            runs("independent", "selected_next"),
-        ],
-        "sharing's effect on the stored rule's gap (shared minus independent)": [
-            runs("shared", "selected"),
-            runs("shared", BASELINE),
-            runs("independent", "selected"),
-            runs("independent", BASELINE),
-        ],
-        "interaction (the rule's effect, shared minus independent)": [
-            runs("shared", "selected"),
-            runs("shared", "selected_next"),
-            runs("independent", "selected"),
-            runs("independent", "selected_next"),
-        ],
-    }
     lines.append("")
-    for name, samples in effects.items():
+    effects = {}
+    for name, samples in effect_samples(scores).items():
         if any(len(sample) == 0 for sample in samples):
             lines.append(f"- {name}: no runs yet")
             continue
-        lines.append(f"- {name}: {_interval(difference(samples), scale)}")
-    lines.append(f"- **which explains the reversal**: {reading(cells, info.higher_is_better)}")
+        effects[name] = difference(samples)
+        lines.append(f"- {name}: {_interval(effects[name], scale)}")
+    lines.append(f"- **which explains the reversal**: {reading(cells, effects, info.higher_is_better)}")
     return lines
 
 
@@ -244,10 +279,11 @@ def write_two_by_two(studies: Mapping[str, Path] = STUDIES, metrics: Sequence[st
     lines = [
         "# Networks x the target's selection rule: `selected` against `full` at N=5",
         "",
-        "Made by `python benchmarks/paper_n5_independent/two_by_two.py` (its docstring states the method). A gap is "
-        "mean(`selected` runs) - mean(`full` runs) in the same study and setting, in the metric's units, with a 95% "
-        "bootstrap interval; p: two-sided Mann-Whitney U. Shared networks: `benchmarks/paper_n5` (1M env steps); "
-        "independent: `benchmarks/paper_n5_independent` (1.75M).",
+        "Made by `python benchmarks/paper_n5_independent/two_by_two.py` (its docstring states the method and the "
+        "reading's rule). A gap is mean(the rule's runs) - mean(`full`'s runs) in the same study and setting, with a 95% "
+        "bootstrap interval; p: two-sided Mann-Whitney U. Twelve tables (2 settings x 3 metrics x 2 budgets), none "
+        "corrected for the others: where their readings disagree, none of them is the answer. Shared networks: "
+        "`benchmarks/paper_n5` (1M env steps); independent: `benchmarks/paper_n5_independent` (1.75M).",
     ]
     budgets = {
         "each study at its own budget (protocol score, last 20%)": None,

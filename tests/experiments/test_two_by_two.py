@@ -102,53 +102,84 @@ def test_gaps_effects_and_tests_match_a_hand_computation(two_by_two: ModuleType,
     sharing = (mean["shared", "selected"] - mean["shared", "full"]) - (
         mean["independent", "selected"] - mean["independent", "full"]
     )
-    assert any(
-        line.startswith("- sharing's effect on the stored rule's gap") and f"{sharing:+.2f} [" in line for line in lines
-    )
+    rule_independent = mean["independent", "selected"] - mean["independent", "selected_next"]
+    for name, value in (
+        (two_by_two.SHARING, sharing),
+        (two_by_two.RULE_INDEPENDENT, rule_independent),
+        (two_by_two.INTERACTION, -by_hand),  # the page's interaction: shared minus independent
+    ):
+        assert any(line.startswith(f"- {name}: {value:+.2f} [") for line in lines), (name, value)
     row = next(line for line in lines if line.startswith("| independent | stored"))
     by_seed = ", ".join(f"{value:.2f}" for value in independent["selected"])
     assert f"| 5 | {by_seed} | {mean['independent', 'selected']:.2f} | {mean['independent', 'full']:.2f} | " in row
 
 
+def test_rates_read_in_percentage_points_with_their_direction(two_by_two: ModuleType) -> None:
+    full, stored = [0.70, 0.72, 0.68, 0.74, 0.71], [0.05, 0.02, 0.10, 0.04, 0.03]
+    same_in_both = {"full": dict(enumerate(full)), "selected": dict(enumerate(stored)), "selected_next": dict(enumerate(full))}
+    lines = two_by_two.setting_table({"shared": same_in_both, "independent": same_in_both}, "success_rate_r0.3")
+    assert lines[0] == "Gaps and effects in percentage points; negative is worse."
+    gap = 100 * (np.mean(stored) - np.mean(full))
+    row = next(line for line in lines if line.startswith("| shared | stored"))
+    assert f"| {100 * np.mean(stored):.1f} | {100 * np.mean(full):.1f} | {gap:+.1f} [" in row
+    # Worse than `full` and than the next rule in both studies alike: the rule, and no effect of sharing.
+    assert lines[-1].startswith("- **which explains the reversal**: the rule:"), lines[-1]
+
+
+FULL = [0.4, 0.45, 0.5, 0.42, 0.48]
+NEXT = [0.41, 0.5, 0.44, 0.47, 0.43]
+
+
 @pytest.mark.parametrize(
-    ("independent_selected", "expected"),
+    ("independent", "expected"),
     [
-        ([0.9, 1.0, 1.1, 0.95, 1.05], "the rule:"),  # worse than full with independent networks too
-        ([0.47, 0.41, 0.5, 0.39, 0.44], "the sharing:"),  # among full's runs: no reversal without sharing
+        # as harmful as with shared networks: the rule alone
+        ({"full": FULL, "selected": [2.0, 2.5, 3.0, 2.2, 2.8], "selected_next": NEXT}, "the rule:"),
+        # harmful without sharing, more harmful with it
+        ({"full": FULL, "selected": [0.9, 1.0, 1.1, 0.95, 1.05], "selected_next": NEXT}, "both:"),
+        # the stored rule among the next rule's runs without sharing: the sharing
+        ({"full": FULL, "selected": [0.47, 0.41, 0.5, 0.39, 0.44], "selected_next": NEXT}, "the sharing:"),
+        # the stored rule a little worse on average without sharing, within its spread: still the sharing
+        ({"full": FULL, "selected": [0.3, 0.9, 0.4, 0.8, 0.5], "selected_next": NEXT}, "the sharing:"),
+        # both rules astray without sharing: the rule's effect is 0, and so is sharing's
+        (
+            {"full": FULL, "selected": [2.0, 2.5, 3.0, 2.2, 2.8], "selected_next": [2.1, 2.9, 2.4, 2.6, 2.5]},
+            "not decided",
+        ),
     ],
 )
 def test_reading_names_the_factor_the_reversal_belongs_to(
-    two_by_two: ModuleType, tmp_path: Path, independent_selected: list[float], expected: str
+    two_by_two: ModuleType, tmp_path: Path, independent: dict[str, list[float]], expected: str
 ) -> None:
-    independent = {
-        "full": [0.4, 0.45, 0.5, 0.42, 0.48],
-        "selected": independent_selected,
-        "selected_next": [0.41, 0.5, 0.44, 0.47, 0.43],
+    lines = two_by_two.setting_table(setting_scores(two_by_two, studies(tmp_path, independent)), "min_dist_sum")
+    assert lines[-1].startswith(f"- **which explains the reversal**: {expected}"), lines[-1]
+
+
+def test_reading_needs_a_reversal_in_the_metrics_direction(two_by_two: ModuleType) -> None:
+    lower = {
+        "full": dict(enumerate(FULL)),
+        "selected": dict(enumerate([0.1, 0.12, 0.09, 0.11, 0.1])),
+        "selected_next": dict(enumerate(NEXT)),
     }
-    scores = setting_scores(two_by_two, studies(tmp_path, independent))
-    cells = {
-        (networks, scheme): two_by_two.cell(scores[networks], scheme)
-        for networks in scores
-        for scheme in ("selected", "selected_next")
-    }
-    assert two_by_two.reading(cells, higher_is_better=False).startswith(expected)
-    # The same runs read as a score where higher is better: the stored rule is then better than `full`, not worse.
-    assert two_by_two.reading(cells, higher_is_better=True).startswith("no reversal")
+    scores = {"shared": lower, "independent": lower}
+    # The stored rule's runs score lower than `full`'s: better on the min-dist sum, worse as a success rate.
+    assert two_by_two.setting_table(scores, "min_dist_sum")[-1].endswith("not worse than `full` here")
+    assert two_by_two.setting_table(scores, "success_rate_r0.3")[-1].startswith("- **which explains the reversal**: the rule:")
 
 
 def test_reading_waits_for_two_runs_a_cell(two_by_two: ModuleType, tmp_path: Path) -> None:
     scores = setting_scores(two_by_two, studies(tmp_path, {"full": [0.4], "selected": [1.0], "selected_next": [0.4]}))
-    cells = {
-        (networks, scheme): two_by_two.cell(scores[networks], scheme)
-        for networks in scores
-        for scheme in ("selected", "selected_next")
-    }
-    assert two_by_two.reading(cells, higher_is_better=False).startswith("too few seeds")
+    lines = two_by_two.setting_table(scores, "min_dist_sum")
+    assert lines[-1].endswith("too few seeds to read (a cell has fewer than 2 runs)")
+    assert (
+        "| independent | stored (Algorithm 3, `selected`) | 1 | 1.00 | 1.00 | 0.40 | +0.60 (single runs: no interval) "
+        "| n/a (1 run) |" in lines
+    )
 
 
 def test_scores_are_the_seeds_all_three_schemes_finished_and_the_window_mean(two_by_two: ModuleType, tmp_path: Path) -> None:
     results = tmp_path / "results"
-    curve = [(700_000.0, 9.0), (800_000.0, 1.0), (900_000.0, 2.0), (1_000_000.0, 3.0), (1_100_000.0, 9.0)]
+    curve = [(700_000.0, 9.0), (800_000.0, 1.0), (900_000.0, 2.0), (1_000_000.0, 6.0), (1_100_000.0, 9.0)]
     for scheme in ("full", "selected", "selected_next"):
         for seed in (0, 1):
             write_run(results, "exp", scheme, seed, 0.5, curve)
@@ -159,7 +190,7 @@ def test_scores_are_the_seeds_all_three_schemes_finished_and_the_window_mean(two
         scheme: {0: 0.5, 1: 0.5} for scheme in ("full", "selected", "selected_next")
     }
     windowed = two_by_two.read_scores(results, "exp", "min_dist_sum", two_by_two.MATCHED_WINDOW)
-    assert windowed["selected"] == {0: pytest.approx(2.0), 1: pytest.approx(2.0)}  # 800k-1M inclusive, nothing else
+    assert windowed["selected"] == {0: pytest.approx(3.0), 1: pytest.approx(3.0)}  # 800k-1M inclusive, nothing else
     with pytest.raises(ValueError, match="no learning-curve point between 2e\\+06 and 3e\\+06"):
         two_by_two.read_scores(results, "exp", "min_dist_sum", (2e6, 3e6))
 
