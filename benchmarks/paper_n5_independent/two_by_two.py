@@ -31,6 +31,7 @@ where their readings disagree, none of them is the answer.
 """
 
 import argparse
+import csv
 import math
 import sys
 from collections.abc import Mapping, Sequence
@@ -41,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from sb3_maddpg.experiments.aggregates import IntervalEstimate, bootstrap_interval
-from sb3_maddpg.experiments.results import load_summaries, read_curve
+from sb3_maddpg.experiments.results import PROGRESS_FILE, load_summaries, read_curve
 from sb3_maddpg.experiments.stats import METRICS, mann_whitney
 
 REPO = Path(__file__).resolve().parents[2]
@@ -60,6 +61,10 @@ MATCHED_WINDOW = (800_000.0, 1_000_000.0)
 READ_METRICS = ("min_dist_sum", "success_rate_r0.3", "success_rate")
 """The metrics read: the min-dist sum and success within 0.3 carry the N=5 comparison; within 0.1 is the paper's."""
 SIGNIFICANCE = 0.05
+CRITIC_LOSS = "train/critic_loss"
+"""The critics' TD loss as training logs it (the mean over the agents' critics)."""
+CRITIC_LOSS_WINDOW = (500_000.0, 1_000_000.0)
+"""The env steps (inclusive) over which each run's logged critic loss is averaged: the second half of the shared runs."""
 
 Scores = dict[str, dict[int, float]]
 """Per scheme, per seed: a run's score."""
@@ -85,11 +90,19 @@ def read_scores(results: Path, experiment: str, metric: str, window: tuple[float
 def _score(summary: dict[str, Any], metric: str, window: tuple[float, float] | None) -> float:
     if window is None:
         return float(summary["score"][metric])
-    points = [row[metric] for row in read_curve(summary["directory"]) if window[0] <= row["timesteps"] <= window[1]]
+    if metric == CRITIC_LOSS:
+        with open(Path(summary["directory"]) / PROGRESS_FILE, newline="") as file:
+            rows = [
+                {"timesteps": float(row["time/total_timesteps"]), metric: float(row[metric])}
+                for row in csv.DictReader(file)
+                if row.get(metric)
+            ]
+        where = "logged critic loss"
+    else:
+        rows, where = read_curve(summary["directory"]), "learning-curve point"
+    points = [row[metric] for row in rows if window[0] <= row["timesteps"] <= window[1]]
     if not points:
-        raise ValueError(
-            f"{summary['directory']} has no learning-curve point between {window[0]:g} and {window[1]:g} env steps."
-        )
+        raise ValueError(f"{summary['directory']} has no {where} between {window[0]:g} and {window[1]:g} env steps.")
     return float(np.mean(points))
 
 
@@ -270,6 +283,29 @@ def setting_table(scores: Mapping[str, Scores], metric: str) -> list[str]:
     return lines
 
 
+def critic_loss_table(scores: Mapping[str, Scores]) -> list[str]:
+    """
+    :param scores: Each study's runs' mean critic loss in one setting (:func:`read_scores` with :data:`CRITIC_LOSS`).
+    :return: The markdown lines: per study, each scheme's mean over runs (its runs' range) and the stored rule's over
+        `full`'s.
+    """
+    schemes = (BASELINE, *RULES.values())
+    lines = [
+        "| networks | runs | `full` | stored (`selected`) | next (`selected_next`) | stored / `full` |",
+        "|---|---|---|---|---|---|",
+    ]
+    for networks, by_scheme in scores.items():
+        runs = {scheme: list(by_scheme[scheme].values()) for scheme in schemes}
+        if not runs[BASELINE]:
+            lines.append(f"| {networks} | 0 | no runs yet | | | |")
+            continue
+        means = {scheme: float(np.mean(values)) for scheme, values in runs.items()}
+        cells = [f"{means[scheme]:.3f} ({min(runs[scheme]):.3f}-{max(runs[scheme]):.3f})" for scheme in schemes]
+        ratio = means[RULES["stored (Algorithm 3, `selected`)"]] / means[BASELINE]
+        lines.append(f"| {networks} | {len(runs[BASELINE])} | {' | '.join(cells)} | {ratio:.2f} |")
+    return lines
+
+
 def write_two_by_two(studies: Mapping[str, Path] = STUDIES, metrics: Sequence[str] = READ_METRICS) -> str:
     """
     :param studies: Each study's results directory, by networks (``shared``, ``independent``).
@@ -300,6 +336,21 @@ def write_two_by_two(studies: Mapping[str, Path] = STUDIES, metrics: Sequence[st
                     networks: read_scores(studies[networks], experiments[networks], metric, window) for networks in studies
                 }
                 lines += ["", f"#### {setting}: {info.label} ({direction}), {budget}", "", *setting_table(scores, metric)]
+        losses = {
+            networks: read_scores(studies[networks], experiments[networks], CRITIC_LOSS, CRITIC_LOSS_WINDOW)
+            for networks in studies
+        }
+        lines += [
+            "",
+            f"#### {setting}: the critics' loss, {CRITIC_LOSS_WINDOW[0] / 1e6:g}M-{CRITIC_LOSS_WINDOW[1] / 1e6:g}M env steps",
+            "",
+            "Each run's logged TD loss (the mean over its agents' critics) averaged over these steps; per scheme the mean "
+            "over runs (their range). If one critic's guesses, fed to every agent, send the stored rule astray, its loss "
+            "grows against `full`'s with shared networks and not with independent ones: a test of that mechanism, not of "
+            "the reversal.",
+            "",
+            *critic_loss_table(losses),
+        ]
     return "\n".join(lines) + "\n"
 
 

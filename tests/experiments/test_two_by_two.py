@@ -208,3 +208,19 @@ def test_an_empty_cell_reads_no_runs_yet(two_by_two: ModuleType, tmp_path: Path)
 def test_the_committed_page_is_the_committed_runs_reading(two_by_two: ModuleType) -> None:
     # benchmarks/paper_n5_independent/report.sh writes it: run it in each commit that adds finished runs.
     assert two_by_two.write_two_by_two() == COMMITTED.read_text()
+
+
+def test_critic_loss_is_the_logged_loss_over_its_window_and_its_ratio_to_full(two_by_two: ModuleType, tmp_path: Path) -> None:
+    results = tmp_path / "results"
+    logged = {"full": [0.1, 0.2, 0.3], "selected": [0.3, 0.6, 0.9], "selected_next": [0.1, 0.1, 0.1]}
+    for scheme, losses in logged.items():
+        write_run(results, "exp", scheme, 0, 0.5)
+        rows = [(400_000, 5.0), (500_000, losses[0]), (750_000, losses[1]), (1_000_000, losses[2]), (1_200_000, 5.0)]
+        progress = "time/total_timesteps,train/critic_loss,eval/min_dist_sum\n" + "".join(f"{s},{v},\n" for s, v in rows)
+        progress += "750000,,0.7\n"  # an evaluation's row: no loss logged there
+        (results / "exp" / scheme / "seed_000" / "progress.csv").write_text(progress)
+    losses = two_by_two.read_scores(results, "exp", two_by_two.CRITIC_LOSS, two_by_two.CRITIC_LOSS_WINDOW)
+    assert losses == {scheme: {0: pytest.approx(np.mean(values))} for scheme, values in logged.items()}
+    lines = two_by_two.critic_loss_table({"shared": losses, "independent": {scheme: {} for scheme in logged}})
+    assert lines[2] == "| shared | 1 | 0.200 (0.200-0.200) | 0.600 (0.600-0.600) | 0.100 (0.100-0.100) | 3.00 |"
+    assert lines[3] == "| independent | 0 | no runs yet | | | |"
