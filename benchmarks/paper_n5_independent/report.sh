@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Issue 43's reading from the committed runs, written into docs/_static/paper_n5_independent: the study's report (the
 # seeds every scheme of a setting has finished; its settings only, not the learning curve's runs beside them) and the
-# 2 x 2 of networks x the target's selection rule against the shared study (two_by_two.md). Run it from the repository
-# root in every commit that adds finished runs: tests/experiments/test_experiments.py fails on a stale report and
-# tests/experiments/test_two_by_two.py on a stale two_by_two.md.
+# study beside the shared one (beside_shared.md: Table 2 of both, the 2 x 2 of networks x the target's selection rule).
+# Run it from the repository root in every commit that adds finished runs: tests/experiments/test_experiments.py fails
+# on a stale report and tests/experiments/test_beside_shared.py on a stale beside_shared.md.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 export SDL_VIDEODRIVER=dummy
@@ -16,4 +16,4 @@ done
 python -m sb3_maddpg.experiments report "$VIEW" --complete-seeds --out "$OUT" \
     --metric success_rate_r0.3 --metric success_rate --metric min_dist_sum --metric return_mean
 rm -f "$OUT/marl_eval.json"  # marl-eval's input, not shown in the docs
-python benchmarks/paper_n5_independent/two_by_two.py --out "$OUT/two_by_two.md"
+python benchmarks/paper_n5_independent/beside_shared.py --out "$OUT/beside_shared.md"

@@ -1,7 +1,8 @@
-"""Issue 43's 2 x 2: networks (shared, independent) x the target's selection rule (stored, next), each as the gap of
-its `selected` runs against `full` in the same study, in both N=5 settings (writes two_by_two.md).
+"""Issue 43's independent-network study read beside the shared one (writes beside_shared.md): Table 2 of both studies
+under the paper's, and the 2 x 2 of networks (shared, independent) x the target's selection rule (stored, next), each
+as the gap of its `selected` runs against `full` in the same study, in both N=5 settings.
 
-    python benchmarks/paper_n5_independent/two_by_two.py --out docs/_static/paper_n5_independent/two_by_two.md
+    python benchmarks/paper_n5_independent/beside_shared.py --out docs/_static/paper_n5_independent/beside_shared.md
 
 The shared study (``benchmarks/paper_n5``: one actor and one critic for the five agents, 1M env steps) found the
 paper's `selected` (Algorithm 3: the target's two nearest agents stored with the transition) far worse than `full`,
@@ -22,6 +23,9 @@ study's independent networks (1.75M env steps) tell them apart:
   without sharing, and sharing makes its harm larger) if both are; else it is not decided at these seeds. A cell of
   fewer than 2 runs is not read.
 
+Table 2 is each study's report's (the seeds every scheme of a setting has finished, as ``report --complete-seeds``),
+the two studies' settings under the paper's row of the same observability. The 2 x 2:
+
 Each study is read at its own budget (its protocol score: the checkpoints over the last 20%, 100 episodes each) and at
 a matched one: the mean of each run's learning-curve points from 800k to 1M env steps (20 greedy episodes each; 11
 points in the shared study, 6 in the independent one), where the shared study's protocol window is. Runs are those
@@ -34,6 +38,7 @@ import argparse
 import csv
 import math
 import sys
+import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,8 +47,9 @@ from typing import Any
 import numpy as np
 
 from sb3_maddpg.experiments.aggregates import IntervalEstimate, bootstrap_interval
-from sb3_maddpg.experiments.results import PROGRESS_FILE, load_summaries, read_curve
-from sb3_maddpg.experiments.stats import METRICS, mann_whitney
+from sb3_maddpg.experiments.paper_claims import format_beside_paper
+from sb3_maddpg.experiments.results import PROGRESS_FILE, link_complete_seeds, load_experiments, load_summaries, read_curve
+from sb3_maddpg.experiments.stats import METRICS, aggregate, mann_whitney
 
 REPO = Path(__file__).resolve().parents[2]
 STUDIES = {"shared": REPO / "benchmarks/paper_n5/results", "independent": REPO / "benchmarks/paper_n5_independent/results"}
@@ -306,17 +312,61 @@ def critic_loss_table(scores: Mapping[str, Scores]) -> list[str]:
     return lines
 
 
-def write_two_by_two(studies: Mapping[str, Path] = STUDIES, metrics: Sequence[str] = READ_METRICS) -> str:
+def complete_seed_runs(results: Path, experiments: Sequence[str]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """
+    :param results: A study's results directory.
+    :param experiments: The experiments read there (the others, e.g. a learning curve's, are left out).
+    :return: The summaries of the runs whose seed every scheme of their experiment has finished, and the experiments'
+        stored configs.
+    """
+    with tempfile.TemporaryDirectory(prefix="beside_shared_") as temporary:
+        chosen, view = Path(temporary) / "chosen", Path(temporary) / "view"
+        chosen.mkdir()
+        for experiment in experiments:
+            if (results / experiment).is_dir():
+                (chosen / experiment).symlink_to(results.resolve() / experiment)
+        link_complete_seeds(chosen, view)
+        return load_summaries(view), load_experiments(view)
+
+
+def table2_beside_shared(studies: Mapping[str, Path], metric: str) -> list[str]:
+    """
+    :param studies: Each study's results directory, by networks.
+    :param metric: The metric tabulated.
+    :return: The markdown lines of Table 2: per observability the paper's row, then each study's setting.
+    """
+    summaries: list[dict[str, Any]] = []
+    experiments: dict[str, Any] = {}
+    for networks, results in studies.items():
+        runs, configs = complete_seed_runs(results, [setting[networks] for setting in SETTINGS.values()])
+        summaries += runs
+        experiments.update(configs)
+    table = format_beside_paper(aggregate(summaries, metric), METRICS[metric].label, experiments)
+    # The report's own heading level (###) nests under this page's sections.
+    return [] if table is None else ["#" + line if line.startswith("### ") else line for line in table.splitlines()]
+
+
+def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence[str] = READ_METRICS) -> str:
     """
     :param studies: Each study's results directory, by networks (``shared``, ``independent``).
     :param metrics: The metrics read.
     :return: The markdown page: per setting, metric and budget, the 2 x 2 with its effects and reading.
     """
     lines = [
-        "# Networks x the target's selection rule: `selected` against `full` at N=5",
+        "# Independent networks beside shared ones at N=5: Table 2 and the 2 x 2",
         "",
-        "Made by `python benchmarks/paper_n5_independent/two_by_two.py` (its docstring states the method and the "
-        "reading's rule). A gap is mean(the rule's runs) - mean(`full`'s runs) in the same study and setting, with a 95% "
+        "Made by `python benchmarks/paper_n5_independent/beside_shared.py` (its docstring states the method). "
+        "`paper_n5_exp1`/`paper_n5_exp2`: one actor and one critic shared by the agents, 1M env steps (40,000 "
+        "episodes); `paper_n5i_exp1`/`paper_n5i_exp2`: a network per agent, as the paper trains them, 1.75M "
+        "(70,000 episodes); each from the seeds every scheme of its setting has finished.",
+    ]
+    for metric in metrics:
+        lines += ["", *table2_beside_shared(studies, metric)]
+    lines += [
+        "",
+        "#### The 2 x 2: networks x the target's selection rule, each rule against `full`",
+        "",
+        "A gap is mean(the rule's runs) - mean(`full`'s runs) in the same study and setting, with a 95% "
         "bootstrap interval; p: two-sided Mann-Whitney U. Twelve tables (2 settings x 3 metrics x 2 budgets), none "
         "corrected for the others: where their readings disagree, none of them is the answer. Shared networks: "
         "`benchmarks/paper_n5` (1M env steps); independent: `benchmarks/paper_n5_independent` (1.75M).",
@@ -358,7 +408,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", help="write the page here (default: print it)")
     args = parser.parse_args(argv)
-    page = write_two_by_two()
+    page = write_beside_shared()
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(page)

@@ -1,4 +1,4 @@
-"""Issue 43's 2 x 2 reading (``benchmarks/paper_n5_independent/two_by_two.py``): its gaps, effects and p-values against
+"""Issue 43's 2 x 2 reading (``benchmarks/paper_n5_independent/beside_shared.py``): its gaps, effects and p-values against
 a hand computation, which runs it reads, its reading of which factor turns `selected` around, and the committed page
 against the committed runs."""
 
@@ -13,16 +13,16 @@ import pytest
 from scipy.stats import mannwhitneyu
 
 REPO = Path(__file__).resolve().parents[2]
-SCRIPT = REPO / "benchmarks" / "paper_n5_independent" / "two_by_two.py"
-COMMITTED = REPO / "docs" / "_static" / "paper_n5_independent" / "two_by_two.md"
+SCRIPT = REPO / "benchmarks" / "paper_n5_independent" / "beside_shared.py"
+COMMITTED = REPO / "docs" / "_static" / "paper_n5_independent" / "beside_shared.md"
 
 
 @pytest.fixture(scope="module")
-def two_by_two() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("two_by_two", SCRIPT)
+def beside_shared() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("beside_shared", SCRIPT)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
-    sys.modules["two_by_two"] = module  # dataclasses look their module up
+    sys.modules["beside_shared"] = module  # dataclasses look their module up
     spec.loader.exec_module(module)
     return module
 
@@ -71,25 +71,25 @@ def setting_scores(module: ModuleType, paths: dict[str, Path]) -> dict[str, dict
     return {networks: module.read_scores(paths[networks], experiments[networks], "min_dist_sum") for networks in paths}
 
 
-def test_gaps_effects_and_tests_match_a_hand_computation(two_by_two: ModuleType, tmp_path: Path) -> None:
+def test_gaps_effects_and_tests_match_a_hand_computation(beside_shared: ModuleType, tmp_path: Path) -> None:
     independent = {
         "full": [0.4, 0.45, 0.5, 0.42, 0.48],
         "selected": [0.9, 1.0, 1.1, 0.95, 1.05],
         "selected_next": [0.41, 0.5, 0.44, 0.47, 0.43],
     }
-    scores = setting_scores(two_by_two, studies(tmp_path, independent))
+    scores = setting_scores(beside_shared, studies(tmp_path, independent))
     mean = {
         (networks, scheme): np.mean(values)
         for networks, runs in (("shared", SHARED), ("independent", independent))
         for scheme, values in runs.items()
     }
 
-    stored = two_by_two.cell(scores["shared"], "selected")
+    stored = beside_shared.cell(scores["shared"], "selected")
     assert stored.gap.value == pytest.approx(mean["shared", "selected"] - mean["shared", "full"])
     assert stored.p_value == pytest.approx(mannwhitneyu(SHARED["selected"], SHARED["full"], alternative="two-sided").pvalue)
     assert stored.gap.low < stored.gap.value < stored.gap.high and stored.gap.low > 0  # every stored run is worse
 
-    interaction = two_by_two.difference(
+    interaction = beside_shared.difference(
         [independent["selected"], independent["selected_next"], SHARED["selected"], SHARED["selected_next"]]
     )
     by_hand = (mean["independent", "selected"] - mean["independent", "selected_next"]) - (
@@ -98,15 +98,15 @@ def test_gaps_effects_and_tests_match_a_hand_computation(two_by_two: ModuleType,
     assert interaction.value == pytest.approx(by_hand)
     assert interaction.low <= interaction.value <= interaction.high
 
-    lines = two_by_two.setting_table(scores, "min_dist_sum")
+    lines = beside_shared.setting_table(scores, "min_dist_sum")
     sharing = (mean["shared", "selected"] - mean["shared", "full"]) - (
         mean["independent", "selected"] - mean["independent", "full"]
     )
     rule_independent = mean["independent", "selected"] - mean["independent", "selected_next"]
     for name, value in (
-        (two_by_two.SHARING, sharing),
-        (two_by_two.RULE_INDEPENDENT, rule_independent),
-        (two_by_two.INTERACTION, -by_hand),  # the page's interaction: shared minus independent
+        (beside_shared.SHARING, sharing),
+        (beside_shared.RULE_INDEPENDENT, rule_independent),
+        (beside_shared.INTERACTION, -by_hand),  # the page's interaction: shared minus independent
     ):
         assert any(line.startswith(f"- {name}: {value:+.2f} [") for line in lines), (name, value)
     row = next(line for line in lines if line.startswith("| independent | stored"))
@@ -114,10 +114,10 @@ def test_gaps_effects_and_tests_match_a_hand_computation(two_by_two: ModuleType,
     assert f"| 5 | {by_seed} | {mean['independent', 'selected']:.2f} | {mean['independent', 'full']:.2f} | " in row
 
 
-def test_rates_read_in_percentage_points_with_their_direction(two_by_two: ModuleType) -> None:
+def test_rates_read_in_percentage_points_with_their_direction(beside_shared: ModuleType) -> None:
     full, stored = [0.70, 0.72, 0.68, 0.74, 0.71], [0.05, 0.02, 0.10, 0.04, 0.03]
     same_in_both = {"full": dict(enumerate(full)), "selected": dict(enumerate(stored)), "selected_next": dict(enumerate(full))}
-    lines = two_by_two.setting_table({"shared": same_in_both, "independent": same_in_both}, "success_rate_r0.3")
+    lines = beside_shared.setting_table({"shared": same_in_both, "independent": same_in_both}, "success_rate_r0.3")
     assert lines[0] == "Gaps and effects in percentage points; negative is worse."
     gap = 100 * (np.mean(stored) - np.mean(full))
     row = next(line for line in lines if line.startswith("| shared | stored"))
@@ -149,13 +149,13 @@ NEXT = [0.41, 0.5, 0.44, 0.47, 0.43]
     ],
 )
 def test_reading_names_the_factor_the_reversal_belongs_to(
-    two_by_two: ModuleType, tmp_path: Path, independent: dict[str, list[float]], expected: str
+    beside_shared: ModuleType, tmp_path: Path, independent: dict[str, list[float]], expected: str
 ) -> None:
-    lines = two_by_two.setting_table(setting_scores(two_by_two, studies(tmp_path, independent)), "min_dist_sum")
+    lines = beside_shared.setting_table(setting_scores(beside_shared, studies(tmp_path, independent)), "min_dist_sum")
     assert lines[-1].startswith(f"- **which explains the reversal**: {expected}"), lines[-1]
 
 
-def test_reading_needs_a_reversal_in_the_metrics_direction(two_by_two: ModuleType) -> None:
+def test_reading_needs_a_reversal_in_the_metrics_direction(beside_shared: ModuleType) -> None:
     lower = {
         "full": dict(enumerate(FULL)),
         "selected": dict(enumerate([0.1, 0.12, 0.09, 0.11, 0.1])),
@@ -163,13 +163,15 @@ def test_reading_needs_a_reversal_in_the_metrics_direction(two_by_two: ModuleTyp
     }
     scores = {"shared": lower, "independent": lower}
     # The stored rule's runs score lower than `full`'s: better on the min-dist sum, worse as a success rate.
-    assert two_by_two.setting_table(scores, "min_dist_sum")[-1].endswith("not worse than `full` here")
-    assert two_by_two.setting_table(scores, "success_rate_r0.3")[-1].startswith("- **which explains the reversal**: the rule:")
+    assert beside_shared.setting_table(scores, "min_dist_sum")[-1].endswith("not worse than `full` here")
+    assert beside_shared.setting_table(scores, "success_rate_r0.3")[-1].startswith(
+        "- **which explains the reversal**: the rule:"
+    )
 
 
-def test_reading_waits_for_two_runs_a_cell(two_by_two: ModuleType, tmp_path: Path) -> None:
-    scores = setting_scores(two_by_two, studies(tmp_path, {"full": [0.4], "selected": [1.0], "selected_next": [0.4]}))
-    lines = two_by_two.setting_table(scores, "min_dist_sum")
+def test_reading_waits_for_two_runs_a_cell(beside_shared: ModuleType, tmp_path: Path) -> None:
+    scores = setting_scores(beside_shared, studies(tmp_path, {"full": [0.4], "selected": [1.0], "selected_next": [0.4]}))
+    lines = beside_shared.setting_table(scores, "min_dist_sum")
     assert lines[-1].endswith("too few seeds to read (a cell has fewer than 2 runs)")
     assert (
         "| independent | stored (Algorithm 3, `selected`) | 1 | 1.00 | 1.00 | 0.40 | +0.60 (single runs: no interval) "
@@ -177,7 +179,9 @@ def test_reading_waits_for_two_runs_a_cell(two_by_two: ModuleType, tmp_path: Pat
     )
 
 
-def test_scores_are_the_seeds_all_three_schemes_finished_and_the_window_mean(two_by_two: ModuleType, tmp_path: Path) -> None:
+def test_scores_are_the_seeds_all_three_schemes_finished_and_the_window_mean(
+    beside_shared: ModuleType, tmp_path: Path
+) -> None:
     results = tmp_path / "results"
     curve = [(700_000.0, 9.0), (800_000.0, 1.0), (900_000.0, 2.0), (1_000_000.0, 6.0), (1_100_000.0, 9.0)]
     for scheme in ("full", "selected", "selected_next"):
@@ -186,31 +190,33 @@ def test_scores_are_the_seeds_all_three_schemes_finished_and_the_window_mean(two
     write_run(results, "exp", "full", 2, 0.5)  # seed 2 of `full` only
     write_run(results, "exp", "selected", 3, 0.5, done=False)  # still running
     write_run(results, "other", "full", 0, 7.0)  # another setting
-    assert two_by_two.read_scores(results, "exp", "min_dist_sum") == {
+    assert beside_shared.read_scores(results, "exp", "min_dist_sum") == {
         scheme: {0: 0.5, 1: 0.5} for scheme in ("full", "selected", "selected_next")
     }
-    windowed = two_by_two.read_scores(results, "exp", "min_dist_sum", two_by_two.MATCHED_WINDOW)
+    windowed = beside_shared.read_scores(results, "exp", "min_dist_sum", beside_shared.MATCHED_WINDOW)
     assert windowed["selected"] == {0: pytest.approx(3.0), 1: pytest.approx(3.0)}  # 800k-1M inclusive, nothing else
     with pytest.raises(ValueError, match="no learning-curve point between 2e\\+06 and 3e\\+06"):
-        two_by_two.read_scores(results, "exp", "min_dist_sum", (2e6, 3e6))
+        beside_shared.read_scores(results, "exp", "min_dist_sum", (2e6, 3e6))
 
 
-def test_an_empty_cell_reads_no_runs_yet(two_by_two: ModuleType, tmp_path: Path) -> None:
+def test_an_empty_cell_reads_no_runs_yet(beside_shared: ModuleType, tmp_path: Path) -> None:
     write_study(tmp_path / "shared", "paper_n5_exp1", SHARED)
     (tmp_path / "independent").mkdir()
     paths = {"shared": tmp_path / "shared", "independent": tmp_path / "independent"}
-    lines = two_by_two.setting_table(setting_scores(two_by_two, paths), "min_dist_sum")
+    lines = beside_shared.setting_table(setting_scores(beside_shared, paths), "min_dist_sum")
     assert "| independent | next (`selected_next`) | 0 | - | no runs yet | no runs yet | nan | nan |" in lines
     assert "- the rule's effect with independent networks (stored minus next): no runs yet" in lines
 
 
 @pytest.mark.skipif(not COMMITTED.exists(), reason="no committed 2 x 2 page")
-def test_the_committed_page_is_the_committed_runs_reading(two_by_two: ModuleType) -> None:
+def test_the_committed_page_is_the_committed_runs_reading(beside_shared: ModuleType) -> None:
     # benchmarks/paper_n5_independent/report.sh writes it: run it in each commit that adds finished runs.
-    assert two_by_two.write_two_by_two() == COMMITTED.read_text()
+    assert beside_shared.write_beside_shared() == COMMITTED.read_text()
 
 
-def test_critic_loss_is_the_logged_loss_over_its_window_and_its_ratio_to_full(two_by_two: ModuleType, tmp_path: Path) -> None:
+def test_critic_loss_is_the_logged_loss_over_its_window_and_its_ratio_to_full(
+    beside_shared: ModuleType, tmp_path: Path
+) -> None:
     results = tmp_path / "results"
     logged = {"full": [0.1, 0.2, 0.3], "selected": [0.3, 0.6, 0.9], "selected_next": [0.1, 0.1, 0.1]}
     for scheme, losses in logged.items():
@@ -219,8 +225,36 @@ def test_critic_loss_is_the_logged_loss_over_its_window_and_its_ratio_to_full(tw
         progress = "time/total_timesteps,train/critic_loss,eval/min_dist_sum\n" + "".join(f"{s},{v},\n" for s, v in rows)
         progress += "750000,,0.7\n"  # an evaluation's row: no loss logged there
         (results / "exp" / scheme / "seed_000" / "progress.csv").write_text(progress)
-    losses = two_by_two.read_scores(results, "exp", two_by_two.CRITIC_LOSS, two_by_two.CRITIC_LOSS_WINDOW)
+    losses = beside_shared.read_scores(results, "exp", beside_shared.CRITIC_LOSS, beside_shared.CRITIC_LOSS_WINDOW)
     assert losses == {scheme: {0: pytest.approx(np.mean(values))} for scheme, values in logged.items()}
-    lines = two_by_two.critic_loss_table({"shared": losses, "independent": {scheme: {} for scheme in logged}})
+    lines = beside_shared.critic_loss_table({"shared": losses, "independent": {scheme: {} for scheme in logged}})
     assert lines[2] == "| shared | 1 | 0.200 (0.200-0.200) | 0.600 (0.600-0.600) | 0.100 (0.100-0.100) | 3.00 |"
     assert lines[3] == "| independent | 0 | no runs yet | | | |"
+
+
+def copy_experiment(results: Path, source: Path, name: str, schemes: list[str]) -> None:
+    """A committed setting's stored config under ``name``, with these schemes."""
+    experiment = json.loads(source.read_text())
+    experiment.update(name=name, schemes=schemes)
+    (results / name).mkdir(parents=True, exist_ok=True)
+    (results / name / "experiment.json").write_text(json.dumps(experiment))
+
+
+def test_table2_puts_both_studies_complete_seeds_under_the_papers_row(beside_shared: ModuleType, tmp_path: Path) -> None:
+    schemes = ["full", "selected", "selected_next"]
+    shared, independent = tmp_path / "shared", tmp_path / "independent"
+    copy_experiment(shared, REPO / "benchmarks/paper_n5/results/paper_n5_exp1/experiment.json", "paper_n5_exp1", schemes)
+    source = REPO / "benchmarks/paper_n5_independent/results/paper_n5i_exp1/experiment.json"
+    copy_experiment(independent, source, "paper_n5i_exp1", schemes)
+    copy_experiment(independent, source, "paper_n5_indep_curve", ["full"])  # a learning curve's runs: not a setting here
+    write_study(shared, "paper_n5_exp1", {scheme: [0.5, 0.7] for scheme in schemes})
+    write_study(independent, "paper_n5i_exp1", {scheme: [0.4] for scheme in schemes})
+    write_run(independent, "paper_n5i_exp1", "full", 1, 0.9)  # seed 1 of `full` only: not a complete seed
+    write_run(independent, "paper_n5_indep_curve", "full", 0, 0.3)
+    lines = beside_shared.table2_beside_shared({"shared": shared, "independent": independent}, "min_dist_sum")
+    assert lines[0] == "#### Beside the paper's Table 2: sum of min. distances"
+    rows = [line.split(" | ")[0] for line in lines if line.startswith("| paper")]
+    assert [row.split(" (")[0] for row in rows] == ["| paper, Exp. 1", "| paper_n5_exp1", "| paper_n5i_exp1"]
+    independent_row = next(line for line in lines if line.startswith("| paper_n5i_exp1"))
+    assert "(1 run) | 0.40 (0.00) |" in independent_row  # seed 0 only; the curve's run and seed 1 left out
+    assert "(2 runs) | 0.60 (0.14) |" in next(line for line in lines if line.startswith("| paper_n5_exp1"))
