@@ -20,8 +20,9 @@ study's independent networks (1.75M env steps) tell them apart:
   worse than `full` (p < .05), else there is no reversal to explain on that metric. Then the reversal belongs to
   *the rule* if the rule's effect with independent networks is harmful (its interval excludes 0 on the worse side);
   to *the sharing* if it is not and sharing's effect on the stored rule's gap is harmful; to *both* (the rule harms
-  without sharing, and sharing makes its harm larger) if both are; else it is not decided at these seeds. A cell of
-  fewer than 2 runs is not read.
+  without sharing, and sharing makes its harm larger) if both are; else it is not decided at these seeds. Cells too
+  small for the test to reach p < .05 even when completely separated (fewer than 4 runs against 4; the report's
+  "too few runs") are not read: their intervals, resampled from 2 or 3 runs, would look sure of what they cannot say.
 
 Table 2 is each study's report's (the seeds every scheme of a setting has finished, as ``report --complete-seeds``),
 the two studies' settings under the paper's row of the same observability. The 2 x 2:
@@ -47,7 +48,7 @@ from typing import Any
 import numpy as np
 
 from sb3_maddpg.experiments.aggregates import IntervalEstimate, bootstrap_interval
-from sb3_maddpg.experiments.paper_claims import format_beside_paper
+from sb3_maddpg.experiments.paper_claims import format_beside_paper, smallest_p_value
 from sb3_maddpg.experiments.results import PROGRESS_FILE, link_complete_seeds, load_experiments, load_summaries, read_curve
 from sb3_maddpg.experiments.stats import METRICS, aggregate, mann_whitney
 
@@ -200,8 +201,8 @@ def reading(cells: Mapping[tuple[str, str], Cell], effects: Mapping[str, Interva
     :param higher_is_better: The metric's direction.
     :return: Which of the rule and the sharing the reversal belongs to, by the rule in the module docstring.
     """
-    if any(len(c.variant) < 2 for c in cells.values()):
-        return "too few seeds to read (a cell has fewer than 2 runs)"
+    if any(smallest_p_value(len(c.variant), len(c.baseline)) >= SIGNIFICANCE for c in cells.values()):
+        return "too few runs to read: in a cell even completely separated runs could not reach p < .05"
     if not cells["shared", "selected"].worse(higher_is_better):
         return "no reversal to explain: with shared networks the stored rule is not worse than `full` here"
 

@@ -169,14 +169,32 @@ def test_reading_needs_a_reversal_in_the_metrics_direction(beside_shared: Module
     )
 
 
-def test_reading_waits_for_two_runs_a_cell(beside_shared: ModuleType, tmp_path: Path) -> None:
+def test_reading_waits_for_cells_whose_test_can_reach_the_level(beside_shared: ModuleType, tmp_path: Path) -> None:
     scores = setting_scores(beside_shared, studies(tmp_path, {"full": [0.4], "selected": [1.0], "selected_next": [0.4]}))
     lines = beside_shared.setting_table(scores, "min_dist_sum")
-    assert lines[-1].endswith("too few seeds to read (a cell has fewer than 2 runs)")
+    assert lines[-1].endswith("too few runs to read: in a cell even completely separated runs could not reach p < .05")
     assert (
         "| independent | stored (Algorithm 3, `selected`) | 1 | 1.00 | 1.00 | 0.40 | +0.60 (single runs: no interval) "
         "| n/a (1 run) |" in lines
     )
+
+
+@pytest.mark.parametrize(("runs", "read"), [(3, False), (4, True)])
+def test_three_completely_separated_runs_a_cell_are_not_read_four_are(
+    beside_shared: ModuleType, runs: int, read: bool
+) -> None:
+    # Every stored run worse than every `full` run and every next run, in both studies: the rule, once readable.
+    cells = {
+        "full": [0.4, 0.45, 0.5, 0.42][:runs],
+        "selected": [2.0, 2.5, 3.0, 2.2][:runs],
+        "selected_next": [0.41, 0.5, 0.44, 0.47][:runs],
+    }
+    scores = {
+        networks: {scheme: dict(enumerate(values)) for scheme, values in cells.items()}
+        for networks in ("shared", "independent")
+    }
+    reading = beside_shared.setting_table(scores, "min_dist_sum")[-1]
+    assert reading.startswith("- **which explains the reversal**: " + ("the rule:" if read else "too few runs")), reading
 
 
 def test_scores_are_the_seeds_all_three_schemes_finished_and_the_window_mean(
