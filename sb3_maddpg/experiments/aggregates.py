@@ -74,9 +74,7 @@ def probability_of_improvement(x: Scores, y: Scores, axis: int = -1) -> np.ndarr
     return ((a > b) + 0.5 * (a == b)).mean(axis=(-2, -1))
 
 
-def bootstrap_interval(
-    data: tuple[np.ndarray, ...], statistic: Callable[..., np.ndarray], seed: int = 0
-) -> IntervalEstimate:
+def bootstrap_interval(data: tuple[np.ndarray, ...], statistic: Callable[..., np.ndarray], seed: int = 0) -> IntervalEstimate:
     """
     A statistic of independent samples with its 95% percentile bootstrap interval, each sample resampled on its own
     (every interval of this module is one of these).
