@@ -36,7 +36,6 @@ where their readings disagree, none of them is the answer.
 """
 
 import argparse
-import csv
 import math
 import sys
 import tempfile
@@ -50,6 +49,7 @@ import numpy as np
 from sb3_maddpg.experiments.aggregates import IntervalEstimate, bootstrap_interval
 from sb3_maddpg.experiments.paper_claims import format_beside_paper, smallest_p_value
 from sb3_maddpg.experiments.results import PROGRESS_FILE, link_complete_seeds, load_experiments, load_summaries, read_curve
+from sb3_maddpg.experiments.run_snapshot import read_progress_rows
 from sb3_maddpg.experiments.stats import METRICS, aggregate, mann_whitney
 
 REPO = Path(__file__).resolve().parents[2]
@@ -69,7 +69,7 @@ READ_METRICS = ("min_dist_sum", "success_rate_r0.3", "success_rate")
 """The metrics read: the min-dist sum and success within 0.3 carry the N=5 comparison; within 0.1 is the paper's."""
 SIGNIFICANCE = 0.05
 CRITIC_LOSS = "train/critic_loss"
-"""The critics' TD loss as training logs it (the mean over the agents' critics)."""
+"""The critics' TD loss as training logs it (the mean over the agents of each agent's loss)."""
 CRITIC_LOSS_WINDOW = (500_000.0, 1_000_000.0)
 """The env steps (inclusive) over which each run's logged critic loss is averaged: the second half of the shared runs."""
 
@@ -98,12 +98,11 @@ def _score(summary: dict[str, Any], metric: str, window: tuple[float, float] | N
     if window is None:
         return float(summary["score"][metric])
     if metric == CRITIC_LOSS:
-        with open(Path(summary["directory"]) / PROGRESS_FILE, newline="") as file:
-            rows = [
-                {"timesteps": float(row["time/total_timesteps"]), metric: float(row[metric])}
-                for row in csv.DictReader(file)
-                if row.get(metric)
-            ]
+        rows = [
+            {"timesteps": float(row["time/total_timesteps"]), metric: float(row[metric])}
+            for row in read_progress_rows(Path(summary["directory"]) / PROGRESS_FILE)
+            if row.get(metric)
+        ]
         where = "logged critic loss"
     else:
         rows, where = read_curve(summary["directory"]), "learning-curve point"
@@ -114,11 +113,17 @@ def _score(summary: dict[str, Any], metric: str, window: tuple[float, float] | N
 
 
 def mean_difference(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
-    """mean(a) - mean(b) for two samples; (mean(a) - mean(b)) - (mean(c) - mean(d)) for four."""
+    """
+    :param samples: Two samples a, b or four a, b, c, d (runs along ``axis``, resamples before it).
+    :param axis: The runs' axis.
+    :return: mean(a) - mean(b), or (mean(a) - mean(b)) - (mean(c) - mean(d)).
+    """
     means = [np.mean(sample, axis=axis) for sample in samples]
     if len(means) == 2:
         return np.asarray(means[0] - means[1])
-    return np.asarray((means[0] - means[1]) - (means[2] - means[3]))
+    if len(means) == 4:
+        return np.asarray((means[0] - means[1]) - (means[2] - means[3]))
+    raise ValueError(f"mean_difference takes 2 or 4 samples, got {len(means)}.")
 
 
 def difference(samples: Sequence[Sequence[float]]) -> IntervalEstimate:
@@ -137,30 +142,48 @@ class Cell:
     :param variant: The rule's runs' scores.
     :param baseline: `full`'s runs' scores on the same seeds.
     :param gap: mean(variant) - mean(baseline) with its interval.
-    :param p_value: Two-sided Mann-Whitney U of the rule's runs against `full`'s.
+    :param u_statistic: Its U statistic (of the rule's runs: above ``len(variant) * len(baseline) / 2`` when they
+        tend to score higher).
+    :param p_value: Its two-sided p-value.
     """
 
     variant: list[float]
     baseline: list[float]
     gap: IntervalEstimate
+    u_statistic: float
     p_value: float
 
+    @property
+    def readable(self) -> bool:
+        """Whether the test could reach p < .05 with these many runs (4 against 4 or more; the report's rule)."""
+        return smallest_p_value(len(self.variant), len(self.baseline)) < SIGNIFICANCE
+
     def worse(self, higher_is_better: bool) -> bool:
-        """:return: The rule's runs are worse than `full`'s at p < .05."""
-        return self.p_value < SIGNIFICANCE and harmful(self.gap.value, higher_is_better)
+        """:return: The rule's runs are worse than `full`'s at p < .05 (the direction the test's ranks give)."""
+        return self.p_value < SIGNIFICANCE and harmful(
+            self.u_statistic - len(self.variant) * len(self.baseline) / 2, higher_is_better
+        )
 
 
 def harmful(value: float, higher_is_better: bool) -> bool:
-    """:return: A difference of scores ``value`` (first minus second) says the first does worse."""
+    """
+    :param value: A difference of scores, first minus second (or of ranks).
+    :param higher_is_better: The scores' direction.
+    :return: The difference says the first does worse.
+    """
     return value > 0 if not higher_is_better else value < 0
 
 
 def cell(scores: Scores, scheme: str) -> Cell:
-    """:return: ``scheme``'s cell against `full` (``scores`` from :func:`read_scores`)."""
+    """
+    :param scores: One study's scores in one setting (:func:`read_scores`).
+    :param scheme: The selection rule's scheme.
+    :return: Its cell against `full`.
+    """
     variant, baseline = list(scores[scheme].values()), list(scores[BASELINE].values())
     if not variant:  # no seed finished by all three schemes yet
-        return Cell(variant, baseline, IntervalEstimate(math.nan, math.nan, math.nan), math.nan)
-    return Cell(variant, baseline, difference([variant, baseline]), mann_whitney(variant, baseline)[1])
+        return Cell(variant, baseline, IntervalEstimate(math.nan, math.nan, math.nan), math.nan, math.nan)
+    return Cell(variant, baseline, difference([variant, baseline]), *mann_whitney(variant, baseline))
 
 
 RULE_SHARED = "the rule's effect with shared networks (stored minus next)"
@@ -170,7 +193,10 @@ INTERACTION = "interaction (the rule's effect, shared minus independent)"
 
 
 def effect_samples(scores: Mapping[str, Scores]) -> dict[str, list[list[float]]]:
-    """:return: Each effect's samples, in :func:`mean_difference`'s order, by its name."""
+    """
+    :param scores: Each study's scores in one setting, by networks.
+    :return: Each effect's samples, in :func:`mean_difference`'s order, by its name.
+    """
 
     def runs(networks: str, scheme: str) -> list[float]:
         return list(scores[networks][scheme].values())
@@ -201,7 +227,7 @@ def reading(cells: Mapping[tuple[str, str], Cell], effects: Mapping[str, Interva
     :param higher_is_better: The metric's direction.
     :return: Which of the rule and the sharing the reversal belongs to, by the rule in the module docstring.
     """
-    if any(smallest_p_value(len(c.variant), len(c.baseline)) >= SIGNIFICANCE for c in cells.values()):
+    if not all(c.readable for c in cells.values()):
         return "too few runs to read: in a cell even completely separated runs could not reach p < .05"
     if not cells["shared", "selected"].worse(higher_is_better):
         return "no reversal to explain: with shared networks the stored rule is not worse than `full` here"
@@ -209,6 +235,7 @@ def reading(cells: Mapping[tuple[str, str], Cell], effects: Mapping[str, Interva
     def excludes_zero_harmfully(effect: IntervalEstimate) -> bool:
         return harmful(effect.low, higher_is_better) and harmful(effect.high, higher_is_better)
 
+    # "Not harmful" below covers both an interval across 0 and one beyond it on the better side.
     rule, sharing = excludes_zero_harmfully(effects[RULE_INDEPENDENT]), excludes_zero_harmfully(effects[SHARING])
     if rule and sharing:
         return (
@@ -217,15 +244,18 @@ def reading(cells: Mapping[tuple[str, str], Cell], effects: Mapping[str, Interva
         )
     if rule:
         return (
-            "the rule: with independent networks too the stored rule does worse than the next one; sharing's effect on "
-            "its gap is not told apart from 0"
+            "the rule: with independent networks too the stored rule does worse than the next one; sharing does not "
+            "make its gap to `full` measurably larger"
         )
     if sharing:
         return (
-            "the sharing: with independent networks the two rules are not told apart, and sharing makes the stored "
-            "rule's gap to `full` larger"
+            "the sharing: with independent networks the stored rule does not do measurably worse than the next one, "
+            "and sharing makes its gap to `full` larger"
         )
-    return "not decided at these seeds: neither the rule's effect without sharing nor sharing's effect excludes 0"
+    return (
+        "not decided at these seeds: neither the rule's effect without sharing nor sharing's effect is harmful beyond "
+        "its interval"
+    )
 
 
 def _number(value: float, scale: float, signed: bool = False) -> str:
@@ -239,12 +269,12 @@ def _mean(values: Sequence[float], scale: float) -> str:
     return _number(float(np.mean(values)), scale) if len(values) else "no runs yet"
 
 
-def _interval(estimate: IntervalEstimate, scale: float) -> str:
+def _interval(estimate: IntervalEstimate, scale: float, readable: bool = True) -> str:
     text = _number(estimate.value, scale, signed=True)
     if math.isnan(estimate.value):
         return text
-    if math.isnan(estimate.low):
-        return f"{text} (single runs: no interval)"
+    if math.isnan(estimate.low) or not readable:  # from 3 runs or fewer an interval looks surer than it can be
+        return f"{text} (too few runs for an interval)"
     return f"{text} [{_number(estimate.low, scale, signed=True)}, {_number(estimate.high, scale, signed=True)}]"
 
 
@@ -276,7 +306,7 @@ def setting_table(scores: Mapping[str, Scores], metric: str) -> list[str]:
         by_seed = ", ".join(_number(value, scale) for value in c.variant) or "-"
         lines.append(
             f"| {networks} | {rule} | {len(c.variant)} | {by_seed} | {_mean(c.variant, scale)} | "
-            f"{_mean(c.baseline, scale)} | {_interval(c.gap, scale)} | {_p(c.p_value, len(c.variant))} |"
+            f"{_mean(c.baseline, scale)} | {_interval(c.gap, scale, c.readable)} | {_p(c.p_value, len(c.variant))} |"
         )
     lines.append("")
     effects = {}
@@ -285,7 +315,8 @@ def setting_table(scores: Mapping[str, Scores], metric: str) -> list[str]:
             lines.append(f"- {name}: no runs yet")
             continue
         effects[name] = difference(samples)
-        lines.append(f"- {name}: {_interval(effects[name], scale)}")
+        readable = all(smallest_p_value(len(a), len(b)) < SIGNIFICANCE for a, b in zip(samples[::2], samples[1::2]))
+        lines.append(f"- {name}: {_interval(effects[name], scale, readable)}")
     lines.append(f"- **which explains the reversal**: {reading(cells, effects, info.higher_is_better)}")
     return lines
 
@@ -359,7 +390,8 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
         "Made by `python benchmarks/paper_n5_independent/beside_shared.py` (its docstring states the method). "
         "`paper_n5_exp1`/`paper_n5_exp2`: one actor and one critic shared by the agents, 1M env steps (40,000 "
         "episodes); `paper_n5i_exp1`/`paper_n5i_exp2`: a network per agent, as the paper trains them, 1.75M "
-        "(70,000 episodes); each from the seeds every scheme of its setting has finished.",
+        "(70,000 episodes). Table 2 reads the seeds every scheme of a setting has finished; the 2 x 2 those `full`, "
+        "`selected` and `selected_next` have.",
     ]
     for metric in metrics:
         lines += ["", *table2_beside_shared(studies, metric)]
@@ -395,10 +427,10 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
             "",
             f"#### {setting}: the critics' loss, {CRITIC_LOSS_WINDOW[0] / 1e6:g}M-{CRITIC_LOSS_WINDOW[1] / 1e6:g}M env steps",
             "",
-            "Each run's logged TD loss (the mean over its agents' critics) averaged over these steps; per scheme the mean "
-            "over runs (their range). If one critic's guesses, fed to every agent, send the stored rule astray, its loss "
-            "grows against `full`'s with shared networks and not with independent ones: a test of that mechanism, not of "
-            "the reversal.",
+            "Each run's logged TD loss (the mean over the agents of each agent's loss; with shared networks one critic "
+            "gives them all) averaged over these steps; per scheme the mean over runs (their range). A run gone astray "
+            "has a high loss whatever sent it there, so the ratio follows the scores: it says how far the stored rule's "
+            "critics are from their targets, not why.",
             "",
             *critic_loss_table(losses),
         ]

@@ -135,6 +135,8 @@ NEXT = [0.41, 0.5, 0.44, 0.47, 0.43]
     [
         # as harmful as with shared networks: the rule alone
         ({"full": FULL, "selected": [2.0, 2.5, 3.0, 2.2, 2.8], "selected_next": NEXT}, "the rule:"),
+        # more harmful without sharing than with it: still the rule (sharing does not make it larger)
+        ({"full": FULL, "selected": [3.0, 3.5, 4.0, 3.2, 3.8], "selected_next": NEXT}, "the rule:"),
         # harmful without sharing, more harmful with it
         ({"full": FULL, "selected": [0.9, 1.0, 1.1, 0.95, 1.05], "selected_next": NEXT}, "both:"),
         # the stored rule among the next rule's runs without sharing: the sharing
@@ -174,7 +176,7 @@ def test_reading_waits_for_cells_whose_test_can_reach_the_level(beside_shared: M
     lines = beside_shared.setting_table(scores, "min_dist_sum")
     assert lines[-1].endswith("too few runs to read: in a cell even completely separated runs could not reach p < .05")
     assert (
-        "| independent | stored (Algorithm 3, `selected`) | 1 | 1.00 | 1.00 | 0.40 | +0.60 (single runs: no interval) "
+        "| independent | stored (Algorithm 3, `selected`) | 1 | 1.00 | 1.00 | 0.40 | +0.60 (too few runs for an interval) "
         "| n/a (1 run) |" in lines
     )
 
@@ -193,8 +195,10 @@ def test_three_completely_separated_runs_a_cell_are_not_read_four_are(
         networks: {scheme: dict(enumerate(values)) for scheme, values in cells.items()}
         for networks in ("shared", "independent")
     }
-    reading = beside_shared.setting_table(scores, "min_dist_sum")[-1]
-    assert reading.startswith("- **which explains the reversal**: " + ("the rule:" if read else "too few runs")), reading
+    lines = beside_shared.setting_table(scores, "min_dist_sum")
+    assert lines[-1].startswith("- **which explains the reversal**: " + ("the rule:" if read else "too few runs")), lines[-1]
+    # Intervals resampled from 3 runs are not shown: they would look surer than 3 runs can be.
+    assert any("(too few runs for an interval)" in line for line in lines) is not read
 
 
 def test_scores_are_the_seeds_all_three_schemes_finished_and_the_window_mean(
