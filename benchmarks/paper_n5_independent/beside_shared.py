@@ -60,8 +60,10 @@ SETTINGS = {
     "Exp. 2 (two nearest agents observed)": {"shared": "paper_n5_exp2", "independent": "paper_n5i_exp2"},
 }
 """Each setting's experiment in each study."""
-RULES = {"stored (Algorithm 3, `selected`)": "selected", "next (`selected_next`)": "selected_next"}
-"""The target's selection rules, by the scheme that runs each."""
+STORED, NEXT = "selected", "selected_next"
+"""The schemes that run the target's two selection rules."""
+RULES = {STORED: "stored (Algorithm 3, `selected`)", NEXT: "next (`selected_next`)"}
+"""Each rule's scheme and its name in the tables."""
 BASELINE = "full"
 MATCHED_WINDOW = (800_000.0, 1_000_000.0)
 """The env steps (inclusive) whose learning-curve points give the matched-budget score."""
@@ -85,7 +87,7 @@ def read_scores(results: Path, experiment: str, metric: str, window: tuple[float
     :param window: ``None``: each run's protocol score; else the mean of its learning-curve points in these env steps.
     :return: The scores of `full`, `selected` and `selected_next` on the seeds all three have finished.
     """
-    schemes = (BASELINE, *RULES.values())
+    schemes = (BASELINE, *RULES)
     runs: dict[str, dict[int, dict[str, Any]]] = {scheme: {} for scheme in schemes}
     for summary in load_summaries(results):
         if summary["experiment"] == experiment and summary["scheme"] in runs:
@@ -201,22 +203,16 @@ def effect_samples(scores: Mapping[str, Scores]) -> dict[str, list[list[float]]]
     def runs(networks: str, scheme: str) -> list[float]:
         return list(scores[networks][scheme].values())
 
-    stored, following = RULES["stored (Algorithm 3, `selected`)"], RULES["next (`selected_next`)"]
     return {
-        RULE_SHARED: [runs("shared", stored), runs("shared", following)],
-        RULE_INDEPENDENT: [runs("independent", stored), runs("independent", following)],
+        RULE_SHARED: [runs("shared", STORED), runs("shared", NEXT)],
+        RULE_INDEPENDENT: [runs("independent", STORED), runs("independent", NEXT)],
         SHARING: [
-            runs("shared", stored),
+            runs("shared", STORED),
             runs("shared", BASELINE),
-            runs("independent", stored),
+            runs("independent", STORED),
             runs("independent", BASELINE),
         ],
-        INTERACTION: [
-            runs("shared", stored),
-            runs("shared", following),
-            runs("independent", stored),
-            runs("independent", following),
-        ],
+        INTERACTION: [runs("shared", STORED), runs("shared", NEXT), runs("independent", STORED), runs("independent", NEXT)],
     }
 
 
@@ -229,7 +225,7 @@ def reading(cells: Mapping[tuple[str, str], Cell], effects: Mapping[str, Interva
     """
     if not all(c.readable for c in cells.values()):
         return "too few runs to read: in a cell even completely separated runs could not reach p < .05"
-    if not cells["shared", "selected"].worse(higher_is_better):
+    if not cells["shared", STORED].worse(higher_is_better):
         return "no reversal to explain: with shared networks the stored rule is not worse than `full` here"
 
     def excludes_zero_harmfully(effect: IntervalEstimate) -> bool:
@@ -294,7 +290,7 @@ def setting_table(scores: Mapping[str, Scores], metric: str) -> list[str]:
     scale = info.scale
     units = "percentage points" if scale == 100.0 else "the metric's units"
     worse_sign = "negative" if info.higher_is_better else "positive"
-    cells = {(networks, scheme): cell(scores[networks], scheme) for networks in scores for scheme in RULES.values()}
+    cells = {(networks, scheme): cell(scores[networks], scheme) for networks in scores for scheme in RULES}
     lines = [
         f"Gaps and effects in {units}; {worse_sign} is worse.",
         "",
@@ -302,10 +298,9 @@ def setting_table(scores: Mapping[str, Scores], metric: str) -> list[str]:
         "|---|---|---|---|---|---|---|---|",
     ]
     for (networks, scheme), c in cells.items():
-        rule = next(name for name, rule_scheme in RULES.items() if rule_scheme == scheme)
         by_seed = ", ".join(_number(value, scale) for value in c.variant) or "-"
         lines.append(
-            f"| {networks} | {rule} | {len(c.variant)} | {by_seed} | {_mean(c.variant, scale)} | "
+            f"| {networks} | {RULES[scheme]} | {len(c.variant)} | {by_seed} | {_mean(c.variant, scale)} | "
             f"{_mean(c.baseline, scale)} | {_interval(c.gap, scale, c.readable)} | {_p(c.p_value, len(c.variant))} |"
         )
     lines.append("")
@@ -327,7 +322,7 @@ def critic_loss_table(scores: Mapping[str, Scores]) -> list[str]:
     :return: The markdown lines: per study, each scheme's mean over runs (its runs' range) and the stored rule's over
         `full`'s.
     """
-    schemes = (BASELINE, *RULES.values())
+    schemes = (BASELINE, *RULES)
     lines = [
         "| networks | runs | `full` | stored (`selected`) | next (`selected_next`) | stored / `full` |",
         "|---|---|---|---|---|---|",
@@ -339,7 +334,7 @@ def critic_loss_table(scores: Mapping[str, Scores]) -> list[str]:
             continue
         means = {scheme: float(np.mean(values)) for scheme, values in runs.items()}
         cells = [f"{means[scheme]:.3f} ({min(runs[scheme]):.3f}-{max(runs[scheme]):.3f})" for scheme in schemes]
-        ratio = means[RULES["stored (Algorithm 3, `selected`)"]] / means[BASELINE]
+        ratio = means[STORED] / means[BASELINE]
         lines.append(f"| {networks} | {len(runs[BASELINE])} | {' | '.join(cells)} | {ratio:.2f} |")
     return lines
 
