@@ -346,13 +346,9 @@ def complete_seed_runs(results: Path, experiments: Sequence[str]) -> tuple[list[
     :return: The summaries of the runs whose seed every scheme of their experiment has finished, and the experiments'
         stored configs.
     """
-    with tempfile.TemporaryDirectory(prefix="beside_shared_") as temporary:
-        chosen, view = Path(temporary) / "chosen", Path(temporary) / "view"
-        chosen.mkdir()
-        for experiment in experiments:
-            if (results / experiment).is_dir():
-                (chosen / experiment).symlink_to(results.resolve() / experiment)
-        link_complete_seeds(chosen, view)
+    with tempfile.TemporaryDirectory(prefix="beside_shared_") as view:
+        stored = load_experiments(results)
+        link_complete_seeds(results, view, [experiment for experiment in experiments if experiment in stored])
         return load_summaries(view), load_experiments(view)
 
 

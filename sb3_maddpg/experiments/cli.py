@@ -156,6 +156,12 @@ def _report_parser() -> ArgumentParser:
     )
     report.add_argument("--no-plots", action="store_true", help="tables only")
     report.add_argument(
+        "--experiment",
+        action="append",
+        help="report only this experiment (setting) of the results directory, repeat for several, e.g. a study's "
+        "settings without a learning curve's runs beside them (default: every experiment there)",
+    )
+    report.add_argument(
         "--complete-seeds",
         action="store_true",
         help="report only the seeds that every scheme of a setting has finished, so that a sweep in progress compares "

@@ -1,5 +1,5 @@
 """``sb3-maddpg report``: the report of a results directory (:func:`~sb3_maddpg.experiments.report.make_report`),
-or of the seeds every scheme has finished, with each user's error said in one line."""
+of some of its experiments, or of the seeds every scheme has finished, with each user's error said in one line."""
 
 import argparse
 import importlib.util
@@ -13,7 +13,7 @@ from sb3_maddpg.analysis.evaluation import side_return_key
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
 from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS, LEFT_OUT_SHOWN
-from sb3_maddpg.experiments.results import link_complete_seeds
+from sb3_maddpg.experiments.results import link_complete_seeds, link_experiments, unknown_experiments_message
 from sb3_maddpg.experiments.stats import METRICS
 
 if TYPE_CHECKING:
@@ -62,11 +62,21 @@ def report_command(args: argparse.Namespace) -> int:
     if unwritable is not None:
         print(unwritable, file=sys.stderr)
         return 2
+    if args.experiment:
+        not_held = unknown_experiments_message(args.results, args.experiment)
+        if not_held is not None:
+            print(f"sb3-maddpg report: --experiment: {not_held}", file=sys.stderr)
+            return 2
     if not args.complete_seeds:
-        return _write_report(args.results, out, args.metric, plots)
+        if not args.experiment:
+            return _write_report(args.results, out, args.metric, plots)
+        with tempfile.TemporaryDirectory(prefix="sb3_maddpg_report_") as view:
+            chosen = str(Path(view) / "experiments")
+            link_experiments(args.results, chosen, args.experiment)
+            return _write_report(chosen, out, args.metric, plots, shown_as=args.results)
     with tempfile.TemporaryDirectory(prefix="sb3_maddpg_report_") as view:
         complete = str(Path(view) / "complete_seeds")
-        left_out = link_complete_seeds(args.results, complete)
+        left_out = link_complete_seeds(args.results, complete, args.experiment)
         if not Path(complete).is_dir():
             print(
                 f"sb3-maddpg report: no seed in {args.results} is finished by every scheme of its setting "

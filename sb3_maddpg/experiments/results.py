@@ -17,7 +17,7 @@ import os
 import sys
 import time
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -312,7 +312,46 @@ def load_experiments(results_dir: str | os.PathLike[str]) -> dict[str, dict[str,
     return experiments
 
 
-def link_complete_seeds(results_dir: str | os.PathLike[str], view: str | os.PathLike[str]) -> list[str]:
+def unknown_experiments_message(results_dir: str | os.PathLike[str], experiments: Sequence[str]) -> str | None:
+    """
+    :param results_dir: A results directory.
+    :param experiments: Experiment names asked for there.
+    :return: Which of them the directory does not hold and which it does, in one line with what to do; ``None`` when it
+        holds them all.
+    """
+    stored = load_experiments(results_dir)
+    unknown = [name for name in experiments if name not in stored]
+    if not unknown:
+        return None
+    held = ", ".join(stored) or "none"
+    return (
+        f"no experiment {', '.join(unknown)} in {results_dir} (it holds: {held}): name one of those, or the results "
+        "directory the sweep of that experiment wrote."
+    )
+
+
+def link_experiments(results_dir: str | os.PathLike[str], view: str | os.PathLike[str], experiments: Sequence[str]) -> None:
+    """
+    Link into ``view`` some of the experiments of a results directory, whole, so that a report reads only them (a
+    study's settings, not a learning curve's runs beside them).
+
+    :param results_dir: A results directory.
+    :param view: A missing directory, made with one symbolic link (absolute) per experiment into ``results_dir``.
+    :param experiments: The experiments' names.
+    :raise ValueError: When ``results_dir`` holds no experiment of one of the names (the message says which it holds).
+    """
+    message = unknown_experiments_message(results_dir, experiments)
+    if message is not None:
+        raise ValueError(message)
+    results, view = Path(results_dir).resolve(), Path(view)
+    view.mkdir(parents=True)
+    for name in experiments:
+        (view / name).symlink_to(results / name)
+
+
+def link_complete_seeds(
+    results_dir: str | os.PathLike[str], view: str | os.PathLike[str], experiments: Sequence[str] | None = None
+) -> list[str]:
     """
     Link into ``view`` the runs of the seeds that every scheme of their experiment has finished, so that a sweep in
     progress is reported like with like (the same seeds for every scheme). An experiment with no such seed is left
@@ -321,11 +360,19 @@ def link_complete_seeds(results_dir: str | os.PathLike[str], view: str | os.Path
     :param results_dir: A results directory.
     :param view: An empty or missing directory, filled with ``<experiment>/experiment.json`` and
         ``<experiment>/<scheme>/seed_<seed>`` symbolic links (absolute) into ``results_dir``.
+    :param experiments: Only these experiments (``None``: every experiment there).
     :return: The finished runs left out, ``<experiment>/<scheme>/seed_<seed>``.
+    :raise ValueError: When ``results_dir`` holds no experiment of one of ``experiments``' names.
     """
+    if experiments is not None:
+        message = unknown_experiments_message(results_dir, experiments)
+        if message is not None:
+            raise ValueError(message)
     results, view = Path(results_dir).resolve(), Path(view)
     left_out = []
     for name, experiment in load_experiments(results).items():
+        if experiments is not None and name not in experiments:
+            continue
         finished = {
             scheme: {run.name for run in (results / name / scheme).glob("seed_*") if (run / DONE_FILE).exists()}
             for scheme in experiment["schemes"]

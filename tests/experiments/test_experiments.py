@@ -28,6 +28,7 @@ from sb3_maddpg.experiments.results import (
     curve_value_at,
     is_finished,
     link_complete_seeds,
+    link_experiments,
     load_summaries,
     write_experiment,
     write_result_files,
@@ -452,15 +453,9 @@ def test_report_regenerates_the_committed_results(results: Path, report: Path, t
     committed_tables = sorted(report.glob("table_*.md"))
     assert committed_tables, f"no committed tables in {report}"
     metrics = [path.stem.removeprefix("table_") for path in committed_tables]
-    reported = REPORTED_EXPERIMENTS.get(results.parent.name)
-    if reported is not None:  # as the study's report.sh does: a view of its reported experiments only
-        (tmp_path / "reported").mkdir()
-        for experiment in reported:
-            (tmp_path / "reported" / experiment).symlink_to(results / experiment)
-        results = tmp_path / "reported"
     # Reports are made from the seeds every scheme has finished: a sweep cut short still compares like with like,
-    # and runs finished since (not yet in the report) do not change it.
-    link_complete_seeds(results, tmp_path / "view")
+    # and runs finished since (not yet in the report) do not change it. A study's report.sh may name its experiments.
+    link_complete_seeds(results, tmp_path / "view", REPORTED_EXPERIMENTS.get(results.parent.name))
     written = make_report(tmp_path / "view", tmp_path / "report", metrics=metrics)
     for path in written:
         if (
@@ -495,6 +490,48 @@ def test_only_seeds_every_scheme_finished_are_linked(tmp_path: Path) -> None:
         "both/selected/seed_002",
     ]
     assert (view / "both" / "experiment.json").is_file() and not (view / "none_common").exists()
+
+
+def test_only_the_named_experiments_are_linked_and_an_unknown_name_is_refused(tmp_path: Path) -> None:
+    results = tmp_path / "results"
+    for name in ("study", "curve"):
+        write_experiment(results, name, {"schemes": ["full"]})
+        (results / name / "full" / "seed_000").mkdir(parents=True)
+        (results / name / "full" / "seed_000" / "done").write_text("")
+    assert link_complete_seeds(results, tmp_path / "view", ["study"]) == []
+    assert sorted(path.name for path in (tmp_path / "view").iterdir()) == ["study"]
+    link_experiments(results, tmp_path / "whole", ["curve"])
+    assert sorted(path.name for path in (tmp_path / "whole").iterdir()) == ["curve"]
+    assert (tmp_path / "whole" / "curve" / "full" / "seed_000" / "done").is_file()
+    for link in (link_complete_seeds, link_experiments):
+        with pytest.raises(ValueError, match=r"^no experiment stuyd in .* \(it holds: curve, study\)"):
+            link(results, tmp_path / f"refused_{link.__name__}", ["stuyd"])
+        assert not (tmp_path / f"refused_{link.__name__}").exists()
+
+
+def test_report_of_named_experiments_leaves_out_the_others(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    results = tmp_path / "results"
+    shutil.copytree(PAPER_SMALL_RESULTS, results)
+    (setting,) = [path.parent.name for path in results.glob("*/experiment.json")]
+    # A learning curve's runs beside the study's: a copy of them (the same setting, so its runs count twice).
+    shutil.copytree(results / setting, results / "curve")
+    argv = ["report", str(results), "--metric", "min_dist_sum", "--no-plots"]
+
+    def runs_per_scheme(out: Path) -> dict[str, int]:
+        with open(out / "table_min_dist_sum.csv") as file:
+            return {row["scheme"]: int(row["n"]) for row in csv.DictReader(file)}
+
+    assert main([*argv, "--out", str(tmp_path / "all")]) == 0
+    assert main([*argv, "--out", str(tmp_path / "named"), "--experiment", setting]) == 0
+    assert main([*argv, "--out", str(tmp_path / "complete"), "--experiment", setting, "--complete-seeds"]) == 0
+    named = runs_per_scheme(tmp_path / "named")
+    assert runs_per_scheme(tmp_path / "all") == {scheme: 2 * runs for scheme, runs in named.items()}
+    assert runs_per_scheme(tmp_path / "complete") == named and set(named.values()) == {8}
+    capsys.readouterr()
+    assert main([*argv, "--out", str(tmp_path / "refused"), "--experiment", "cruve"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("sb3-maddpg report: --experiment: no experiment cruve in") and "it holds: curve, " in err
+    assert len(err.splitlines()) == 1 and not (tmp_path / "refused").exists()
 
 
 def test_report_of_complete_seeds_leaves_out_a_seed_one_scheme_has_not_finished(
