@@ -1,6 +1,7 @@
 """Issue 43's independent-network study read beside the shared one (writes beside_shared.md): Table 2 of both studies
-under the paper's, and the 2 x 2 of networks (shared, independent) x the target's selection rule (stored, next), each
-as the gap of its `selected` runs against `full` in the same study, in both N=5 settings.
+under the paper's, the paper's claims asked of both (each verdict, and what the two say together), and the 2 x 2 of
+networks (shared, independent) x the target's selection rule (stored, next), each as the gap of its `selected` runs
+against `full` in the same study, in both N=5 settings.
 
     python benchmarks/paper_n5_independent/beside_shared.py --out docs/_static/paper_n5_independent/beside_shared.md
 
@@ -47,7 +48,7 @@ from typing import Any
 import numpy as np
 
 from sb3_maddpg.experiments.aggregates import IntervalEstimate, bootstrap_interval
-from sb3_maddpg.experiments.paper_claims import format_beside_paper, smallest_p_value
+from sb3_maddpg.experiments.paper_claims import ClaimCheck, check_claims, format_beside_paper, smallest_p_value
 from sb3_maddpg.experiments.results import PROGRESS_FILE, link_complete_seeds, load_experiments, load_summaries, read_curve
 from sb3_maddpg.experiments.run_snapshot import read_progress_rows
 from sb3_maddpg.experiments.stats import METRICS, aggregate, mann_whitney
@@ -369,6 +370,77 @@ def table2_beside_shared(studies: Mapping[str, Path], metric: str) -> list[str]:
     return [] if table is None else ["#" + line if line.startswith("### ") else line for line in table.splitlines()]
 
 
+DECIDED_VERDICTS = ("holds", "reverses", "does not hold")
+"""The claims' verdicts that say something at p < .05 (the others: "not separated", "too few runs")."""
+
+
+def agreement(shared: str, independent: str) -> str:
+    """
+    :param shared: A claim's verdict with shared networks.
+    :param independent: Its verdict with independent networks.
+    :return: What the two say together: ``"the same"``, ``"opposite"`` (holds with one, reverses with the other),
+        ``"with shared networks only"`` / ``"with independent networks only"`` (decided with one, not separated with the
+        other) or ``"not yet"`` (too few runs on either side).
+    """
+    if "too few runs" in (shared, independent):
+        return "not yet"
+    if shared == independent:
+        return "the same"
+    if shared in DECIDED_VERDICTS and independent in DECIDED_VERDICTS:
+        return "opposite"
+    return "with shared networks only" if shared in DECIDED_VERDICTS else "with independent networks only"
+
+
+def study_claims(results: Path, networks: str, metric: str) -> dict[tuple[str, str], ClaimCheck]:
+    """
+    :param results: A study's results directory.
+    :param networks: How its agents hold their networks (its experiments' key in :data:`SETTINGS`).
+    :param metric: The metric asked.
+    :return: The paper's claims asked of the study's settings (their complete seeds, as its report asks them), by the
+        claim's observability and its text as asked (a variant such as `selected_next` in its scheme's place).
+    """
+    runs, configs = complete_seed_runs(results, [setting[networks] for setting in SETTINGS.values()])
+    checks = check_claims(aggregate(runs, metric), metric, configs) if runs else []
+    return {(check.claim.observability, check.text): check for check in checks}
+
+
+def _asked(check: ClaimCheck | None) -> list[str]:
+    """A check's cells: its runs a side, the means, p, the verdict (blank for a claim not asked)."""
+    if check is None:
+        return ["0", "", "", "no runs yet"]
+    means = f"{np.mean(check.better_scores):.2f} vs {np.mean(check.worse_scores):.2f}"
+    p_value = f"{check.p_value:.3f}".lstrip("0") if check.p_value >= 0.001 else "< .001"
+    return [f"{len(check.better_scores)}, {len(check.worse_scores)}", means, p_value, check.verdict]
+
+
+def claims_beside_shared(studies: Mapping[str, Path], metric: str) -> list[str]:
+    """
+    :param studies: Each study's results directory, by networks (``shared``, ``independent``).
+    :param metric: The metric asked.
+    :return: The markdown lines of the paper's claims asked of both studies, a row per claim as asked, with what the
+        two verdicts say together (:func:`agreement`).
+    """
+    checks = {networks: study_claims(results, networks, metric) for networks, results in studies.items()}
+    keys = list(dict.fromkeys(key for by_claim in checks.values() for key in by_claim))
+    info = METRICS[metric]
+    direction = "higher is better" if info.higher_is_better else "lower is better"
+    observed = {"full": "Exp. 1", "partial": "Exp. 2"}
+    lines = [
+        f"#### The paper's claims in both studies: {info.label} ({direction})",
+        "",
+        "| setting | claim | paper (success %) | shared: runs | means | p | verdict | independent: runs | means | p "
+        "| verdict | together |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for key in keys:
+        shared, independent = (checks[networks].get(key) for networks in ("shared", "independent"))
+        claim = next(check for check in (shared, independent) if check is not None).claim
+        together = "not yet" if shared is None or independent is None else agreement(shared.verdict, independent.verdict)
+        cells = [observed[key[0]], key[1], claim.evidence, *_asked(shared), *_asked(independent), together]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
 def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence[str] = READ_METRICS) -> str:
     """
     :param studies: Each study's results directory, by networks (``shared``, ``independent``).
@@ -376,7 +448,7 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
     :return: The markdown page: per setting, metric and budget, the 2 x 2 with its effects and reading.
     """
     lines = [
-        "# Independent networks beside shared ones at N=5: Table 2 and the 2 x 2",
+        "# Independent networks beside shared ones at N=5: Table 2, the paper's claims and the 2 x 2",
         "",
         "Made by `python benchmarks/paper_n5_independent/beside_shared.py` (its docstring states the method). "
         "`paper_n5_exp1`/`paper_n5_exp2`: one actor and one critic shared by the agents, 1M env steps (40,000 "
@@ -386,6 +458,19 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
     ]
     for metric in metrics:
         lines += ["", *table2_beside_shared(studies, metric)]
+    lines += [
+        "",
+        "Each of the paper's claims (Section 5.3) asked of both studies as their reports ask it (the seeds every scheme "
+        "of a setting has finished; two-sided Mann-Whitney U at p < .05; the verdicts as in the reports' claims "
+        "pages). *Together*: *the same* verdict with both networks; *opposite* (holds with one, reverses with the "
+        "other); decided *with shared networks only* or *with independent networks only* (not separated with the "
+        "other); *not yet* (too few runs with either). A verdict that differs is not a test that the studies differ, "
+        "and the studies differ in budget as well as networks (1M against 1.75M env steps): a claim decided with "
+        "shared networks only depends on the sharing or on the budget, which the 2 x 2's matched budget tells apart "
+        "for `selected` alone.",
+    ]
+    for metric in metrics:
+        lines += ["", *claims_beside_shared(studies, metric)]
     lines += [
         "",
         "#### The 2 x 2: networks x the target's selection rule, each rule against `full`",

@@ -280,3 +280,42 @@ def test_table2_puts_both_studies_complete_seeds_under_the_papers_row(beside_sha
     independent_row = next(line for line in lines if line.startswith("| paper_n5i_exp1"))
     assert "(1 run) | 0.40 (0.00) |" in independent_row  # seed 0 only; the curve's run and seed 1 left out
     assert "(2 runs) | 0.60 (0.14) |" in next(line for line in lines if line.startswith("| paper_n5_exp1"))
+
+
+@pytest.mark.parametrize(
+    ("shared", "independent", "together"),
+    [
+        ("reverses", "reverses", "the same"),
+        ("not separated", "not separated", "the same"),
+        ("holds", "reverses", "opposite"),
+        ("reverses", "not separated", "with shared networks only"),
+        ("not separated", "holds", "with independent networks only"),
+        ("does not hold", "not separated", "with shared networks only"),
+        ("reverses", "too few runs", "not yet"),
+        ("too few runs", "too few runs", "not yet"),
+    ],
+)
+def test_two_verdicts_read_together(beside_shared: ModuleType, shared: str, independent: str, together: str) -> None:
+    assert beside_shared.agreement(shared, independent) == together
+
+
+def test_claims_are_asked_of_both_studies_complete_seeds(beside_shared: ModuleType, tmp_path: Path) -> None:
+    schemes = ["full", "selected", "selected_next"]
+    shared, independent = tmp_path / "shared", tmp_path / "independent"
+    copy_experiment(shared, REPO / "benchmarks/paper_n5/results/paper_n5_exp1/experiment.json", "paper_n5_exp1", schemes)
+    source = REPO / "benchmarks/paper_n5_independent/results/paper_n5i_exp1/experiment.json"
+    copy_experiment(independent, source, "paper_n5i_exp1", schemes)
+    write_study(shared, "paper_n5_exp1", SHARED)  # `selected` far worse than `full` on all 5 seeds
+    overlapping = {"full": [0.5, 0.7, 0.6, 0.55, 0.65], "selected": [0.52, 0.68, 0.62, 0.57, 0.66]}
+    write_study(independent, "paper_n5i_exp1", {**overlapping, "selected_next": [0.9, 1.0, 1.1, 0.95, 1.05]})
+    write_run(independent, "paper_n5i_exp1", "full", 5, 9.0)  # seed 5 of `full` only: not a complete seed
+    lines = beside_shared.claims_beside_shared({"shared": shared, "independent": independent}, "min_dist_sum")
+    assert lines[0] == "#### The paper's claims in both studies: sum of min. distances (lower is better)"
+    rows = {line.split(" | ")[1]: line.split(" | ") for line in lines[4:]}
+    stored, following = rows["MADDPG-soa > MADDPG"], rows["selected_next (MADDPG-soa) > MADDPG"]
+    p_shared = mannwhitneyu(SHARED["selected"], SHARED["full"]).pvalue
+    p_independent = mannwhitneyu(overlapping["selected"], overlapping["full"]).pvalue
+    assert stored[3:8] == ["5, 5", "2.50 vs 0.55", f"{p_shared:.3f}".lstrip("0"), "reverses", "5, 5"]
+    assert stored[8:] == ["0.61 vs 0.60", f"{p_independent:.3f}".lstrip("0"), "not separated", "with shared networks only |"]
+    assert following[6] == "not separated" and following[10] == "reverses"
+    assert following[11] == "with independent networks only |"
