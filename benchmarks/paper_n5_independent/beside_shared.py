@@ -48,7 +48,14 @@ from typing import Any
 import numpy as np
 
 from sb3_maddpg.experiments.aggregates import IntervalEstimate, bootstrap_interval
-from sb3_maddpg.experiments.paper_claims import ClaimCheck, check_claims, format_beside_paper, smallest_p_value
+from sb3_maddpg.experiments.paper_claims import (
+    ClaimCheck,
+    check_claims,
+    format_beside_paper,
+    format_p_value,
+    observability,
+    smallest_p_value,
+)
 from sb3_maddpg.experiments.results import PROGRESS_FILE, link_complete_seeds, load_experiments, load_summaries, read_curve
 from sb3_maddpg.experiments.run_snapshot import read_progress_rows
 from sb3_maddpg.experiments.stats import METRICS, aggregate, mann_whitney
@@ -372,23 +379,29 @@ def table2_beside_shared(studies: Mapping[str, Path], metric: str) -> list[str]:
 
 DECIDED_VERDICTS = ("holds", "reverses", "does not hold")
 """The claims' verdicts that say something at p < .05 (the others: "not separated", "too few runs")."""
+NOT_IN_STUDY = "not in this study"
+"""A claim's cell where the study does not run one of its schemes (e.g. Exp. 2's other three, independent networks)."""
 
 
 def agreement(shared: str, independent: str) -> str:
     """
-    :param shared: A claim's verdict with shared networks.
-    :param independent: Its verdict with independent networks.
-    :return: What the two say together: ``"the same"``, ``"opposite"`` (holds with one, reverses with the other),
-        ``"with shared networks only"`` / ``"with independent networks only"`` (decided with one, not separated with the
-        other) or ``"not yet"`` (too few runs on either side).
+    :param shared: A claim's outcome with shared networks (:attr:`ClaimCheck.outcome`: the verdict, with the scheme
+        that scores better where a ``~`` claim does not hold).
+    :param independent: Its outcome with independent networks.
+    :return: What the two say together: ``"not yet"`` (too few runs on either side), ``"neither separates"`` (both
+        not separated: no evidence either way), ``"the same"`` (one decided outcome with both), ``"opposite"`` (decided
+        with both, differently), or ``"decided with shared only"`` / ``"decided with independent only"`` (not separated
+        with the other: which may come from the sharing, the budget, or the other's runs being too few or too spread;
+        this is no test of a difference).
     """
     if "too few runs" in (shared, independent):
         return "not yet"
     if shared == independent:
-        return "the same"
-    if shared in DECIDED_VERDICTS and independent in DECIDED_VERDICTS:
+        return "neither separates" if shared == "not separated" else "the same"
+    decided = [outcome.startswith(DECIDED_VERDICTS) for outcome in (shared, independent)]
+    if all(decided):
         return "opposite"
-    return "with shared networks only" if shared in DECIDED_VERDICTS else "with independent networks only"
+    return "decided with shared only" if decided[0] else "decided with independent only"
 
 
 def study_claims(results: Path, networks: str, metric: str) -> dict[tuple[str, str], ClaimCheck]:
@@ -404,13 +417,24 @@ def study_claims(results: Path, networks: str, metric: str) -> dict[tuple[str, s
     return {(check.claim.observability, check.text): check for check in checks}
 
 
-def _asked(check: ClaimCheck | None) -> list[str]:
-    """A check's cells: its runs a side, the means, p, the verdict (blank for a claim not asked)."""
+def study_schemes(results: Path, networks: str) -> dict[str, set[str]]:
+    """
+    :param results: A study's results directory.
+    :param networks: How its agents hold their networks.
+    :return: The schemes each of its settings runs (finished or not), by the setting's observability.
+    """
+    stored = load_experiments(results)
+    settings = [stored[setting[networks]] for setting in SETTINGS.values() if setting[networks] in stored]
+    return {str(observability(experiment)): set(experiment["schemes"]) for experiment in settings}
+
+
+def _asked(check: ClaimCheck | None, runs_its_schemes: bool) -> list[str]:
+    """A study's cells of a claim: its runs a side, the means, p, the outcome (or why it has none)."""
     if check is None:
-        return ["0", "", "", "no runs yet"]
+        return ["0", "", "", "no runs yet" if runs_its_schemes else NOT_IN_STUDY]
     means = f"{np.mean(check.better_scores):.2f} vs {np.mean(check.worse_scores):.2f}"
-    p_value = f"{check.p_value:.3f}".lstrip("0") if check.p_value >= 0.001 else "< .001"
-    return [f"{len(check.better_scores)}, {len(check.worse_scores)}", means, p_value, check.verdict]
+    runs = f"{len(check.better_scores)}, {len(check.worse_scores)}"
+    return [runs, means, format_p_value(check.p_value), check.outcome]
 
 
 def claims_beside_shared(studies: Mapping[str, Path], metric: str) -> list[str]:
@@ -418,9 +442,11 @@ def claims_beside_shared(studies: Mapping[str, Path], metric: str) -> list[str]:
     :param studies: Each study's results directory, by networks (``shared``, ``independent``).
     :param metric: The metric asked.
     :return: The markdown lines of the paper's claims asked of both studies, a row per claim as asked, with what the
-        two verdicts say together (:func:`agreement`).
+        two outcomes say together (:func:`agreement`; ``"asked of the <networks> study only"`` where the other does
+        not run one of its schemes).
     """
     checks = {networks: study_claims(results, networks, metric) for networks, results in studies.items()}
+    schemes = {networks: study_schemes(results, networks) for networks, results in studies.items()}
     keys = list(dict.fromkeys(key for by_claim in checks.values() for key in by_claim))
     info = METRICS[metric]
     direction = "higher is better" if info.higher_is_better else "lower is better"
@@ -433,11 +459,20 @@ def claims_beside_shared(studies: Mapping[str, Path], metric: str) -> list[str]:
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for key in keys:
-        shared, independent = (checks[networks].get(key) for networks in ("shared", "independent"))
-        claim = next(check for check in (shared, independent) if check is not None).claim
-        together = "not yet" if shared is None or independent is None else agreement(shared.verdict, independent.verdict)
-        cells = [observed[key[0]], key[1], claim.evidence, *_asked(shared), *_asked(independent), together]
-        lines.append("| " + " | ".join(cells) + " |")
+        asked = {networks: checks[networks].get(key) for networks in ("shared", "independent")}
+        some = next(check for check in asked.values() if check is not None)
+        needed = {some.better_scheme or some.claim.better, some.worse_scheme or some.claim.worse}
+        runs_them = {networks: needed <= schemes[networks].get(key[0], set()) for networks in asked}
+        cells = [observed[key[0]], key[1], some.claim.evidence]
+        for networks, check in asked.items():
+            cells += _asked(check, runs_them[networks])
+        if not all(runs_them.values()):
+            together = f"asked of the {next(networks for networks, runs in runs_them.items() if runs)} study only"
+        elif asked["shared"] is None or asked["independent"] is None:
+            together = "not yet"
+        else:
+            together = agreement(asked["shared"].outcome, asked["independent"].outcome)
+        lines.append("| " + " | ".join([*cells, together]) + " |")
     return lines
 
 
@@ -462,12 +497,15 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
         "",
         "Each of the paper's claims (Section 5.3) asked of both studies as their reports ask it (the seeds every scheme "
         "of a setting has finished; two-sided Mann-Whitney U at p < .05; the verdicts as in the reports' claims "
-        "pages). *Together*: *the same* verdict with both networks; *opposite* (holds with one, reverses with the "
-        "other); decided *with shared networks only* or *with independent networks only* (not separated with the "
-        "other); *not yet* (too few runs with either). A verdict that differs is not a test that the studies differ, "
-        "and the studies differ in budget as well as networks (1M against 1.75M env steps): a claim decided with "
-        "shared networks only depends on the sharing or on the budget, which the 2 x 2's matched budget tells apart "
-        "for `selected` alone.",
+        "pages). *Together*: *the same* decided verdict with both networks; *opposite* (decided with both, "
+        "differently); *neither separates* (no evidence either way with both); *decided with shared only* or *decided "
+        "with independent only* (not separated with the other); *not yet* (too few runs with either); *asked of one "
+        "study only* (the other does not run one of its schemes). A claim decided with one only is no test that the "
+        "studies differ: the difference may come from the sharing, from the budget (1M against 1.75M env steps), or "
+        "from the other study's runs being too few or too spread to decide it; only a test of the difference tells "
+        "these apart, which the 2 x 2 below makes for `selected` alone (its interaction, and its matched budget). "
+        "About 45 claims are asked here (15 a metric) without correction: about one in twenty unrelated differences "
+        "would show by chance.",
     ]
     for metric in metrics:
         lines += ["", *claims_beside_shared(studies, metric)]

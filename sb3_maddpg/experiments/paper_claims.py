@@ -178,6 +178,16 @@ class ClaimCheck:
         """The runs of the side with fewer."""
         return min(len(self.better_scores), len(self.worse_scores))
 
+    @property
+    def outcome(self) -> str:
+        """The verdict, naming the scheme that scores better where a ``~`` claim does not hold (e.g. ``"does not hold
+        (MADDPG-fa scores better)"``): two checks with the same outcome say the same thing."""
+        if self.verdict != "does not hold":
+            return self.verdict
+        better, worse = self.better_scheme or self.claim.better, self.worse_scheme or self.claim.worse
+        winner = better if self.improvement.value > 0.5 else worse
+        return f"does not hold ({scheme_text(winner, self.variants)} scores better)"
+
 
 def smallest_p_value(n_x: int, n_y: int) -> float:
     """
@@ -277,7 +287,8 @@ def _check(
     )
 
 
-def _p(p_value: float) -> str:
+def format_p_value(p_value: float) -> str:
+    """:return: A p-value as the claims pages show it: ``".032"``, ``"< .001"``, ``"n/a"`` for none (``nan``)."""
     if math.isnan(p_value):
         return "n/a"
     return "< .001" if p_value < 0.001 else f"{p_value:.3f}".lstrip("0")
@@ -286,9 +297,7 @@ def _p(p_value: float) -> str:
 def _finding(check: ClaimCheck) -> str:
     """The verdict in words, with the seeds that would separate the two where the runs do not."""
     if check.verdict == "does not hold":
-        better, worse = check.better_scheme or check.claim.better, check.worse_scheme or check.claim.worse
-        winner = better if check.improvement.value > 0.5 else worse
-        return f"does not hold ({scheme_text(winner, check.variants)} scores better)"
+        return check.outcome
     if not _seeds_estimated(check.verdict, check.n):
         return check.verdict
     if len(set(check.better_scores) | set(check.worse_scores)) == 1:
@@ -334,7 +343,7 @@ def format_claims_markdown(
         means = f"{np.mean(check.better_scores):.2f} vs {np.mean(check.worse_scores):.2f}"
         runs = f"{len(check.better_scores)}, {len(check.worse_scores)}"
         lines.append(
-            f"| {label} | {check.text} | {check.claim.evidence} | {runs} | {means} | {_p(check.p_value)} | "
+            f"| {label} | {check.text} | {check.claim.evidence} | {runs} | {means} | {format_p_value(check.p_value)} | "
             f"{check.improvement.format(2)} | {_finding(check)} |"
         )
     lines += [

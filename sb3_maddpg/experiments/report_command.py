@@ -67,19 +67,21 @@ def report_command(args: argparse.Namespace) -> int:
         if not_held is not None:
             print(f"sb3-maddpg report: --experiment: {not_held}", file=sys.stderr)
             return 2
+    # What the report reads, as errors name it: the directory, or the experiments of it that --experiment names.
+    reading = args.results if not args.experiment else f"{args.results} (experiments {', '.join(args.experiment)})"
     if not args.complete_seeds:
         if not args.experiment:
             return _write_report(args.results, out, args.metric, plots)
         with tempfile.TemporaryDirectory(prefix="sb3_maddpg_report_") as view:
             chosen = str(Path(view) / "experiments")
             link_experiments(args.results, chosen, args.experiment)
-            return _write_report(chosen, out, args.metric, plots, shown_as=args.results)
+            return _write_report(chosen, out, args.metric, plots, shown_as=reading)
     with tempfile.TemporaryDirectory(prefix="sb3_maddpg_report_") as view:
         complete = str(Path(view) / "complete_seeds")
         left_out = link_complete_seeds(args.results, complete, args.experiment)
         if not Path(complete).is_dir():
             print(
-                f"sb3-maddpg report: no seed in {args.results} is finished by every scheme of its setting "
+                f"sb3-maddpg report: no seed in {reading} is finished by every scheme of its setting "
                 + (
                     f"({len(left_out)} finished run(s)): report them without --complete-seeds, or once every scheme "
                     "of a setting has finished a seed."
@@ -96,7 +98,7 @@ def report_command(args: argparse.Namespace) -> int:
                 f"finished by every scheme of their setting: {shown}",
                 file=sys.stderr,
             )
-        return _write_report(complete, out, args.metric, plots, shown_as=args.results)
+        return _write_report(complete, out, args.metric, plots, shown_as=reading)
 
 
 def unwritable_out_message(out: str) -> str | None:
@@ -148,8 +150,8 @@ def _write_report(results: str, out: str, metrics: list[str] | None, plots: bool
     :param out: Where to write the report.
     :param metrics: ``--metric``'s scores (``None``: the tasks' main ones).
     :param plots: Draw the figures too.
-    :param shown_as: The directory an error names instead of ``results`` (``--complete-seeds``' temporary view of the
-        user's directory); ``None``: ``results``.
+    :param shown_as: What an error names instead of ``results`` when that is a temporary view of the user's directory
+        (``--complete-seeds``, ``--experiment``); ``None``: ``results``.
     :return: The exit status.
     """
     from sb3_maddpg.experiments.report import UnscoredMetricError, make_report

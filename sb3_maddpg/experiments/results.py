@@ -320,13 +320,17 @@ def unknown_experiments_message(results_dir: str | os.PathLike[str], experiments
         holds them all.
     """
     stored = load_experiments(results_dir)
-    unknown = [name for name in experiments if name not in stored]
+    unknown = [name for name in dict.fromkeys(experiments) if name not in stored]
     if not unknown:
         return None
-    held = ", ".join(stored) or "none"
+    if not stored:
+        return (
+            f"no experiment {', '.join(unknown)} in {results_dir}: it holds no experiment; give the results directory "
+            "the sweep of that experiment wrote."
+        )
     return (
-        f"no experiment {', '.join(unknown)} in {results_dir} (it holds: {held}): name one of those, or the results "
-        "directory the sweep of that experiment wrote."
+        f"no experiment {', '.join(unknown)} in {results_dir} (it holds: {', '.join(stored)}): name one of those, or "
+        "the results directory the sweep of that experiment wrote."
     )
 
 
@@ -345,7 +349,7 @@ def link_experiments(results_dir: str | os.PathLike[str], view: str | os.PathLik
         raise ValueError(message)
     results, view = Path(results_dir).resolve(), Path(view)
     view.mkdir(parents=True)
-    for name in experiments:
+    for name in dict.fromkeys(experiments):  # a name given twice is linked once
         (view / name).symlink_to(results / name)
 
 

@@ -505,8 +505,10 @@ def test_only_the_named_experiments_are_linked_and_an_unknown_name_is_refused(tm
     assert (tmp_path / "whole" / "curve" / "full" / "seed_000" / "done").is_file()
     for link in (link_complete_seeds, link_experiments):
         with pytest.raises(ValueError, match=r"^no experiment stuyd in .* \(it holds: curve, study\)"):
-            link(results, tmp_path / f"refused_{link.__name__}", ["stuyd"])
+            link(results, tmp_path / f"refused_{link.__name__}", ["stuyd", "stuyd"])
         assert not (tmp_path / f"refused_{link.__name__}").exists()
+    with pytest.raises(ValueError, match=r"^no experiment study in .*: it holds no experiment; give the results dir"):
+        link_experiments(tmp_path / "empty", tmp_path / "refused_empty", ["study"])
 
 
 def test_report_of_named_experiments_leaves_out_the_others(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -527,6 +529,15 @@ def test_report_of_named_experiments_leaves_out_the_others(tmp_path: Path, capsy
     named = runs_per_scheme(tmp_path / "named")
     assert runs_per_scheme(tmp_path / "all") == {scheme: 2 * runs for scheme, runs in named.items()}
     assert runs_per_scheme(tmp_path / "complete") == named and set(named.values()) == {8}
+    assert main([*argv, "--out", str(tmp_path / "twice"), "--experiment", setting, "--experiment", setting]) == 0
+    assert runs_per_scheme(tmp_path / "twice") == named
+    # Named experiments without a finished run: the error names them, not the directory's other runs.
+    for run in (results / "curve").glob("*/seed_*"):
+        (run / "done").unlink()
+    capsys.readouterr()
+    for complete in ([], ["--complete-seeds"]):
+        assert main([*argv, "--out", str(tmp_path / "unfinished"), "--experiment", "curve", *complete]) == 1
+        assert f"{results} (experiments curve)" in capsys.readouterr().err
     capsys.readouterr()
     assert main([*argv, "--out", str(tmp_path / "refused"), "--experiment", "cruve"]) == 2
     err = capsys.readouterr().err
