@@ -262,12 +262,19 @@ def copy_experiment(results: Path, source: Path, name: str, schemes: list[str]) 
     (results / name / "experiment.json").write_text(json.dumps(experiment))
 
 
-def test_table2_puts_both_studies_complete_seeds_under_the_papers_row(beside_shared: ModuleType, tmp_path: Path) -> None:
-    schemes = ["full", "selected", "selected_next"]
+def exp1_settings(tmp_path: Path, schemes: list[str]) -> tuple[Path, Path]:
+    """Both studies' Exp. 1 stored configs with these schemes (no runs yet): the shared and the independent results."""
     shared, independent = tmp_path / "shared", tmp_path / "independent"
     copy_experiment(shared, REPO / "benchmarks/paper_n5/results/paper_n5_exp1/experiment.json", "paper_n5_exp1", schemes)
     source = REPO / "benchmarks/paper_n5_independent/results/paper_n5i_exp1/experiment.json"
     copy_experiment(independent, source, "paper_n5i_exp1", schemes)
+    return shared, independent
+
+
+def test_table2_puts_both_studies_complete_seeds_under_the_papers_row(beside_shared: ModuleType, tmp_path: Path) -> None:
+    schemes = ["full", "selected", "selected_next"]
+    shared, independent = exp1_settings(tmp_path, schemes)
+    source = REPO / "benchmarks/paper_n5_independent/results/paper_n5i_exp1/experiment.json"
     copy_experiment(independent, source, "paper_n5_indep_curve", ["full"])  # a learning curve's runs: not a setting here
     write_study(shared, "paper_n5_exp1", {scheme: [0.5, 0.7] for scheme in schemes})
     write_study(independent, "paper_n5i_exp1", {scheme: [0.4] for scheme in schemes})
@@ -302,11 +309,7 @@ def test_two_outcomes_read_together(beside_shared: ModuleType, shared: str, inde
 
 
 def test_claims_are_asked_of_both_studies_complete_seeds(beside_shared: ModuleType, tmp_path: Path) -> None:
-    schemes = ["full", "selected", "selected_next"]
-    shared, independent = tmp_path / "shared", tmp_path / "independent"
-    copy_experiment(shared, REPO / "benchmarks/paper_n5/results/paper_n5_exp1/experiment.json", "paper_n5_exp1", schemes)
-    source = REPO / "benchmarks/paper_n5_independent/results/paper_n5i_exp1/experiment.json"
-    copy_experiment(independent, source, "paper_n5i_exp1", schemes)
+    shared, independent = exp1_settings(tmp_path, ["full", "selected", "selected_next"])
     write_study(shared, "paper_n5_exp1", SHARED)  # `selected` far worse than `full` on all 5 seeds
     overlapping = {"full": [0.5, 0.7, 0.6, 0.55, 0.65], "selected": [0.52, 0.68, 0.62, 0.57, 0.66]}
     write_study(independent, "paper_n5i_exp1", {**overlapping, "selected_next": [0.9, 1.0, 1.1, 0.95, 1.05]})
