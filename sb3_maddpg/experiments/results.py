@@ -334,6 +334,13 @@ def unknown_experiments_message(results_dir: str | os.PathLike[str], experiments
     )
 
 
+def _refuse_unknown_experiments(results_dir: str | os.PathLike[str], experiments: Sequence[str]) -> None:
+    """:raise ValueError: :func:`unknown_experiments_message`'s, when ``results_dir`` lacks one of ``experiments``."""
+    message = unknown_experiments_message(results_dir, experiments)
+    if message is not None:
+        raise ValueError(message)
+
+
 def link_experiments(results_dir: str | os.PathLike[str], view: str | os.PathLike[str], experiments: Sequence[str]) -> None:
     """
     Link into ``view`` some of the experiments of a results directory, whole, so that a report reads only them (a
@@ -344,9 +351,7 @@ def link_experiments(results_dir: str | os.PathLike[str], view: str | os.PathLik
     :param experiments: The experiments' names.
     :raise ValueError: When ``results_dir`` holds no experiment of one of the names (the message says which it holds).
     """
-    message = unknown_experiments_message(results_dir, experiments)
-    if message is not None:
-        raise ValueError(message)
+    _refuse_unknown_experiments(results_dir, experiments)
     results, view = Path(results_dir).resolve(), Path(view)
     view.mkdir(parents=True)
     for name in dict.fromkeys(experiments):  # a name given twice is linked once
@@ -369,9 +374,7 @@ def link_complete_seeds(
     :raise ValueError: When ``results_dir`` holds no experiment of one of ``experiments``' names.
     """
     if experiments is not None:
-        message = unknown_experiments_message(results_dir, experiments)
-        if message is not None:
-            raise ValueError(message)
+        _refuse_unknown_experiments(results_dir, experiments)
     results, view = Path(results_dir).resolve(), Path(view)
     left_out = []
     for name, experiment in load_experiments(results).items():
