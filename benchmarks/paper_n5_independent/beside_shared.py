@@ -263,8 +263,8 @@ def reading(cells: Mapping[tuple[str, str], Cell], effects: Mapping[str, Interva
 
 
 def _number(value: float, scale: float, signed: bool = False) -> str:
-    if math.isnan(value):
-        return "nan"
+    if math.isnan(value):  # an empty cell: nothing to show yet
+        return "-"
     digits = 1 if scale != 1.0 else 2
     return f"{value * scale:{'+' if signed else ''}.{digits}f}"
 
@@ -284,7 +284,7 @@ def _interval(estimate: IntervalEstimate, scale: float, readable: bool = True) -
 
 def _p(p_value: float, runs: int) -> str:
     if runs < 2:
-        return "n/a (1 run)" if runs else "nan"
+        return "n/a (1 run)" if runs else "-"
     return "< .001" if p_value < 0.001 else f"{p_value:.3f}".lstrip("0")
 
 

@@ -226,7 +226,7 @@ def test_an_empty_cell_reads_no_runs_yet(beside_shared: ModuleType, tmp_path: Pa
     (tmp_path / "independent").mkdir()
     paths = {"shared": tmp_path / "shared", "independent": tmp_path / "independent"}
     lines = beside_shared.setting_table(setting_scores(beside_shared, paths), "min_dist_sum")
-    assert "| independent | next (`selected_next`) | 0 | - | no runs yet | no runs yet | nan | nan |" in lines
+    assert "| independent | next (`selected_next`) | 0 | - | no runs yet | no runs yet | - | - |" in lines
     assert "- the rule's effect with independent networks (stored minus next): no runs yet" in lines
 
 
