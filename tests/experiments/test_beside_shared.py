@@ -325,6 +325,27 @@ def test_claims_are_asked_of_both_studies_complete_seeds(beside_shared: ModuleTy
     assert following[11] == "decided with independent only |"
 
 
+def test_claims_at_the_matched_budget_read_each_runs_curve_in_the_window(beside_shared: ModuleType, tmp_path: Path) -> None:
+    shared, independent = exp1_settings(tmp_path, ["full", "selected", "selected_next"])
+    for results, experiment in ((shared, "paper_n5_exp1"), (independent, "paper_n5i_exp1")):
+        for seed in range(4):  # equal protocol scores; in 0.8M-1M (inclusive) `selected`'s curve is far behind
+            outside = [(700_000.0, 9.0), (1_000_001.0, 9.0)]
+            write_run(results, experiment, "full", seed, 0.5, [(800_000.0, 0.4 + 0.01 * seed), (1e6, 0.6), *outside])
+            write_run(results, experiment, "selected", seed, 0.5, [(800_000.0, 1.0), (9e5, 1.2 + 0.2 * seed), *outside])
+            write_run(results, experiment, "selected_next", seed, 0.5, [(900_000.0, 0.5)])
+    paths = {"shared": shared, "independent": independent}
+    lines = beside_shared.claims_beside_shared(paths, "min_dist_sum", beside_shared.MATCHED_WINDOW)
+    assert lines[0] == (
+        "#### The paper's claims in both studies: sum of min. distances (lower is better), "
+        "matched budget (learning-curve points, 0.8M-1M env steps)"
+    )
+    stored = next(line.split(" | ") for line in lines[4:] if line.split(" | ")[1] == "MADDPG-soa > MADDPG")
+    # Per run: the mean of its points in the window; full 0.5 + 0.005 * seed, `selected` 1.1 + 0.1 * seed.
+    assert stored[3:] == ["4, 4", "1.25 vs 0.51", ".029", "reverses"] * 2 + ["the same |"]
+    own = beside_shared.claims_beside_shared(paths, "min_dist_sum")  # the protocol scores: all 0.5
+    assert next(line for line in own if "| MADDPG-soa > MADDPG |" in line).endswith("neither separates |")
+
+
 def test_a_claim_one_study_does_not_run_is_asked_of_the_other_only(beside_shared: ModuleType, tmp_path: Path) -> None:
     shared, independent = tmp_path / "shared", tmp_path / "independent"
     source = REPO / "benchmarks/paper_n5/results/paper_n5_exp2/experiment.json"
