@@ -27,14 +27,15 @@ study's independent networks (1.75M env steps) tell them apart:
   "too few runs") are not read: their intervals, resampled from 2 or 3 runs, would look sure of what they cannot say.
 
 Table 2 is each study's report's (the seeds every scheme of a setting has finished, as ``report --complete-seeds``),
-the two studies' settings under the paper's row of the same observability. The 2 x 2:
+the two studies' settings under the paper's row of the same observability. The budgets:
 
 Each study is read at its own budget (its protocol score: the checkpoints over the last 20%, 100 episodes each) and at
 a matched one: the mean of each run's learning-curve points from 800k to 1M env steps (20 greedy episodes each; 11
-points in the shared study, 6 in the independent one), where the shared study's protocol window is. Runs are those
-whose seed `full`, `selected` and `selected_next` have all finished in that study and setting. With 5 runs a
-percentile interval is narrower than it should be, and the page reads 12 tables (2 settings x 3 metrics x 2 budgets):
-where their readings disagree, none of them is the answer.
+points in the shared study, 6 in the independent one), where the shared study's protocol window is. The 2 x 2's runs
+are those whose seed `full`, `selected` and `selected_next` have all finished in that study and setting; the paper's
+claims are asked again at the matched budget on the same runs as at the studies' own (the seeds every scheme of a
+setting has finished). With 5 runs a percentile interval is narrower than it should be, and the page reads 12 2 x 2
+tables (2 settings x 3 metrics x 2 budgets): where their readings disagree, none of them is the answer.
 """
 
 import argparse
@@ -76,6 +77,13 @@ RULES = {STORED: "stored (Algorithm 3, `selected`)", NEXT: "next (`selected_next
 BASELINE = "full"
 MATCHED_WINDOW = (800_000.0, 1_000_000.0)
 """The env steps (inclusive) whose learning-curve points give the matched-budget score."""
+
+
+def matched_budget_label(window: tuple[float, float]) -> str:
+    """:return: How the tables name a matched budget read from these env steps' learning-curve points."""
+    return "matched budget (learning-curve points, {:g}M-{:g}M env steps)".format(*(step / 1e6 for step in window))
+
+
 READ_METRICS = ("min_dist_sum", "success_rate_r0.3", "success_rate")
 """The metrics read: the min-dist sum and success within 0.3 carry the N=5 comparison; within 0.1 is the paper's."""
 SIGNIFICANCE = 0.05
@@ -352,15 +360,15 @@ def complete_seed_runs(results: Path, experiments: Sequence[str]) -> tuple[list[
     """
     :param results: A study's results directory.
     :param experiments: The experiments read there (the others, e.g. a learning curve's, are left out).
-    :return: The summaries of the runs whose seed every scheme of their experiment has finished, and the experiments'
-        stored configs.
+    :return: The summaries of the runs whose seed every scheme of their experiment has finished (each
+        ``"directory"`` the run's own, in ``results``, not the temporary view's), and the experiments' stored configs.
     """
     with tempfile.TemporaryDirectory(prefix="beside_shared_") as view:
         stored = load_experiments(results)
         link_complete_seeds(results, view, [experiment for experiment in experiments if experiment in stored])
         runs = load_summaries(view)
         for run in runs:  # the run's own directory, so its curve can be read once the view is gone
-            run["directory"] = str(Path(run["directory"]).resolve())
+            run["directory"] = str(results / Path(run["directory"]).relative_to(view))
         return runs, load_experiments(view)
 
 
@@ -414,6 +422,7 @@ def scored_in_window(runs: Sequence[dict[str, Any]], metric: str, window: tuple[
     :param metric: A learning-curve metric.
     :param window: The env steps (inclusive) whose learning-curve points are averaged.
     :return: Copies of the summaries whose ``score[metric]`` is that mean (the rest of the score as it was).
+    :raises ValueError: A run has no learning-curve point in the window (its directory named).
     """
     return [{**run, "score": {**run["score"], metric: _score(run, metric, window)}} for run in runs]
 
@@ -472,7 +481,7 @@ def claims_beside_shared(studies: Mapping[str, Path], metric: str, window: tuple
     info = METRICS[metric]
     direction = "higher is better" if info.higher_is_better else "lower is better"
     observed = {"full": "Exp. 1", "partial": "Exp. 2"}
-    budget = "" if window is None else f", {matched_budget(window)}"
+    budget = "" if window is None else f", {matched_budget_label(window)}"
     lines = [
         f"#### The paper's claims in both studies: {info.label} ({direction}){budget}",
         "",
@@ -496,11 +505,6 @@ def claims_beside_shared(studies: Mapping[str, Path], metric: str, window: tuple
             together = agreement(asked["shared"].outcome, asked["independent"].outcome)
         lines.append("| " + " | ".join([*cells, together]) + " |")
     return lines
-
-
-def matched_budget(window: tuple[float, float]) -> str:
-    """:return: How the tables name a matched budget read from these env steps' learning-curve points."""
-    return "matched budget (learning-curve points, {:g}M-{:g}M env steps)".format(*(step / 1e6 for step in window))
 
 
 def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence[str] = READ_METRICS) -> str:
@@ -531,15 +535,16 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
         "studies differ: the difference may come from the sharing, from the budget (1M against 1.75M env steps), or "
         "from the other study's runs being too few or too spread to decide it; only a test of the difference tells "
         "these apart, which the 2 x 2 below makes for `selected` alone (its interaction, and its matched budget). "
-        "About 45 claims are asked here (15 a metric) without correction: about one in twenty unrelated differences "
-        "would show by chance.",
+        "About 90 claims are asked here (15 a metric and budget) without correction: about one in twenty unrelated "
+        "differences would show by chance.",
         "",
         "Then each claim again with both studies at a matched budget: each run's score is the mean of its "
-        "learning-curve points from {:g}M to {:g}M env steps (20 greedy episodes a point; where the shared study's "
-        "protocol window is), so the two studies differ in their networks only. A claim decided with independent "
-        "networks at their own budget and not at the matched one separates with the longer training, not with the "
-        "networks, as far as these runs say (a curve point's 20 episodes measure a run less finely than the "
-        "protocol's 2,000 at the end).".format(*(step / 1e6 for step in MATCHED_WINDOW)),
+        "learning-curve points from {:g}M to {:g}M env steps (20 greedy episodes a point, 11 points a run in the "
+        "shared study and 6 in the independent one; where the shared study's protocol window is), so that the budget "
+        "no longer differs. A claim decided with independent networks at their own budget and not at the matched one "
+        "is not shown to come from the networks: it appears only with their longer training (shared networks were "
+        "not run that long), and a curve point's 20 episodes measure a run less finely than the protocol's 2,000 at "
+        "the end.".format(*(step / 1e6 for step in MATCHED_WINDOW)),
     ]
     for window in (None, MATCHED_WINDOW):
         for metric in metrics:
@@ -553,7 +558,10 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
         "corrected for the others: where their readings disagree, none of them is the answer. Shared networks: "
         "`benchmarks/paper_n5` (1M env steps); independent: `benchmarks/paper_n5_independent` (1.75M).",
     ]
-    budgets = {"each study at its own budget (protocol score, last 20%)": None, matched_budget(MATCHED_WINDOW): MATCHED_WINDOW}
+    budgets = {
+        "each study at its own budget (protocol score, last 20%)": None,
+        matched_budget_label(MATCHED_WINDOW): MATCHED_WINDOW,
+    }
     for setting, experiments in SETTINGS.items():
         for metric in metrics:
             info = METRICS[metric]

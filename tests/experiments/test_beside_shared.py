@@ -344,6 +344,15 @@ def test_claims_at_the_matched_budget_read_each_runs_curve_in_the_window(beside_
     assert stored[3:] == ["4, 4", "1.25 vs 0.51", ".029", "reverses"] * 2 + ["the same |"]
     own = beside_shared.claims_beside_shared(paths, "min_dist_sum")  # the protocol scores: all 0.5
     assert next(line for line in own if "| MADDPG-soa > MADDPG |" in line).endswith("neither separates |")
+    # Seed 4 of `full` only: not a complete seed, left out at the matched budget too (its curve would weigh in).
+    write_run(independent, "paper_n5i_exp1", "full", 4, 0.5, [(900_000.0, 5.0)])
+    lines = beside_shared.claims_beside_shared(paths, "min_dist_sum", beside_shared.MATCHED_WINDOW)
+    assert "| 4, 4 | 1.25 vs 0.51 | .029 | reverses | the same |" in next(line for line in lines if "| MADDPG-soa >" in line)
+    # A complete seed with no curve point in the window is an error that names the run.
+    write_run(independent, "paper_n5i_exp1", "selected", 4, 0.5, [(1_200_000.0, 1.0)])
+    write_run(independent, "paper_n5i_exp1", "selected_next", 4, 0.5, [(900_000.0, 0.5)])
+    with pytest.raises(ValueError, match=r"selected/seed_004 has no learning-curve point between 800000 and 1e\+06"):
+        beside_shared.claims_beside_shared(paths, "min_dist_sum", beside_shared.MATCHED_WINDOW)
 
 
 def test_a_claim_one_study_does_not_run_is_asked_of_the_other_only(beside_shared: ModuleType, tmp_path: Path) -> None:
