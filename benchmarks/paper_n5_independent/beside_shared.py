@@ -34,7 +34,7 @@ a matched one: the mean of each run's learning-curve points from 800k to 1M env 
 points in the shared study, 6 in the independent one), where the shared study's protocol window is. The 2 x 2's runs
 are those whose seed `full`, `selected` and `selected_next` have all finished in that study and setting; the paper's
 claims are asked again at the matched budget on the same runs as at the studies' own (the seeds every scheme of a
-setting has finished). With 5 runs a percentile interval is narrower than it should be, and the page reads 12 2 x 2
+setting has finished). With 5 runs a percentile interval is narrower than it should be, and the page reads twelve 2 x 2
 tables (2 settings x 3 metrics x 2 budgets): where their readings disagree, none of them is the answer.
 """
 
@@ -77,13 +77,6 @@ RULES = {STORED: "stored (Algorithm 3, `selected`)", NEXT: "next (`selected_next
 BASELINE = "full"
 MATCHED_WINDOW = (800_000.0, 1_000_000.0)
 """The env steps (inclusive) whose learning-curve points give the matched-budget score."""
-
-
-def matched_budget_label(window: tuple[float, float]) -> str:
-    """:return: How the tables name a matched budget read from these env steps' learning-curve points."""
-    return "matched budget (learning-curve points, {:g}M-{:g}M env steps)".format(*(step / 1e6 for step in window))
-
-
 READ_METRICS = ("min_dist_sum", "success_rate_r0.3", "success_rate")
 """The metrics read: the min-dist sum and success within 0.3 carry the N=5 comparison; within 0.1 is the paper's."""
 SIGNIFICANCE = 0.05
@@ -94,6 +87,11 @@ CRITIC_LOSS_WINDOW = (500_000.0, 1_000_000.0)
 
 Scores = dict[str, dict[int, float]]
 """Per scheme, per seed: a run's score."""
+
+
+def matched_budget_label(window: tuple[float, float]) -> str:
+    """:return: How the tables name a matched budget read from these env steps' learning-curve points."""
+    return "matched budget (learning-curve points, {:g}M-{:g}M env steps)".format(*(step / 1e6 for step in window))
 
 
 def read_scores(results: Path, experiment: str, metric: str, window: tuple[float, float] | None = None) -> Scores:
