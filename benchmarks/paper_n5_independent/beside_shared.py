@@ -1,8 +1,9 @@
 """Issue 43's independent-network study read beside the shared one (writes beside_shared.md): Table 2 of both studies
 under the paper's, the paper's claims asked of both (each verdict, and what the two say together; at each study's
-budget and at a matched one), and the 2 x 2 of
+budget and at a matched one), the 2 x 2 of
 networks (shared, independent) x the target's selection rule (stored, next), each as the gap of its `selected` runs
-against `full` in the same study, in both N=5 settings.
+against `full` in the same study, in both N=5 settings, and whether each study's runs were still improving when they
+stopped (each run's learning curve over its last 20% against the 20% before).
 
     python benchmarks/paper_n5_independent/beside_shared.py --out docs/_static/paper_n5_independent/beside_shared.md
 
@@ -36,9 +37,16 @@ are those whose seed `full`, `selected` and `selected_next` have all finished in
 claims are asked again at the matched budget on the same runs as at the studies' own (the seeds every scheme of a
 setting has finished). With 5 runs a percentile interval is narrower than it should be, and the page reads twelve 2 x 2
 tables (2 settings x 3 metrics x 2 budgets): where their readings disagree, none of them is the answer.
+
+Whether the runs had stopped improving: the budgets are fixed (the shared study's 1M steps from the tuning, the
+independent one's 1.75M from the learning curve of Exp. 1's `full`), so the page shows, per study, setting and scheme,
+how much each run's learning curve (min-dist sum) still moved from the 20% of its env steps before its last 20% to its
+last 20%, on the normalised scale too (``sb3_maddpg.analysis.normalised_score``), counting the runs that moved by the
+budget rule's 0.05 or more, and the change against `full`'s: which gaps were closing as the runs stopped.
 """
 
 import argparse
+import itertools
 import math
 import sys
 import tempfile
@@ -49,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from sb3_maddpg.analysis.normalised_score import reference_scores
 from sb3_maddpg.experiments.aggregates import IntervalEstimate, bootstrap_interval
 from sb3_maddpg.experiments.paper_claims import (
     ClaimCheck,
@@ -84,6 +93,14 @@ CRITIC_LOSS = "train/critic_loss"
 """The critics' TD loss as training logs it (the mean over the agents of each agent's loss)."""
 CRITIC_LOSS_WINDOW = (500_000.0, 1_000_000.0)
 """The env steps (inclusive) over which each run's logged critic loss is averaged: the second half of the shared runs."""
+LATE_FRACTIONS = (0.6, 0.8, 1.0)
+"""The 20% of a run's env steps before its last 20%, and its last 20% (fractions of its budget; each window open at its
+start): the learning-curve means compared to tell whether the run was still improving when it stopped."""
+STILL_GAINING = 0.05
+"""A change over the last 20% at least this large on the normalised min-dist scale counts as still improving (or, the
+other way, as falling back): the threshold of the rule that set the independent study's budget (``curve_summary.py``)."""
+N_AGENTS = 5
+"""Both studies' team size (the normalised scale's references depend on it)."""
 
 Scores = dict[str, dict[int, float]]
 """Per scheme, per seed: a run's score."""
@@ -354,6 +371,73 @@ def critic_loss_table(scores: Mapping[str, Scores]) -> list[str]:
     return lines
 
 
+def late_curve_means(summary: dict[str, Any], metric: str = "min_dist_sum") -> tuple[float, float]:
+    """
+    :param summary: A finished run's summary, with its ``"directory"`` and ``"total_timesteps"`` (its budget).
+    :param metric: A learning-curve metric.
+    :return: The mean of its learning-curve points over the 20% of its env steps before the last 20%, and over the last
+        20% (:data:`LATE_FRACTIONS`): how much the run still moved when it stopped is the second minus the first.
+    :raises ValueError: A window holds no learning-curve point (the run's directory named).
+    """
+    budget = float(summary["total_timesteps"])
+    rows = read_curve(summary["directory"])
+    means = []
+    for start, end in itertools.pairwise(LATE_FRACTIONS):
+        points = [row[metric] for row in rows if start * budget < row["timesteps"] <= end * budget]
+        if not points:
+            raise ValueError(
+                f"{summary['directory']} has no learning-curve point after {start * budget:g} and up to "
+                f"{end * budget:g} env steps; the late-change check needs the run's curve over its last 40%."
+            )
+        means.append(float(np.mean(points)))
+    return means[0], means[1]
+
+
+def _sample_mean(sample: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.asarray(np.mean(sample, axis=axis))
+
+
+def late_change_table(runs: Mapping[str, Sequence[dict[str, Any]]], scale: float) -> list[str]:
+    """
+    :param runs: One setting's finished runs (summaries with their directories), by networks.
+    :param scale: Min-dist units per unit of the normalised scale (the random team's min-dist sum minus the scripted
+        controller's).
+    :return: The markdown lines: per study and scheme, the mean of its runs' learning curves (min-dist sum) over the
+        20% before the last 20% and over the last 20% (:func:`late_curve_means`), the mean change with its interval and
+        on the normalised scale, the runs still improving or falling back by :data:`STILL_GAINING` or more, and the
+        change against `full`'s (negative: the scheme gains on `full`).
+    """
+    lines = [
+        "| networks | scheme | runs | min-dist sum, the 20% before / the last 20% | change [95% CI] | normalised "
+        "(higher is better) | runs still improving / falling back | change minus `full`'s [95% CI] |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for networks, summaries in runs.items():
+        means: dict[str, list[tuple[float, float]]] = {}
+        for summary in sorted(summaries, key=lambda run: (run["scheme"] != BASELINE, run["scheme"], run["seed"])):
+            means.setdefault(summary["scheme"], []).append(late_curve_means(summary))
+        if not means:
+            lines.append(f"| {networks} | | 0 | no runs yet | | | | |")
+            continue
+        changes = {scheme: [last - before for before, last in pairs] for scheme, pairs in means.items()}
+        for scheme, pairs in means.items():
+            change = bootstrap_interval((np.asarray(changes[scheme]),), _sample_mean)
+            normalised = [-value / scale for value in changes[scheme]]
+            gaining = sum(value >= STILL_GAINING for value in normalised)
+            falling = sum(value <= -STILL_GAINING for value in normalised)
+            before, last = np.mean(pairs, axis=0)
+            against = (
+                "-"
+                if scheme == BASELINE or BASELINE not in changes
+                else _interval(difference([changes[scheme], changes[BASELINE]]), 1.0)
+            )
+            lines.append(
+                f"| {networks} | `{scheme}` | {len(pairs)} | {before:.2f} / {last:.2f} | {_interval(change, 1.0)} | "
+                f"{-change.value / scale:+.3f} | {gaining} / {falling} | {against} |"
+            )
+    return lines
+
+
 def complete_seed_runs(results: Path, experiments: Sequence[str]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """
     :param results: A study's results directory.
@@ -584,6 +668,31 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
             "",
             *critic_loss_table(losses),
         ]
+    references = reference_scores(N_AGENTS)
+    scale = references["random"]["min_dist_sum"] - references["scripted"]["min_dist_sum"]
+    runs = {
+        networks: complete_seed_runs(results, [s[networks] for s in SETTINGS.values()])[0]
+        for networks, results in studies.items()
+    }
+    lines += [
+        "",
+        "#### Were the runs still improving when they stopped?",
+        "",
+        "Each run's learning curve (min-dist sum, lower is better; 20 greedy episodes a point) averaged over the 20% "
+        "of its env steps before its last 20% and over its last 20% (the protocol's window): 600k-800k and 800k-1M "
+        "steps with shared networks, 1.05M-1.4M and 1.4M-1.75M with independent ones. A change below 0 is a run still "
+        "improving; normalised, 1 is the distance from random actions to the scripted controller "
+        f"({scale:.2f} min-dist), higher is better. A run counts as still improving (or falling back) when it moved by "
+        f"{STILL_GAINING} or more on that scale: the threshold of the rule that set the independent study's budget. "
+        "*Change minus `full`'s*: below 0 the scheme was gaining on `full` as the runs stopped, so where it trails "
+        "`full` longer training might narrow its gap, and where it leads widen it (a trend over two windows, not a "
+        "forecast). The runs are Table 2's (the seeds every scheme of a setting has finished).",
+    ]
+    for setting, experiments in SETTINGS.items():
+        setting_runs = {
+            networks: [run for run in runs[networks] if run["experiment"] == experiments[networks]] for networks in studies
+        }
+        lines += ["", f"##### {setting}", "", *late_change_table(setting_runs, scale)]
     return "\n".join(lines) + "\n"
 
 

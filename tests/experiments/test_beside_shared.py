@@ -374,3 +374,44 @@ def test_a_claim_one_study_does_not_run_is_asked_of_the_other_only(beside_shared
     lines = beside_shared.claims_beside_shared({"shared": shared, "independent": independent}, "min_dist_sum")
     rows = {line.split(" | ")[1]: line.split(" | ") for line in lines[4:]}
     assert rows["MADDPG > IDDPG"][7:] == ["0", "", "", "no runs yet", "not yet |"]
+
+
+def test_late_change_compares_the_curves_last_20_percent_with_the_20_percent_before(
+    beside_shared: ModuleType, tmp_path: Path
+) -> None:
+    results = tmp_path / "results"
+    budget = 1_000_000
+    # Windows (600k, 800k] and (800k, 1M]: the points at 600k and beyond 1M are outside, 800k is the earlier window's.
+    curve = [(600_000.0, 50.0), (700_000.0, 1.0), (800_000.0, 2.0), (900_000.0, 0.5), (1_000_000.0, 0.7), (1.1e6, 50.0)]
+    write_run(results, "exp", "full", 0, 0.5, curve)
+    summary = {**json.loads((results / "exp/full/seed_000/summary.json").read_text()), "total_timesteps": budget}
+    summary["directory"] = str(results / "exp/full/seed_000")
+    assert beside_shared.late_curve_means(summary) == pytest.approx((1.5, 0.6))
+    # The windows are fractions of the run's own budget: at 2M they hold none of these points.
+    with pytest.raises(ValueError, match=r"full/seed_000 has no learning-curve point after 1\.2e\+06 and up to 1\.6e\+06"):
+        beside_shared.late_curve_means({**summary, "total_timesteps": 2 * budget})
+
+
+def test_late_change_table_counts_runs_still_improving_against_the_threshold(
+    beside_shared: ModuleType, tmp_path: Path
+) -> None:
+    results = tmp_path / "results"
+    scale = 2.0  # min-dist units per normalised unit: the threshold 0.05 is a change of 0.1
+    changes = {"full": [-0.3, -0.2, -0.09], "selected": [0.1, 0.12, -0.11]}  # min-dist, last 20% minus the 20% before
+    runs = []
+    for scheme, values in changes.items():
+        for seed, change in enumerate(values):
+            write_run(results, "exp", scheme, seed, 0.5, [(700_000.0, 1.0), (900_000.0, 1.0 + change)])
+            directory = results / "exp" / scheme / f"seed_{seed:03d}"
+            runs.append({**json.loads((directory / "summary.json").read_text()), "directory": str(directory)})
+            runs[-1]["total_timesteps"] = 1_000_000
+    lines = beside_shared.late_change_table({"shared": runs, "independent": []}, scale)
+    full, selected = lines[2].split(" | "), lines[3].split(" | ")
+    assert full[1:4] == ["`full`", "3", "1.00 / 0.80"]
+    assert full[4].startswith("-0.20 [") and full[5] == "+0.098"  # -(-0.197) / 2
+    assert full[6:] == ["2 / 0", "- |"]  # -0.09 moved 0.045 normalised: below the threshold
+    assert selected[1:4] == ["`selected`", "3", "1.00 / 1.04"]
+    assert selected[6] == "1 / 2"  # 0.1 is exactly the threshold: falling back
+    against = float(selected[7].split(" ")[0])
+    assert against == pytest.approx(np.mean(changes["selected"]) - np.mean(changes["full"]), abs=0.005)
+    assert lines[4] == "| independent | | 0 | no runs yet | | | | |"
