@@ -42,7 +42,8 @@ Whether the runs had stopped improving: the budgets are fixed (the shared study'
 independent one's 1.75M from the learning curve of Exp. 1's `full`), so the page shows, per study, setting and scheme,
 how much each run's learning curve (min-dist sum) still moved from the 20% of its env steps before its last 20% to its
 last 20%, on the normalised scale too (``sb3_maddpg.analysis.normalised_score``), counting the runs that moved by the
-budget rule's 0.05 or more, and the change against `full`'s: which gaps were closing as the runs stopped.
+budget rule's 0.05 or more (the same number, not the same test), and the change against `full`'s: which gaps were
+closing as the runs stopped.
 """
 
 import argparse
@@ -96,9 +97,10 @@ CRITIC_LOSS_WINDOW = (500_000.0, 1_000_000.0)
 LATE_FRACTIONS = (0.6, 0.8, 1.0)
 """The 20% of a run's env steps before its last 20%, and its last 20% (fractions of its budget; each window open at its
 start): the learning-curve means compared to tell whether the run was still improving when it stopped."""
-STILL_GAINING = 0.05
+LATE_CHANGE_THRESHOLD = 0.05
 """A change over the last 20% at least this large on the normalised min-dist scale counts as still improving (or, the
-other way, as falling back): the threshold of the rule that set the independent study's budget (``curve_summary.py``)."""
+other way, as falling back). The same number as the budget rule's (``curve_summary.py``: what a smoothed curve gains from
+the budget to 2.5M steps), not the same test: here two adjacent windows of unsmoothed 20-episode points."""
 N_AGENTS = 5
 """Both studies' team size (the normalised scale's references depend on it)."""
 
@@ -371,7 +373,7 @@ def critic_loss_table(scores: Mapping[str, Scores]) -> list[str]:
     return lines
 
 
-def late_curve_means(summary: dict[str, Any], metric: str = "min_dist_sum") -> tuple[float, float]:
+def late_curve_means(summary: Mapping[str, Any], metric: str = "min_dist_sum") -> tuple[float, float]:
     """
     :param summary: A finished run's summary, with its ``"directory"`` and ``"total_timesteps"`` (its budget).
     :param metric: A learning-curve metric.
@@ -379,22 +381,19 @@ def late_curve_means(summary: dict[str, Any], metric: str = "min_dist_sum") -> t
         20% (:data:`LATE_FRACTIONS`): how much the run still moved when it stopped is the second minus the first.
     :raises ValueError: A window holds no learning-curve point (the run's directory named).
     """
-    budget = float(summary["total_timesteps"])
+    # Whole env steps, so that a point on a window's edge falls on the same side whatever the float rounding.
+    edges = [round(fraction * float(summary["total_timesteps"])) for fraction in LATE_FRACTIONS]
     rows = read_curve(summary["directory"])
-    means = []
-    for start, end in itertools.pairwise(LATE_FRACTIONS):
-        points = [row[metric] for row in rows if start * budget < row["timesteps"] <= end * budget]
+    window_means = []
+    for start, end in itertools.pairwise(edges):
+        points = [row[metric] for row in rows if start < row["timesteps"] <= end]
         if not points:
             raise ValueError(
-                f"{summary['directory']} has no learning-curve point after {start * budget:g} and up to "
-                f"{end * budget:g} env steps; the late-change check needs the run's curve over its last 40%."
+                f"{summary['directory']} has no learning-curve point after {start:,} and up to {end:,} env steps; "
+                "the late-change check needs the run's curve over its last 40%."
             )
-        means.append(float(np.mean(points)))
-    return means[0], means[1]
-
-
-def _sample_mean(sample: np.ndarray, axis: int = -1) -> np.ndarray:
-    return np.asarray(np.mean(sample, axis=axis))
+        window_means.append(float(np.mean(points)))
+    return window_means[0], window_means[1]
 
 
 def late_change_table(runs: Mapping[str, Sequence[dict[str, Any]]], scale: float) -> list[str]:
@@ -404,7 +403,7 @@ def late_change_table(runs: Mapping[str, Sequence[dict[str, Any]]], scale: float
         controller's).
     :return: The markdown lines: per study and scheme, the mean of its runs' learning curves (min-dist sum) over the
         20% before the last 20% and over the last 20% (:func:`late_curve_means`), the mean change with its interval and
-        on the normalised scale, the runs still improving or falling back by :data:`STILL_GAINING` or more, and the
+        on the normalised scale, the runs still improving or falling back by :data:`LATE_CHANGE_THRESHOLD` or more, and the
         change against `full`'s (negative: the scheme gains on `full`).
     """
     lines = [
@@ -413,29 +412,45 @@ def late_change_table(runs: Mapping[str, Sequence[dict[str, Any]]], scale: float
         "|---|---|---|---|---|---|---|---|",
     ]
     for networks, summaries in runs.items():
-        means: dict[str, list[tuple[float, float]]] = {}
+        window_means: dict[str, list[tuple[float, float]]] = {}
         for summary in sorted(summaries, key=lambda run: (run["scheme"] != BASELINE, run["scheme"], run["seed"])):
-            means.setdefault(summary["scheme"], []).append(late_curve_means(summary))
-        if not means:
+            window_means.setdefault(summary["scheme"], []).append(late_curve_means(summary))
+        if not window_means:
             lines.append(f"| {networks} | | 0 | no runs yet | | | | |")
             continue
-        changes = {scheme: [last - before for before, last in pairs] for scheme, pairs in means.items()}
-        for scheme, pairs in means.items():
-            change = bootstrap_interval((np.asarray(changes[scheme]),), _sample_mean)
+        changes = {scheme: [last - before for before, last in pairs] for scheme, pairs in window_means.items()}
+        for scheme, pairs in window_means.items():
+            runs_readable = smallest_p_value(len(pairs), len(pairs)) < SIGNIFICANCE  # the cells' rule: 4 runs or more
+            change = bootstrap_interval((np.asarray(changes[scheme]),), np.mean)
             normalised = [-value / scale for value in changes[scheme]]
-            gaining = sum(value >= STILL_GAINING for value in normalised)
-            falling = sum(value <= -STILL_GAINING for value in normalised)
+            gaining = sum(value >= LATE_CHANGE_THRESHOLD for value in normalised)
+            falling = sum(value <= -LATE_CHANGE_THRESHOLD for value in normalised)
             before, last = np.mean(pairs, axis=0)
-            against = (
-                "-"
-                if scheme == BASELINE or BASELINE not in changes
-                else _interval(difference([changes[scheme], changes[BASELINE]]), 1.0)
-            )
+            if scheme == BASELINE or BASELINE not in changes:
+                change_minus_full = "-"
+            else:
+                readable = smallest_p_value(len(pairs), len(changes[BASELINE])) < SIGNIFICANCE
+                change_minus_full = _interval(difference([changes[scheme], changes[BASELINE]]), 1.0, readable)
             lines.append(
-                f"| {networks} | `{scheme}` | {len(pairs)} | {before:.2f} / {last:.2f} | {_interval(change, 1.0)} | "
-                f"{-change.value / scale:+.3f} | {gaining} / {falling} | {against} |"
+                f"| {networks} | `{scheme}` | {len(pairs)} | {before:.2f} / {last:.2f} | "
+                f"{_interval(change, 1.0, runs_readable)} | {-change.value / scale:+.3f} | {gaining} / {falling} | "
+                f"{change_minus_full} |"
             )
     return lines
+
+
+def late_windows(runs: Mapping[str, Sequence[Mapping[str, Any]]]) -> str:
+    """
+    :param runs: Finished runs' summaries (with ``"total_timesteps"``), by networks.
+    :return: Each study's two windows (:data:`LATE_FRACTIONS` of its runs' budgets), e.g. ``"shared: 0.6M-0.8M and
+        0.8M-1M"``.
+    """
+    described = []
+    for networks, summaries in runs.items():
+        for budget in sorted({float(summary["total_timesteps"]) for summary in summaries}):
+            millions = [fraction * budget / 1e6 for fraction in LATE_FRACTIONS]
+            described.append(f"{networks}: {millions[0]:g}M-{millions[1]:g}M and {millions[1]:g}M-{millions[2]:g}M")
+    return "; ".join(described) or "no runs yet"
 
 
 def complete_seed_runs(results: Path, experiments: Sequence[str]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
@@ -593,10 +608,12 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
     """
     :param studies: Each study's results directory, by networks (``shared``, ``independent``).
     :param metrics: The metrics read.
-    :return: The markdown page: per setting, metric and budget, the 2 x 2 with its effects and reading.
+    :return: The markdown page: Table 2 of both studies; the paper's claims asked of both, at their own budgets and a
+        matched one; per setting, metric and budget, the 2 x 2 with its effects and reading, and the critics' loss; per
+        setting, how much each study's runs still moved over their last 20%.
     """
     lines = [
-        "# Independent networks beside shared ones at N=5: Table 2, the paper's claims and the 2 x 2",
+        "# Independent networks beside shared ones at N=5: Table 2, the paper's claims, the 2 x 2 and the runs' last 20%",
         "",
         "Made by `python benchmarks/paper_n5_independent/beside_shared.py` (its docstring states the method). "
         "`paper_n5_exp1`/`paper_n5_exp2`: one actor and one critic shared by the agents, 1M env steps (40,000 "
@@ -670,8 +687,8 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
         ]
     references = reference_scores(N_AGENTS)
     scale = references["random"]["min_dist_sum"] - references["scripted"]["min_dist_sum"]
-    runs = {
-        networks: complete_seed_runs(results, [s[networks] for s in SETTINGS.values()])[0]
+    finished = {
+        networks: complete_seed_runs(results, [setting[networks] for setting in SETTINGS.values()])[0]
         for networks, results in studies.items()
     }
     lines += [
@@ -679,18 +696,20 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
         "#### Were the runs still improving when they stopped?",
         "",
         "Each run's learning curve (min-dist sum, lower is better; 20 greedy episodes a point) averaged over the 20% "
-        "of its env steps before its last 20% and over its last 20% (the protocol's window): 600k-800k and 800k-1M "
-        "steps with shared networks, 1.05M-1.4M and 1.4M-1.75M with independent ones. A change below 0 is a run still "
-        "improving; normalised, 1 is the distance from random actions to the scripted controller "
-        f"({scale:.2f} min-dist), higher is better. A run counts as still improving (or falling back) when it moved by "
-        f"{STILL_GAINING} or more on that scale: the threshold of the rule that set the independent study's budget. "
+        f"of its env steps before its last 20% and over its last 20% (the protocol's window): {late_windows(finished)}. "
+        "A change below 0 is a run still improving; normalised, 1 is the distance from random actions to the scripted "
+        f"controller ({scale:.2f} min-dist), higher is better. A run counts as still improving (or falling back) when "
+        f"it moved by {LATE_CHANGE_THRESHOLD} or more on that scale: the number of the rule that set the independent "
+        "study's budget, though not its test (that rule compares a smoothed curve at the budget with its end at 2.5M "
+        "steps; here two adjacent windows of unsmoothed points, so a single run's count partly measures noise). "
         "*Change minus `full`'s*: below 0 the scheme was gaining on `full` as the runs stopped, so where it trails "
         "`full` longer training might narrow its gap, and where it leads widen it (a trend over two windows, not a "
-        "forecast). The runs are Table 2's (the seeds every scheme of a setting has finished).",
+        "forecast; some forty intervals, none corrected for the others). The runs are Table 2's (the seeds every "
+        "scheme of a setting has finished).",
     ]
     for setting, experiments in SETTINGS.items():
         setting_runs = {
-            networks: [run for run in runs[networks] if run["experiment"] == experiments[networks]] for networks in studies
+            networks: [run for run in finished[networks] if run["experiment"] == experiments[networks]] for networks in studies
         }
         lines += ["", f"##### {setting}", "", *late_change_table(setting_runs, scale)]
     return "\n".join(lines) + "\n"

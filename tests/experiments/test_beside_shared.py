@@ -388,30 +388,50 @@ def test_late_change_compares_the_curves_last_20_percent_with_the_20_percent_bef
     summary["directory"] = str(results / "exp/full/seed_000")
     assert beside_shared.late_curve_means(summary) == pytest.approx((1.5, 0.6))
     # The windows are fractions of the run's own budget: at 2M they hold none of these points.
-    with pytest.raises(ValueError, match=r"full/seed_000 has no learning-curve point after 1\.2e\+06 and up to 1\.6e\+06"):
+    with pytest.raises(ValueError, match="full/seed_000 has no learning-curve point after 1,200,000 and up to 1,600,000"):
         beside_shared.late_curve_means({**summary, "total_timesteps": 2 * budget})
+
+
+def late_runs(results: Path, window_means: dict[str, list[tuple[float, float]]]) -> list[dict[str, object]]:
+    """Finished 1M-step runs whose curves average these (before, last) over (600k, 800k] and (800k, 1M]."""
+    runs = []
+    for scheme, pairs in window_means.items():
+        for seed, (before, last) in enumerate(pairs):
+            write_run(results, "exp", scheme, seed, 0.5, [(700_000.0, before), (900_000.0, last)])
+            directory = results / "exp" / scheme / f"seed_{seed:03d}"
+            summary = json.loads((directory / "summary.json").read_text())
+            runs.append({**summary, "directory": str(directory), "total_timesteps": 1_000_000})
+    return runs
 
 
 def test_late_change_table_counts_runs_still_improving_against_the_threshold(
     beside_shared: ModuleType, tmp_path: Path
 ) -> None:
-    results = tmp_path / "results"
     scale = 2.0  # min-dist units per normalised unit: the threshold 0.05 is a change of 0.1
-    changes = {"full": [-0.3, -0.2, -0.09], "selected": [0.1, 0.12, -0.11]}  # min-dist, last 20% minus the 20% before
-    runs = []
-    for scheme, values in changes.items():
-        for seed, change in enumerate(values):
-            write_run(results, "exp", scheme, seed, 0.5, [(700_000.0, 1.0), (900_000.0, 1.0 + change)])
-            directory = results / "exp" / scheme / f"seed_{seed:03d}"
-            runs.append({**json.loads((directory / "summary.json").read_text()), "directory": str(directory)})
-            runs[-1]["total_timesteps"] = 1_000_000
+    window_means = {
+        # changes -0.3, -0.2, -0.09 (the last 0.045 normalised: below the threshold), -0.25
+        "full": [(1.0, 0.7), (1.0, 0.8), (1.0, 0.91), (1.0, 0.75)],
+        # changes exactly +0.1 (falling back by the threshold), -0.1 (improving by it), +0.05, +0.15
+        "selected": [(0.0, 0.1), (0.1, 0.0), (1.0, 1.05), (1.3, 1.45)],
+    }
+    runs = late_runs(tmp_path, window_means)
     lines = beside_shared.late_change_table({"shared": runs, "independent": []}, scale)
     full, selected = lines[2].split(" | "), lines[3].split(" | ")
-    assert full[1:4] == ["`full`", "3", "1.00 / 0.80"]
-    assert full[4].startswith("-0.20 [") and full[5] == "+0.098"  # -(-0.197) / 2
-    assert full[6:] == ["2 / 0", "- |"]  # -0.09 moved 0.045 normalised: below the threshold
-    assert selected[1:4] == ["`selected`", "3", "1.00 / 1.04"]
-    assert selected[6] == "1 / 2"  # 0.1 is exactly the threshold: falling back
-    against = float(selected[7].split(" ")[0])
-    assert against == pytest.approx(np.mean(changes["selected"]) - np.mean(changes["full"]), abs=0.005)
+    assert full[1:4] == ["`full`", "4", "1.00 / 0.79"]
+    assert full[4].startswith("-0.21 [") and full[5] == "+0.105"  # -(-0.21) / 2
+    assert full[6:] == ["3 / 0", "- |"]
+    assert selected[1:4] == ["`selected`", "4", "0.60 / 0.65"]
+    assert selected[4].startswith("+0.05 [") and selected[5] == "-0.025"
+    assert selected[6] == "1 / 2"  # the threshold itself counts, either way
+    change_minus_full = float(selected[7].split(" ")[0])
+    assert change_minus_full == pytest.approx(0.05 - (-0.21))
     assert lines[4] == "| independent | | 0 | no runs yet | | | | |"
+    assert beside_shared.late_windows({"shared": runs, "independent": []}) == "shared: 0.6M-0.8M and 0.8M-1M"
+
+
+def test_late_change_intervals_wait_for_four_runs(beside_shared: ModuleType, tmp_path: Path) -> None:
+    # Three runs a scheme: no interval shown, as in the 2 x 2's cells (it would look surer than 3 runs can be).
+    runs = late_runs(tmp_path, {"full": [(1.0, 0.7), (1.0, 0.8), (1.0, 0.9)], "selected": [(1.0, 1.1)] * 3})
+    full, selected = (line.split(" | ") for line in beside_shared.late_change_table({"shared": runs}, 2.0)[2:4])
+    assert full[4] == "-0.20 (too few runs for an interval)"
+    assert selected[7] == "+0.30 (too few runs for an interval) |"
