@@ -18,7 +18,10 @@ study's independent networks (1.75M env steps) tell them apart:
   bootstrap interval (each scheme's runs resampled on their own) and the two-sided Mann-Whitney U test the paper uses;
 - **the rule's effect** (stored minus next) within each study, **sharing's effect on the stored rule** (its gap with
   shared networks minus with independent ones) and their **interaction** (the rule's effect with shared networks minus
-  with independent ones) are differences of means with the same kind of interval, signed as the gaps are;
+  with independent ones) are differences of means with the same kind of interval, signed as the gaps are; so are
+  sharing's effect on `full`'s score and on the stored rule's (shared minus independent), the two parts of its effect
+  on the gap (a sharing that helps `full` more than the stored rule widens the gap too), which compare the two
+  studies' levels and so carry their budgets' difference except at the matched budget;
 - **the reading**, from the two effects that separate the explanations: with shared networks the stored rule must be
   worse than `full` (p < .05), else there is no reversal to explain on that metric. Then the reversal belongs to
   *the rule* if the rule's effect with independent networks is harmful (its interval excludes 0 on the worse side);
@@ -224,6 +227,8 @@ def cell(scores: Scores, scheme: str) -> Cell:
 
 RULE_SHARED = "the rule's effect with shared networks (stored minus next)"
 RULE_INDEPENDENT = "the rule's effect with independent networks (stored minus next)"
+SHARING_FULL = "sharing's effect on `full`'s score (shared minus independent)"
+SHARING_STORED = "sharing's effect on the stored rule's score (shared minus independent)"
 SHARING = "sharing's effect on the stored rule's gap (shared minus independent)"
 INTERACTION = "interaction (the rule's effect, shared minus independent)"
 
@@ -240,6 +245,9 @@ def effect_samples(scores: Mapping[str, Scores]) -> dict[str, list[list[float]]]
     return {
         RULE_SHARED: [runs("shared", STORED), runs("shared", NEXT)],
         RULE_INDEPENDENT: [runs("independent", STORED), runs("independent", NEXT)],
+        # The gap's two parts: a sharing that helps `full` more than the stored rule also widens the gap.
+        SHARING_FULL: [runs("shared", BASELINE), runs("independent", BASELINE)],
+        SHARING_STORED: [runs("shared", STORED), runs("independent", STORED)],
         SHARING: [
             runs("shared", STORED),
             runs("shared", BASELINE),

@@ -104,6 +104,8 @@ def test_gaps_effects_and_tests_match_a_hand_computation(beside_shared: ModuleTy
     )
     rule_independent = mean["independent", "selected"] - mean["independent", "selected_next"]
     for name, value in (
+        (beside_shared.SHARING_FULL, mean["shared", "full"] - mean["independent", "full"]),
+        (beside_shared.SHARING_STORED, mean["shared", "selected"] - mean["independent", "selected"]),
         (beside_shared.SHARING, sharing),
         (beside_shared.RULE_INDEPENDENT, rule_independent),
         (beside_shared.INTERACTION, -by_hand),  # the page's interaction: shared minus independent
