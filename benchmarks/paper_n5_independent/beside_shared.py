@@ -26,7 +26,9 @@ study's independent networks (1.75M env steps) tell them apart:
   worse than `full` (p < .05), else there is no reversal to explain on that metric. Then the reversal belongs to
   *the rule* if the rule's effect with independent networks is harmful (its interval excludes 0 on the worse side);
   to *the sharing* if it is not and sharing's effect on the stored rule's gap is harmful; to *both* (the rule harms
-  without sharing, and sharing makes its harm larger) if both are; else it is not decided at these seeds. Cells too
+  without sharing, and sharing makes its harm larger) if both are; else it is not decided at these seeds. Where the
+  sharing widens the gap, the reading says through which part: the stored rule's own score (its interval excludes 0
+  on the worse side), else `full`'s (excludes 0 on the better side), else neither measurably alone. Cells too
   small for the test to reach p < .05 even when completely separated (fewer than 4 runs against 4; the report's
   "too few runs") are not read: their intervals, resampled from 2 or 3 runs, would look sure of what they cannot say.
 
@@ -263,7 +265,8 @@ def reading(cells: Mapping[tuple[str, str], Cell], effects: Mapping[str, Interva
     :param cells: The four cells, by (networks, scheme).
     :param effects: The effects, by name (:data:`RULE_INDEPENDENT`, :data:`SHARING`, ...).
     :param higher_is_better: The metric's direction.
-    :return: Which of the rule and the sharing the reversal belongs to, by the rule in the module docstring.
+    :return: Which of the rule and the sharing the reversal belongs to, by the rule in the module docstring; where
+        sharing widens the gap, through which part (the stored rule's own score, else `full`'s).
     """
     if not all(c.readable for c in cells.values()):
         return "too few runs to read: in a cell even completely separated runs could not reach p < .05"
@@ -273,12 +276,23 @@ def reading(cells: Mapping[tuple[str, str], Cell], effects: Mapping[str, Interva
     def excludes_zero_harmfully(effect: IntervalEstimate) -> bool:
         return harmful(effect.low, higher_is_better) and harmful(effect.high, higher_is_better)
 
+    def excludes_zero_helpfully(effect: IntervalEstimate) -> bool:
+        return harmful(-effect.low, higher_is_better) and harmful(-effect.high, higher_is_better)
+
+    # Which part of the gap sharing widens: the stored rule's own score, or `full`'s (the mechanism proposed for the
+    # reversal, the shared critic's guesses, acts on the first only).
+    if excludes_zero_harmfully(effects[SHARING_STORED]):
+        through = "the stored rule itself scores worse with shared networks"
+    elif excludes_zero_helpfully(effects[SHARING_FULL]):
+        through = "through `full`: shared networks help `full`, and the stored rule's own score is not measurably worse"
+    else:
+        through = "neither the stored rule's own score nor `full`'s moves measurably with sharing on its own"
     # "Not harmful" below covers both an interval across 0 and one beyond it on the better side.
     rule, sharing = excludes_zero_harmfully(effects[RULE_INDEPENDENT]), excludes_zero_harmfully(effects[SHARING])
     if rule and sharing:
         return (
             "both: with independent networks too the stored rule does worse than the next one, and sharing makes its "
-            "gap to `full` larger"
+            f"gap to `full` larger ({through})"
         )
     if rule:
         return (
@@ -288,7 +302,7 @@ def reading(cells: Mapping[tuple[str, str], Cell], effects: Mapping[str, Interva
     if sharing:
         return (
             "the sharing: with independent networks the stored rule does not do measurably worse than the next one, "
-            "and sharing makes its gap to `full` larger"
+            f"and sharing makes its gap to `full` larger ({through})"
         )
     return (
         "not decided at these seeds: neither the rule's effect without sharing nor sharing's effect is harmful beyond "

@@ -159,6 +159,30 @@ def test_reading_names_the_factor_the_reversal_belongs_to(
     assert lines[-1].startswith(f"- **which explains the reversal**: {expected}"), lines[-1]
 
 
+@pytest.mark.parametrize(
+    ("independent", "through"),
+    [
+        # the stored rule far better without sharing, `full` alike: sharing harms the stored rule itself
+        ({"full": FULL, "selected": [0.47, 0.41, 0.5, 0.39, 0.44], "selected_next": NEXT}, "the stored rule itself"),
+        # the stored rule as bad without sharing, `full` and the next rule much worse: sharing's gap is `full`'s
+        (
+            {
+                "full": [1.5, 1.6, 1.7, 1.55, 1.65],
+                "selected": [2.0, 2.5, 3.0, 2.2, 2.8],
+                "selected_next": [2.1, 2.9, 2.4, 2.6, 2.5],
+            },
+            "through `full`",
+        ),
+    ],
+)
+def test_reading_says_which_part_of_the_gap_sharing_widens(
+    beside_shared: ModuleType, tmp_path: Path, independent: dict[str, list[float]], through: str
+) -> None:
+    lines = beside_shared.setting_table(setting_scores(beside_shared, studies(tmp_path, independent)), "min_dist_sum")
+    assert lines[-1].startswith("- **which explains the reversal**: the sharing:"), lines[-1]
+    assert f"larger ({through}" in lines[-1], lines[-1]
+
+
 def test_reading_needs_a_reversal_in_the_metrics_direction(beside_shared: ModuleType) -> None:
     lower = {
         "full": dict(enumerate(FULL)),
