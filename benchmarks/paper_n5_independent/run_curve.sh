@@ -9,10 +9,11 @@
 set -u
 cd "$(dirname "$0")/../.."
 RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
+CONFIG="${1:-benchmarks/paper_n5_independent/curve.json}"
 WORKERS="${WORKERS:-2}"
 RESULTS="$RESULTS_ROOT/paper_n5_independent/results"
 mkdir -p "$RESULTS"
-echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) curve workers $WORKERS" >>"$RESULTS/commits.log"
+echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) curve $CONFIG workers $WORKERS" >>"$RESULTS/commits.log"
 export SDL_VIDEODRIVER=dummy
-nice -n 19 python -m sb3_maddpg.experiments run --config benchmarks/paper_n5_independent/curve.json \
+nice -n 19 python -m sb3_maddpg.experiments run --config "$CONFIG" \
     --results "$RESULTS" --workers "$WORKERS" --threads 1 --quiet
