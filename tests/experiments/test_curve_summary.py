@@ -62,6 +62,8 @@ def test_at_budget_reads_the_first_point_at_or_past_the_budget(curve_summary: Mo
     assert curve_summary.at_budget(steps, scores, 2_600_000) is None  # the curves end before it
     assert curve_summary.meets_rule([(0.8, 0.02)]) and not curve_summary.meets_rule([(0.8, 0.02), (0.7, 0.06)])
     assert not curve_summary.meets_rule([(0.49, 0.0)])
+    assert not curve_summary.meets_rule([(0.8, curve_summary.STILL_GAINING)])  # adding 0.05 is still gaining
+    assert curve_summary.meets_rule([(curve_summary.LEFT_RANDOM, 0.0)])  # at 0.5 random actions are left behind
 
 
 def test_summary_says_whether_the_study_budget_meets_the_rule(curve_summary: ModuleType, tmp_path: Path) -> None:
@@ -74,7 +76,8 @@ def test_summary_says_whether_the_study_budget_meets_the_rule(curve_summary: Mod
         write_curve(tmp_path / "fails", "paper_n5i_exp2_curve", seed, steps, curve)
 
     meets = curve_summary.summary("exp2", tmp_path / "meets")
-    assert "**Budget: 750,000 env steps.**" in meets  # the running mean reaches 0.8 two points past 500k
+    assert "**Budget: 750,000 env steps.**\n" in meets  # the running mean reaches 0.8 two points past 500k
+    assert "The curve's end" not in meets
     assert "The study's budget, 1,750,000 env steps (the rule's pick on Exp. 1's curve), meets the rule here" in meets
     assert "seed 0: 0.80, the rest adds +0.00; seed 1: 0.80, the rest adds +0.00" in meets
     assert "Made by `python benchmarks/paper_n5_independent/curve_summary.py --setting exp2`" in meets
