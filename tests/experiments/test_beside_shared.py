@@ -2,15 +2,15 @@
 a hand computation, which runs it reads, its reading of which factor turns `selected` around, and the committed page
 against the committed runs."""
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu
+
+from tests.script_module import load_script
 
 REPO = Path(__file__).resolve().parents[2]
 SCRIPT = REPO / "benchmarks" / "paper_n5_independent" / "beside_shared.py"
@@ -19,12 +19,7 @@ COMMITTED = REPO / "docs" / "_static" / "paper_n5_independent" / "beside_shared.
 
 @pytest.fixture(scope="module")
 def beside_shared() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("beside_shared", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["beside_shared"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+    return load_script(SCRIPT)
 
 
 def write_run(

@@ -2,8 +2,6 @@
 curves, where it reads a curve at a budget, what the summary says of the study's budget, and the committed summaries
 against the committed curves."""
 
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -11,6 +9,7 @@ import numpy as np
 import pytest
 
 from sb3_maddpg.analysis.normalised_score import reference_scores
+from tests.script_module import load_script
 
 REPO = Path(__file__).resolve().parents[2]
 HERE = REPO / "benchmarks" / "paper_n5_independent"
@@ -20,12 +19,7 @@ GRID = np.arange(0, 2_500_001, 250_000, dtype=float)  # 0, 250k, ..., 2.5M: 11 p
 
 @pytest.fixture(scope="module")
 def curve_summary() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("curve_summary", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["curve_summary"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+    return load_script(SCRIPT)
 
 
 def write_curve(results: Path, experiment: str, seed: int, steps: np.ndarray, normalised: np.ndarray) -> None:
