@@ -101,6 +101,21 @@ def chosen_budget(steps: np.ndarray, scores: list[np.ndarray]) -> int | None:
     return None
 
 
+def budget_line(budget: int | None, complete: bool, last_step: int) -> str:
+    """:return: The summary's verdict on the rule's budget: the budget (noting when it is only the curve's end, which
+    trivially adds nothing after it), none within a complete curve, or none yet while the curve runs."""
+    if not complete:
+        return f"**The curve is still running ({last_step:,} of {FULL_CURVE:,} steps): no budget yet.**"
+    if budget is None:
+        return "**No budget meets the rule within the curve.**"
+    if budget >= last_step:
+        return (
+            f"**Budget: {budget:,} env steps.** (The curve's end: the rule cannot tell whether the curve stopped "
+            "improving there.)"
+        )
+    return f"**Budget: {budget:,} env steps.**"
+
+
 def summary(setting: str, results: Path) -> str:
     """The setting's curve on the normalised scale, the budget the rule picks and how the study's budget fares.
 
@@ -118,9 +133,16 @@ def summary(setting: str, results: Path) -> str:
         )
     references = reference_scores(5)
     random, scripted = references["random"]["min_dist_sum"], references["scripted"]["min_dist_sum"]
+    labels = [str(int(seed.name.removeprefix("seed_"))) for seed in seeds]
     curves = [read_curve(seed / "learning_curve.csv") for seed in seeds]
     length = min(len(steps) for steps, _ in curves)
     steps = curves[0][0][:length]
+    for label, (seed_steps, _) in zip(labels, curves):
+        if not np.array_equal(seed_steps[:length], steps):
+            raise ValueError(
+                f"seed {label}'s learning curve is evaluated at other env steps than seed {labels[0]}'s under {runs}: "
+                "the rule compares the seeds point by point, so their runs must share curve_points and episodes"
+            )
     raw = [np.array([normalised_score(value, random, scripted) for value in dist[:length]]) for _, dist in curves]
     scores = [smoothed(score) for score in raw]
     complete = steps[-1] >= FULL_CURVE
@@ -130,12 +152,12 @@ def summary(setting: str, results: Path) -> str:
         f"# The learning curve of `full` with independent actors and critics, {setting} (issue 43)",
         "",
         curve.configuration,
-        f"Seeds {', '.join(seed.name[-1] for seed in seeds)}; each point 50 greedy episodes.",
+        f"Seeds {', '.join(labels)}; each point 50 greedy episodes.",
         f"Normalised min-dist sum: 0 = random actions ({random:.2f}), 1 = the scripted controller ({scripted:.2f}); "
         "higher is better.",
         f"Smoothed: a running mean over {SMOOTHING} points. Made by `{command}`.",
         "",
-        "| env steps | " + " | ".join(f"seed {seed.name[-1]}: min-dist / normalised (smoothed)" for seed in seeds) + " |",
+        "| env steps | " + " | ".join(f"seed {label}: min-dist / normalised (smoothed)" for label in labels) + " |",
         "|---|" + "---|" * len(seeds),
     ]
     for i, step in enumerate(steps):
@@ -146,22 +168,13 @@ def summary(setting: str, results: Path) -> str:
         "",
         f"The rule: the shortest multiple of {CANDIDATE_STEP:,} steps at which every seed's smoothed normalised score "
         f"is >= {LEFT_RANDOM} and the rest of the curve (to {int(steps[-1]):,} steps) adds less than {STILL_GAINING}.",
-        f"**Budget: {budget:,} env steps.**"
-        + (
-            " (The curve's end: the rule cannot tell whether the curve stopped improving there.)"
-            if budget >= steps[-1]
-            else ""
-        )
-        if budget
-        else "**No budget meets the rule within the curve.**"
-        if complete
-        else f"**The curve is still running ({int(steps[-1]):,} of {FULL_CURVE:,} steps): no budget yet.**",
+        budget_line(budget, complete, int(steps[-1])),
     ]
     seeds_at_study_budget = at_budget(steps, scores, STUDY_BUDGET) if complete else None
     if seeds_at_study_budget is not None:
         per_seed = "; ".join(
-            f"seed {seed.name[-1]}: {score:.2f}, the rest adds {gain:+.2f}"
-            for seed, (score, gain) in zip(seeds, seeds_at_study_budget)
+            f"seed {label}: {score:.2f}, the rest adds {gain:+.2f}"
+            for label, (score, gain) in zip(labels, seeds_at_study_budget)
         )
         verdict = "meets the rule" if meets_rule(seeds_at_study_budget) else "does not meet the rule"
         lines.append(

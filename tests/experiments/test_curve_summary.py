@@ -110,3 +110,17 @@ def test_committed_summary_matches_the_committed_curves(curve_summary: ModuleTyp
     assert curve_summary.summary(setting, HERE / "results") == committed.read_text(), (
         f"{curve.summary} is stale: run `python benchmarks/paper_n5_independent/curve_summary.py --setting {setting}`"
     )
+
+
+def test_summary_labels_seeds_by_number_and_refuses_curves_on_other_steps(curve_summary: ModuleType, tmp_path: Path) -> None:
+    steps = np.arange(0, 2_500_001, 50_000, dtype=float)
+    for seed in (2, 10):
+        write_curve(tmp_path / "labels", "paper_n5i_exp2_curve", seed, steps, np.full(len(steps), 0.8))
+    text = curve_summary.summary("exp2", tmp_path / "labels")
+    assert "Seeds 2, 10;" in text and "| seed 10: min-dist / normalised (smoothed) |" in text
+    assert "seed 2: 0.80, the rest adds +0.00; seed 10: 0.80" in text
+
+    write_curve(tmp_path / "grids", "paper_n5i_exp2_curve", 0, steps, np.full(len(steps), 0.8))
+    write_curve(tmp_path / "grids", "paper_n5i_exp2_curve", 1, steps + 25_000, np.full(len(steps), 0.8))
+    with pytest.raises(ValueError, match=r"^seed 1's learning curve is evaluated at other env steps than seed 0's"):
+        curve_summary.summary("exp2", tmp_path / "grids")
