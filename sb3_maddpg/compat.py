@@ -35,6 +35,7 @@ from stable_baselines3.common.save_util import json_to_data, open_path
 
 from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.common.user_code import user_stacklevel
+from sb3_maddpg.provenance import COMMIT_KEY, source_commit
 from sb3_maddpg.version import __version__
 
 FIRST_VERSIONED = Version("0.3.0.dev0")
@@ -42,6 +43,9 @@ FIRST_VERSIONED = Version("0.3.0.dev0")
 
 VERSION_KEY = "sb3_maddpg_version"
 """The key of the version that wrote a file: an attribute of a saved model, a key of a stored config."""
+
+STAMP_KEYS = (VERSION_KEY, COMMIT_KEY)
+"""The keys :func:`with_version` adds to a stored config: read by :func:`migrate_stored_config`, never a field."""
 
 STORED_BEFORE_0_2 = {"vec_env": "mpe2", "n_envs": 1}
 """The values of the config fields that files written before 0.2 lack: those runs stepped one mpe2 env each."""
@@ -159,10 +163,11 @@ def written_by(data: Mapping[str, Any], what: str) -> Version | None:
 def with_version(stored: dict[str, Any]) -> dict[str, Any]:
     """
     :param stored: A config as written to a results directory (``to_dict()``).
-    :return: The same keys, then :data:`VERSION_KEY` with the installed version: what :func:`migrate_stored_config`
-        reads back.
+    :return: The same keys, then :data:`VERSION_KEY` with the installed version and
+        :data:`~sb3_maddpg.provenance.COMMIT_KEY` with the commit it runs from (:func:`~sb3_maddpg.provenance.source_commit`):
+        what :func:`migrate_stored_config` reads back.
     """
-    return {**stored, VERSION_KEY: __version__}
+    return {**stored, VERSION_KEY: __version__, COMMIT_KEY: source_commit()}
 
 
 def migrate_stored_config(data: Mapping[str, Any], source: str = "The stored config") -> dict[str, Any]:
@@ -171,14 +176,15 @@ def migrate_stored_config(data: Mapping[str, Any], source: str = "The stored con
 
     :param data: The file's object.
     :param source: What it is, for an error (e.g. its path).
-    :return: Its fields as this version names them, :data:`VERSION_KEY` removed. A file written before 0.3.0 gets the
+    :return: Its fields as this version names them, :data:`STAMP_KEYS` removed. A file written before 0.3.0 gets the
         values its version ran with for what it lacks (:data:`STORED_BEFORE_0_2`) and 0.3's names for renamed
         ``model_kwargs`` (:data:`RENAMED_IN_0_3`, in ``scheme_model_kwargs`` too); a file of 0.3.0 or later is this
         version's format. A file of a newer version is refused (:func:`written_by`).
     """
     fields = dict(data)
     version = written_by(fields, source)
-    fields.pop(VERSION_KEY, None)
+    for key in STAMP_KEYS:
+        fields.pop(key, None)
     if version is not None and version >= FIRST_VERSIONED:
         return fields
     fields = {**STORED_BEFORE_0_2, **fields}

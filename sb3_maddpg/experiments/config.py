@@ -9,7 +9,7 @@ import json
 from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
-from sb3_maddpg.compat import VERSION_KEY
+from sb3_maddpg.compat import STAMP_KEYS
 from sb3_maddpg.experiments.defaults import DEFAULT_ALGORITHM, DEFAULT_ENV, SCHEMES
 from sb3_maddpg.experiments.presets import package_presets, read_preset_file
 from sb3_maddpg.experiments.setting import ExperimentConfig
@@ -171,7 +171,7 @@ def _experiment_from_file(path: str, data: Any) -> ExperimentConfig:
     if not isinstance(data, dict) or "name" not in data:
         others = [name for name in fields if name != "name"]
         raise ValueError(f'Experiment file {path!r} holds no experiment: give a JSON object with a "name" and {others}.')
-    unknown = sorted(set(data) - {*fields, VERSION_KEY})
+    unknown = sorted(set(data) - {*fields, *STAMP_KEYS})
     if unknown:
         raise ValueError(f"Experiment file {path!r} has unknown key(s) {unknown}: an experiment's keys are {fields}.")
     try:

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from sb3_maddpg.compat import VERSION_KEY, renamed_in_0_3
+from sb3_maddpg.compat import STAMP_KEYS, VERSION_KEY, renamed_in_0_3
 from sb3_maddpg.experiments.config import EXPERIMENTS
 from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig, Setting
 
@@ -47,9 +47,9 @@ def test_a_stored_config_loads_unchanged(path: Path) -> None:
     written = json.loads(path.read_text())
     config_type: type[Setting] = RunConfig if path.name == "config.json" else ExperimentConfig
     loaded = json.loads(json.dumps(config_type.from_dict(written).to_dict()))
-    # The version that wrote a file (0.3 on) is read, not kept: the config it loads is this version's.
-    assert VERSION_KEY not in loaded
-    stored = {key: value for key, value in written.items() if key != VERSION_KEY}
+    # The version and commit that wrote a file (0.3 on) are read, not kept: the config it loads is this version's.
+    assert not set(STAMP_KEYS) & set(loaded)
+    stored = {key: value for key, value in written.items() if key not in STAMP_KEYS}
     assert {key: loaded[key] for key in stored} == {key: _as_stored(key, value) for key, value in stored.items()}
     missing = set(loaded) - set(stored)
     assert {key: loaded[key] for key in missing} == json.loads(
@@ -80,9 +80,9 @@ def test_every_field_is_stored(config_type: type[Setting]) -> None:
 
 def test_a_config_written_now_holds_its_version_and_reads_back(tmp_path: Path) -> None:
     from sb3_maddpg import __version__
-    from sb3_maddpg.compat import VERSION_KEY
     from sb3_maddpg.experiments.results import EXPERIMENT_FILE, load_experiments, write_experiment
     from sb3_maddpg.experiments.runner import start_run_directory
+    from sb3_maddpg.provenance import COMMIT_KEY, source_commit
 
     experiment = EXPERIMENTS["smoke"]
     write_experiment(tmp_path, experiment.name, experiment.to_dict())
@@ -93,11 +93,12 @@ def test_a_config_written_now_holds_its_version_and_reads_back(tmp_path: Path) -
     start_run_directory(run, tmp_path / "run")
     stored = json.loads((tmp_path / "run" / "config.json").read_text())
     assert stored[VERSION_KEY] == __version__ and RunConfig.from_dict(stored) == run
+    # The commit of this checkout (the tests run from one), so a run's own files say which code made it.
+    assert stored[COMMIT_KEY] == source_commit() and stored[COMMIT_KEY] is not None
 
 
 def test_a_config_is_migrated_by_the_version_that_wrote_it() -> None:
     from sb3_maddpg import __version__
-    from sb3_maddpg.compat import VERSION_KEY
 
     run = EXPERIMENTS["smoke"].runs()[0].to_dict()
     fields = {key: value for key, value in run.items() if key not in ("vec_env", "n_envs")}

@@ -19,7 +19,7 @@ from typing import Any
 
 import yaml
 
-from sb3_maddpg.compat import VERSION_KEY, written_by
+from sb3_maddpg.compat import STAMP_KEYS, written_by
 from sb3_maddpg.experiments.setting import ExperimentConfig, merge_model_kwargs
 
 PACKAGE_PRESETS = ("exp1", "exp2", "n3_full", "n3_partial", "smoke")
@@ -66,9 +66,9 @@ def presets_of(data: Any, source: str) -> list[ExperimentConfig]:
         raise ValueError(
             f"Preset file {source!r} holds no experiment: give a YAML mapping with a name and any of {fields[1:]}."
         )
-    _refuse_unknown(data, (*fields, *PRESET_KEYS, VERSION_KEY), source)
+    _refuse_unknown(data, (*fields, *PRESET_KEYS, *STAMP_KEYS), source)
     written_by(data, f"Preset file {source!r}")  # a newer version's preset is refused
-    setting_fields = {key: value for key, value in data.items() if key not in (*PRESET_KEYS, VERSION_KEY)}
+    setting_fields = {key: value for key, value in data.items() if key not in (*PRESET_KEYS, *STAMP_KEYS)}
     try:
         setting = _described(ExperimentConfig.from_fields(setting_fields), setting_fields, data.get("note"))
     except (TypeError, ValueError) as error:
