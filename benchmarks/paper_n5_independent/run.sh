@@ -7,22 +7,27 @@
 #   git worktree add --detach ../sweep-indep-study <commit>
 #   cd ../sweep-indep-study && RESULTS_ROOT=/work/main/benchmarks WORKERS=2 nohup bash benchmarks/paper_n5_independent/run.sh &
 # Resumable: run it again and finished runs are skipped; a run killed with its session goes on from its last snapshot.
-# Each start appends its commit to results/commits.log.
+# Each start appends its commit to results/commits.log; since b98b23a each run's config.json names it too.
+#
+# Issue 56, seeds 5-9 of Exp. 1 (seeds 0-4 are finished and skipped):
+#   SETTINGS=exp1 SEEDS=0,1,2,3,4,5,6,7,8,9 RESULTS_ROOT=/work/main/benchmarks WORKERS=2 nohup bash ... &
 set -u
 cd "$(dirname "$0")/../.."
 RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-2}"
 SEEDS="${SEEDS:-0,1,2,3,4}"
+SETTINGS="${SETTINGS:-exp1 exp2}"
 RESULTS="$RESULTS_ROOT/paper_n5_independent/results"
-for setting in exp1 exp2; do
+configs=()
+for setting in $SETTINGS; do
+  configs+=(--config "benchmarks/paper_n5_independent/$setting.json")
   [ -f "benchmarks/paper_n5_independent/$setting.json" ] || {
     echo "benchmarks/paper_n5_independent/$setting.json is missing: run make_configs.py --steps <the budget> first" >&2
     exit 2
   }
 done
 mkdir -p "$RESULTS"
-echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) study seeds $SEEDS workers $WORKERS" >>"$RESULTS/commits.log"
+echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) study $SETTINGS seeds $SEEDS workers $WORKERS" >>"$RESULTS/commits.log"
 export SDL_VIDEODRIVER=dummy
-nice -n 19 python -m sb3_maddpg.experiments run --config benchmarks/paper_n5_independent/exp1.json \
-    --config benchmarks/paper_n5_independent/exp2.json --seeds "$SEEDS" \
+nice -n 19 python -m sb3_maddpg.experiments run "${configs[@]}" --seeds "$SEEDS" \
     --results "$RESULTS" --workers "$WORKERS" --threads 1 --quiet
