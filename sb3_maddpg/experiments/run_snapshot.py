@@ -2,26 +2,37 @@
 
 A sweep's run used to start again from scratch when its process was killed (a machine's session ending, a lost
 worker): an hour of an N=5 run lost at each interruption. At 10%, 20%, ..., 90% of its budget a run on the batched
-simple_spread env now writes its whole training state to ``<run>/resume/``: the model as SB3 saves it (weights,
-Adam's moments, counters, the last observations, the exploration noise, the update schedule's credit), its replay
-buffer, the random streams of Python, NumPy, PyTorch and the action space, the env's worlds and their own random
-stream, the per-agent episode returns, the logger's pending values, the ``progress.csv`` rows, the learning curve and
-the checkpoints so far. It is taken at the start of a rollout, where the previous rollout's updates are done, so that
+simple_spread env now writes its whole training state to ``<run>/resume/``: the model's networks and optimisers, its
+counters, last observations, episode statistics and the update schedule's credit, its replay buffer, the random
+streams of Python, NumPy, PyTorch and the action space, the env's worlds and their own random streams, the per-agent
+episode returns, the logger's pending values, the ``progress.csv`` rows, the learning curve and the checkpoints so far.
+It is taken at the start of a rollout, where the previous rollout's updates are done, so that
 ``learn(reset_num_timesteps=False)`` goes on from it as the uninterrupted ``learn`` would: the resumed run's files are
 those of an uninterrupted run, bit for bit on the CPU (timings aside; ``tests/experiments/test_run_snapshot.py``). The
 directory is replaced whole (written beside it, then renamed) and removed when the run is done; a snapshot of another
 config, of other versions, or not whole is not used.
+
+A snapshot is read without pickle, which runs whatever code a file names: a results directory that others can write
+(a Ray cluster's storage) must not be able to run code in the processes that resume from it. The tensors (networks,
+optimisers, PyTorch's random stream) are ``torch.save``'d and read with ``torch.load(..., weights_only=True)``, the
+arrays (replay buffer, worlds, observations) ``np.savez``'d and read with ``np.load(..., allow_pickle=False)``, and the
+rest is JSON (:mod:`~sb3_maddpg.experiments.plain_state`). The model is not read with SB3's ``load`` (which
+unpickles): the run builds its model from its config, and the snapshot's state goes back onto it. A snapshot of the
+pickled format of before (``state.pkl``) is refused by name, and the run starts afresh.
 """
 
+import contextlib
 import csv
+import dataclasses
+import json
 import os
-import pickle
 import random
 import shutil
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from pickle import UnpicklingError  # what torch.load(weights_only=True) raises for a file that names code
 from typing import Any
 
 import numpy as np
@@ -29,9 +40,14 @@ import stable_baselines3
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.running_mean_std import RunningMeanStd
+from stable_baselines3.common.save_util import recursive_getattr
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
+from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.envs.simple_spread_vec_env import SimpleSpreadVecEnv
+from sb3_maddpg.envs.simple_spread_worlds import SimpleSpreadWorlds
+from sb3_maddpg.experiments.plain_state import NotPlainData, decode, encode, object_state, restore_object_state
 from sb3_maddpg.version import __version__
 
 SNAPSHOT_DIR = "resume"
@@ -40,14 +56,64 @@ SNAPSHOT_DIR = "resume"
 SNAPSHOTS_PER_RUN = 10
 """A snapshot at each ``1 / SNAPSHOTS_PER_RUN`` of the budget (the last one at 90%)."""
 
-MODEL_FILE, BUFFER_FILE, STATE_FILE = "model.zip", "replay_buffer.pkl", "state.pkl"
+SNAPSHOT_FORMAT = 2
+"""The format of a snapshot's files, in its ``snapshot.json``: 2 is read without pickle (1 was ``state.pkl``)."""
+
+STATE_FILE, ARRAYS_FILE, TENSORS_FILE = "snapshot.json", "arrays.npz", "tensors.pt"
+"""A snapshot's files: the JSON state (written last, the snapshot's mark), its arrays, and its torch tensors."""
+
+PICKLED_STATE_FILE = "state.pkl"
+"""The mark of a snapshot of format 1, which was read with pickle: refused by name, never read."""
 
 NO_SNAPSHOT = "no snapshot"
-
-UNREADABLE = (pickle.UnpicklingError, EOFError, zipfile.BadZipFile, KeyError, AttributeError, ValueError)
-"""Errors that say a snapshot's files are not whole or not of this code (the run starts afresh); any other error while
-loading one (e.g. out of memory) fails the run and keeps the snapshot for the next attempt."""
 """What :func:`load_snapshot` says when a run has none (a first attempt, or one killed before its first)."""
+
+UNREADABLE = (
+    UnpicklingError,
+    EOFError,
+    zipfile.BadZipFile,
+    FileNotFoundError,
+    KeyError,
+    AttributeError,
+    IndexError,
+    TypeError,
+    ValueError,
+)
+"""Errors that say a snapshot's files are not whole, not of this code, or tampered with (the run starts afresh); any
+other error while loading one (e.g. out of memory) fails the run and keeps the snapshot for the next attempt."""
+
+STATE_HOLDERS = (SimpleSpreadWorlds, RunningMeanStd, UpdateSchedule)
+"""Objects whose attributes are training state, saved attribute by attribute: the simple_spread worlds, a
+``VecNormalize``'s running statistics, the update schedule's credit."""
+
+MADE_BY_CONSTRUCTION = frozenset(
+    {"venv", "class_attributes", "observation_space", "action_space", "device", "agent_layout", "layout", "selector"}
+    | {"task_metrics", "xp", "_renderer", "results_writer"}
+)
+"""Attributes of an env's layers and of the replay buffer that are not saved: a new env and model of the run's config
+have them as the saved ones had (the action space's random stream is saved apart). Any other attribute that is not
+plain data stops a snapshot from being saved (said in the run's log)."""
+
+MODEL_ATTRIBUTES = (
+    # SB3's counters and the rollout under way (BaseAlgorithm, OffPolicyAlgorithm); the exploration noise has no
+    # state to keep, since learn() resets it at its start.
+    "num_timesteps",
+    "_episode_num",
+    "_n_updates",
+    "_current_progress_remaining",
+    "gradient_steps",
+    "_last_obs",
+    "_last_episode_starts",
+    "_last_original_obs",
+    "ep_info_buffer",
+    "ep_success_buffer",
+    # TeamOffPolicyAlgorithm's: the update schedule's credit, the last log step, the per-agent returns under way.
+    "update_rule",
+    "_logs_dumped_at",
+    "_agent_episode_returns",
+)
+"""The model's attributes that change in training, besides its networks and optimisers (a model of the run's config
+has the others)."""
 
 
 @dataclass
@@ -74,7 +140,7 @@ def versions() -> dict[str, str]:
     return {
         "sb3_maddpg": __version__,
         "stable_baselines3": stable_baselines3.__version__,
-        "torch": th.__version__,
+        "torch": str(th.__version__),  # a TorchVersion, a str subclass
         "numpy": np.__version__,
     }
 
@@ -103,12 +169,13 @@ def snapshot_steps(total_timesteps: int) -> list[int]:
 def env_layers(env: VecEnv) -> list[dict[str, Any]]:
     """
     :param env: A training env: a ``VecEnv``, possibly wrapped (``VecMonitor``, ``VecNormalize``).
-    :return: Each layer's attributes, outermost first, without the wrapped env and the class's attributes (which
-        do not pickle): the state that a new env of the same construction takes back with :func:`restore_env_layers`.
+    :return: Each layer's class name and state (:func:`~sb3_maddpg.experiments.plain_state.object_state`: the
+        worlds' arrays and the generators of the simple_spread env, a monitor's episode counts, ...), outermost first:
+        what a new env of the same construction takes back with :func:`restore_env_layers`.
     """
     layers, layer = [], env
     while True:
-        layers.append({key: value for key, value in vars(layer).items() if key not in ("venv", "class_attributes")})
+        layers.append({"class": type(layer).__name__, "state": object_state(layer, STATE_HOLDERS, MADE_BY_CONSTRUCTION)})
         if not isinstance(layer, VecEnvWrapper):
             return layers
         layer = layer.venv
@@ -117,17 +184,22 @@ def env_layers(env: VecEnv) -> list[dict[str, Any]]:
 def restore_env_layers(env: VecEnv, layers: list[dict[str, Any]]) -> None:
     """
     :param env: A new env, built as the saved one was.
-    :param layers: From :func:`env_layers`.
+    :param layers: From :func:`env_layers`, decoded.
+    :raises ValueError: For layers of other classes than the env's.
     """
     layer: Any = env
-    for attributes in layers:
-        layer.__dict__.update(attributes)
+    for saved in layers:
+        if type(layer).__name__ != saved["class"]:
+            raise ValueError(f"the snapshot's env has a {saved['class']} where this run's has a {type(layer).__name__}")
+        restore_object_state(layer, saved["state"], STATE_HOLDERS)
         layer = getattr(layer, "venv", None)
+    if layer is not None:
+        raise ValueError(f"the snapshot's env has fewer layers than this run's ({type(layer).__name__} not saved)")
 
 
 def random_state() -> dict[str, Any]:
     """:return: The random streams of Python, NumPy (global) and PyTorch (CPU, and CUDA's when present)."""
-    state = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": th.get_rng_state()}
+    state = {"python": random.getstate(), "numpy": np.random.get_state(legacy=False), "torch": th.get_rng_state()}
     if th.cuda.is_available():
         state["cuda"] = th.cuda.get_rng_state_all()
     return state
@@ -140,6 +212,45 @@ def set_random_state(state: dict[str, Any]) -> None:
     th.set_rng_state(state["torch"])
     if "cuda" in state and th.cuda.is_available():
         th.cuda.set_rng_state_all(state["cuda"])
+
+
+def model_tensors(model: BaseAlgorithm) -> dict[str, Any]:
+    """:return: The state dicts of the model's networks and optimisers, and its other tensors, as SB3's ``save`` names them."""
+    modules, variables = model._get_torch_save_params()
+    return {
+        "modules": {name: recursive_getattr(model, name).state_dict() for name in modules},
+        "variables": {name: recursive_getattr(model, name) for name in variables},
+    }
+
+
+def restore_model_tensors(model: BaseAlgorithm, tensors: dict[str, Any]) -> None:
+    """
+    :param model: A new model of the run's config.
+    :param tensors: From :func:`model_tensors` (on the CPU: a state dict's ``load_state_dict`` puts it on the model's
+        device).
+    """
+    modules, variables = model._get_torch_save_params()
+    if sorted(tensors["modules"]) != sorted(modules) or sorted(tensors["variables"]) != sorted(variables):
+        raise ValueError(f"the snapshot's model has the tensors {sorted(tensors['modules'])}, this run's {sorted(modules)}")
+    with torch_errors_as_unreadable(TENSORS_FILE):  # e.g. networks of other sizes
+        for name, state_dict in tensors["modules"].items():
+            recursive_getattr(model, name).load_state_dict(state_dict)
+        with th.no_grad():
+            for name, tensor in tensors["variables"].items():
+                if tensor is not None:  # e.g. SAC's log_ent_coef, None when the coefficient is fixed
+                    recursive_getattr(model, name).copy_(tensor)
+
+
+@contextlib.contextmanager
+def torch_errors_as_unreadable(name: str) -> Iterator[None]:
+    """Turn PyTorch's ``RuntimeError`` for a file cut short or tensors of other shapes into a ``ValueError`` (the
+    snapshot is not whole, or not of this code), leaving out running out of memory, which fails the run."""
+    try:
+        yield
+    except th.OutOfMemoryError:
+        raise
+    except RuntimeError as error:
+        raise ValueError(f"{name}: {error}") from error
 
 
 def read_progress_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
@@ -175,27 +286,33 @@ def save_snapshot(run_dir: str | os.PathLike[str], model: BaseAlgorithm, progres
     :param model: The model, between two rollouts.
     :param progress: What the run has written so far.
     :return: The snapshot's directory.
+    :raises NotPlainData: For a state that is not plain data (nothing is written then).
     """
     final = Path(run_dir) / SNAPSHOT_DIR
     tmp, old = final.with_name(f"{SNAPSHOT_DIR}.tmp"), final.with_name(f"{SNAPSHOT_DIR}.old")
+    streams = random_state()
+    tensors = {**model_tensors(model), "random": {key: streams.pop(key) for key in ("torch", "cuda") if key in streams}}
+    logger = model.logger
+    document, arrays = encode(
+        {
+            "format": SNAPSHOT_FORMAT,
+            "versions": versions(),
+            "progress": dataclasses.asdict(progress),
+            "random": streams,
+            # The model's build seeds the action space from the model's seed: random actions before learning_starts
+            # come from it, so its stream is restored from here.
+            "action_space": model.action_space.np_random.bit_generator.state,
+            "model": object_state(model, STATE_HOLDERS, names=MODEL_ATTRIBUTES),
+            "replay_buffer": object_state(model.replay_buffer, STATE_HOLDERS, MADE_BY_CONSTRUCTION),  # type: ignore[attr-defined]
+            "env": env_layers(model.get_env()),  # type: ignore[arg-type]
+            "logger": [dict(logger.name_to_value), dict(logger.name_to_count), dict(logger.name_to_excluded)],
+        }
+    )
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
-    model.save(tmp / MODEL_FILE)
-    model.save_replay_buffer(tmp / BUFFER_FILE)  # type: ignore[attr-defined]  # off-policy models have one
-    logger = model.logger
-    state = {
-        "progress": progress,
-        "versions": versions(),
-        "random": random_state(),
-        # SB3's load seeds the action space again from the model's seed: random actions before learning_starts
-        # come from it, so its stream is restored from here.
-        "action_space": model.action_space,
-        "env": env_layers(model.get_env()),  # type: ignore[arg-type]
-        "agent_episode_returns": getattr(model, "_agent_episode_returns", None),  # not in SB3's save
-        "logger": [dict(logger.name_to_value), dict(logger.name_to_count), dict(logger.name_to_excluded)],
-    }
-    with open(tmp / STATE_FILE, "wb") as file:
-        pickle.dump(state, file, protocol=pickle.HIGHEST_PROTOCOL)
+    th.save(tensors, tmp / TENSORS_FILE)
+    np.savez(tmp / ARRAYS_FILE, allow_pickle=False, **arrays)
+    (tmp / STATE_FILE).write_text(json.dumps(document))
     if final.exists():
         final.rename(old)
     tmp.rename(final)
@@ -204,23 +321,20 @@ def save_snapshot(run_dir: str | os.PathLike[str], model: BaseAlgorithm, progres
 
 
 def load_snapshot(
-    run_dir: str | os.PathLike[str],
-    config: dict[str, Any],
-    algorithm: type[BaseAlgorithm],
-    make_env: Callable[[], VecEnv],
-    device: str = "auto",
+    run_dir: str | os.PathLike[str], config: dict[str, Any], make_model: Callable[[], BaseAlgorithm]
 ) -> tuple[BaseAlgorithm, dict[str, Any]] | str:
     """
-    Load a run's snapshot: the model on a new env (its worlds restored), its replay buffer, and the random streams.
+    Load a run's snapshot onto a new model of the run (on a new env): its networks and optimisers, its counters, its
+    replay buffer, the env's worlds and the random streams. Nothing is unpickled.
 
     :param run_dir: The run's directory.
     :param config: The run's config (``RunConfig.to_dict()``).
-    :param algorithm: The run's algorithm class.
-    :param make_env: Builds a new training env of the run, as the saved one was built.
-    :param device: Where the loaded model trains (SB3's ``device``).
+    :param make_model: Builds the run's untrained model on a new training env, as the saved one was built (on the
+        device the run trains on).
     :return: The model and the rest of the state (``"progress"``: :class:`RunProgress`, ``"logger"``: the logger's
-        pending values), or why no snapshot is used (:data:`NO_SNAPSHOT`, another config's, other versions', not
-        whole: :data:`UNREADABLE`); any other error (e.g. out of memory) is raised, the snapshot kept.
+        pending values), or why no snapshot is used (:data:`NO_SNAPSHOT`; of the pickled format of before, of another
+        config, of other versions, not whole: :data:`UNREADABLE`); any other error (e.g. out of memory) is raised, the
+        snapshot kept.
     """
     directory = Path(run_dir) / SNAPSHOT_DIR
     old = directory.with_name(f"{SNAPSHOT_DIR}.old")
@@ -229,30 +343,52 @@ def load_snapshot(
     for leftover in (directory.with_name(f"{SNAPSHOT_DIR}.tmp"), old):
         shutil.rmtree(leftover, ignore_errors=True)  # a save killed half-way
     if not (directory / STATE_FILE).is_file():
+        if (directory / PICKLED_STATE_FILE).is_file():
+            return (
+                f"its snapshot is of the pickled format 1 ({PICKLED_STATE_FILE}), which could run code when read: not "
+                f"read (this version reads format {SNAPSHOT_FORMAT})"
+            )
         return NO_SNAPSHOT
     try:
-        with open(directory / STATE_FILE, "rb") as file:
-            state = pickle.load(file)
+        document = json.loads((directory / STATE_FILE).read_text())
+        if document.get("format") != SNAPSHOT_FORMAT:
+            return f"its snapshot is of format {document.get('format')}, this version reads format {SNAPSHOT_FORMAT}"
+        progress = RunProgress(**decode(document["progress"], {}))
+        saved_versions = decode(document["versions"], {})
     except UNREADABLE as error:
         return f"its snapshot could not be read ({type(error).__name__}: {error})"
-    if state["progress"].config != config:
+    if progress.config != config:
         return "its snapshot is of another config"
-    if state.get("versions") != versions():
-        return f"its snapshot was saved under other versions ({state.get('versions')}, now {versions()})"
-    env = make_env()
+    if saved_versions != versions():
+        return f"its snapshot was saved under other versions ({saved_versions}, now {versions()})"
+    model = make_model()
     try:
-        model = algorithm.load(directory / MODEL_FILE, env=env, device=device, force_reset=False)
-        model.load_replay_buffer(directory / BUFFER_FILE)  # type: ignore[attr-defined]
+        restore_snapshot(model, directory)
     except UNREADABLE as error:
-        env.close()
+        model.get_env().close()  # type: ignore[union-attr]
         return f"its snapshot could not be read ({type(error).__name__}: {error})"
-    # After the load, which seeds the env and the spaces from the model's seed: their saved state goes back on top.
+    return model, {"progress": progress, "logger": decode(document["logger"], {})}
+
+
+def restore_snapshot(model: BaseAlgorithm, directory: Path) -> None:
+    """
+    Put a snapshot's state on a new model of its run.
+
+    :param model: The new model, on a new env.
+    :param directory: The snapshot.
+    :raises UNREADABLE: For files that are not whole, not of this code, or tampered with.
+    """
+    with torch_errors_as_unreadable(TENSORS_FILE):  # a file cut short
+        tensors = th.load(directory / TENSORS_FILE, map_location="cpu", weights_only=True)
+    with np.load(directory / ARRAYS_FILE, allow_pickle=False) as arrays:
+        state = decode(json.loads((directory / STATE_FILE).read_text()), arrays)
+    restore_model_tensors(model, tensors)
+    restore_object_state(model, state["model"], STATE_HOLDERS)
+    restore_object_state(model.replay_buffer, state["replay_buffer"], STATE_HOLDERS)  # type: ignore[attr-defined]
+    # After the build, which seeded the env and the spaces from the model's seed: their saved state goes back on top.
     restore_env_layers(model.get_env(), state["env"])  # type: ignore[arg-type]
-    model.action_space = state["action_space"]
-    if state["agent_episode_returns"] is not None:
-        model._agent_episode_returns = state["agent_episode_returns"]  # type: ignore[attr-defined]
-    set_random_state(state["random"])  # last: loading the model built networks from the torch stream
-    return model, state
+    model.action_space.np_random.bit_generator.state = state["action_space"]
+    set_random_state({**state["random"], **tensors["random"]})  # last: the build drew the networks from the streams
 
 
 def restore_logger_values(model: BaseAlgorithm, values: list[dict[str, Any]]) -> None:
@@ -314,7 +450,7 @@ class SnapshotCallback(BaseCallback):
             self.pending.pop(0)
         try:
             save_snapshot(self.run_dir, self.model, self.progress())
-        except OSError as error:  # e.g. a full disk: training goes on, the last whole snapshot stays
+        except (OSError, NotPlainData) as error:  # a full disk, a state not plain data: training goes on, the last stays
             shutil.rmtree(self.run_dir / f"{SNAPSHOT_DIR}.tmp", ignore_errors=True)
             self.log(f"snapshot at {self.model.num_timesteps:,} steps not saved ({type(error).__name__}: {error})")
             return

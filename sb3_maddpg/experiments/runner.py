@@ -255,8 +255,8 @@ def resume_or_start(
         written by then, the logger's pending values then, and why no snapshot was used (``""`` when one was).
     """
     device = config.model_kwargs.get("device", device)
-    algorithm = load_algorithm(config.algorithm)
-    resumed = load_snapshot(directory, config.to_dict(), algorithm, run_task(config).make_train_env, device=device)
+    # The snapshot's state goes onto a new model of the config (never SB3's load, which unpickles).
+    resumed = load_snapshot(directory, config.to_dict(), lambda: build_model(config, device=device))
     if isinstance(resumed, str):
         start_run_directory(config, directory)
         return build_model(config, device=device), RunProgress(config.to_dict()), [], resumed

@@ -109,9 +109,9 @@ def test_a_snapshot_that_cannot_be_used_is_a_fresh_start(tmp_path: Path, monkeyp
         run_killed(patch, other, tmp_path, nth=2)
     assert "starting afresh: its snapshot was saved under other versions" in (directory / LOG_FILE).read_text()
     # An unreadable snapshot: a fresh start that says why, and the run finishes.
-    (directory / SNAPSHOT_DIR / STATE_FILE).write_bytes(b"not a pickle")
+    (directory / SNAPSHOT_DIR / STATE_FILE).write_bytes(b"not JSON")
     summary = runner.execute_run(other, tmp_path, verbose=0)
-    assert "starting afresh: its snapshot could not be read (UnpicklingError" in (directory / LOG_FILE).read_text()
+    assert "starting afresh: its snapshot could not be read (JSONDecodeError" in (directory / LOG_FILE).read_text()
     assert summary["total_timesteps"] == 1_000 and not (directory / SNAPSHOT_DIR).exists()
 
 
@@ -168,13 +168,13 @@ def test_a_resumed_run_loads_on_the_device_asked_for(tmp_path: Path, monkeypatch
     run = config()
     run_killed(monkeypatch, run, tmp_path, nth=2)
     devices: list[Any] = []
-    load = MADDPG.load.__func__  # type: ignore[attr-defined]
+    build_model = runner.build_model
 
-    def recording_load(cls: type[MADDPG], *args: Any, **kwargs: Any) -> MADDPG:
+    def recording_build(config: RunConfig, **kwargs: Any) -> Any:
         devices.append(kwargs.get("device"))
-        return load(cls, *args, **kwargs)
+        return build_model(config, **kwargs)
 
-    monkeypatch.setattr(MADDPG, "load", classmethod(recording_load))
+    monkeypatch.setattr(runner, "build_model", recording_build)
     runner.execute_run(run, tmp_path, verbose=0, device="cpu")
     assert "resumed from its snapshot" in (run_directory(tmp_path, run) / LOG_FILE).read_text()
-    assert devices[0] == "cpu"  # the snapshot's model, loaded where --device says (then the checkpoints, for scoring)
+    assert devices == ["cpu"]  # the model the snapshot goes onto, built where --device says
