@@ -18,10 +18,18 @@ from typing import Any  # noqa: E402
 
 import pytest  # noqa: E402
 import torch as th  # noqa: E402
+from hypothesis import HealthCheck, settings  # noqa: E402
 
 from sb3_maddpg import MADDPG  # noqa: E402
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples  # noqa: E402
 from sb3_maddpg.envs import make_simple_spread  # noqa: E402
+
+# Generated inputs (hypothesis): a small, seeded sample in CI; HYPOTHESIS_PROFILE=long for the longer run by hand.
+settings.register_profile(
+    "ci", max_examples=12, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.register_profile("long", max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 BATCH = 8
 """Rows of :func:`replay_batch`'s batches."""

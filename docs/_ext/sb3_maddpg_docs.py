@@ -6,11 +6,16 @@
   otherwise renders the directive's content (a fallback note), so generated results can be linked
   before they are produced without breaking a ``-W`` build.
 - ``.. example-scripts:: dir``: every example script in full, with a summary table.
+- ``.. argument-ranges:: module.Constructor module.RANGES``: a table of each numeric argument of the constructor that
+  the ranges declare, its valid range, its default and what it is, drawn from the code
+  (:mod:`sb3_maddpg.common.argument_ranges`) so the docs cannot disagree with the checks.
 - ``.. results-directory:: path``: shows the Markdown tables and the figures of a report directory
   written by ``sb3-maddpg report``, or the directive's content when there is none.
 """
 
 import ast
+import importlib
+import inspect
 import re
 from pathlib import Path
 from typing import Any
@@ -239,7 +244,35 @@ class ExampleScripts(SphinxDirective):
         return container.children
 
 
+def _import_path(path: str) -> Any:
+    """:return: The object at a dotted path (``package.module.Name``)."""
+    module, _, name = path.rpartition(".")
+    return getattr(importlib.import_module(module), name)
+
+
+class ArgumentRanges(SphinxDirective):
+    """A table of a constructor's numeric arguments: valid range, default, meaning (from the declared ranges)."""
+
+    required_arguments = 2
+    has_content = False
+
+    def run(self) -> list[nodes.Node]:
+        constructor, ranges = (_import_path(path) for path in self.arguments)
+        parameters = inspect.signature(constructor).parameters
+        rows = [".. list-table::", "   :header-rows: 1", "   :widths: 18 30 12 40", ""]
+        rows += ["   * - argument", "     - valid range", "     - default", "     - what it is"]
+        for name, valid in ranges.items():
+            default = parameters[name].default if name in parameters else inspect.Parameter.empty
+            shown = "(required)" if default is inspect.Parameter.empty else f"``{default!r}``"
+            rows += [f"   * - ``{name}``", f"     - {valid.describe()}", f"     - {shown}", f"     - {valid.meaning}"]
+        container = nodes.section()
+        container.document = self.state.document
+        nested_parse_with_titles(self.state, StringList(rows, source="argument-ranges"), container)
+        return container.children
+
+
 def setup(app: Sphinx) -> dict[str, Any]:
+    app.add_directive("argument-ranges", ArgumentRanges)
     app.add_directive("markdown-include", MarkdownInclude)
     app.add_directive("include-if-exists", IncludeIfExists)
     app.add_directive("results-directory", ResultsDirectory)

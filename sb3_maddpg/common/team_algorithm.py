@@ -91,6 +91,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         self.noise_std = noise_std
         self._logs_dumped_at = -1
         self._warned_never_updated = False  # not saved: a loaded model may warn once more
+        self._warned_empty_resume = False  # not saved, as above
         # Each env's running per-agent return in the episode under way, [n_envs, n_agents] (None: none under way).
         self._agent_episode_returns: np.ndarray | None = None
         self.agent_layout = None
@@ -317,6 +318,8 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param progress_bar: Display a progress bar (needs tqdm and rich).
         :return: The trained model.
         """
+        if not reset_num_timesteps:
+            self._warn_if_resuming_on_an_empty_buffer()
         with package_threads():  # one torch thread unless the user chose one (sb3_maddpg.common.torch_threads)
             result = super().learn(
                 total_timesteps=total_timesteps,
@@ -328,6 +331,28 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             )
         self._warn_if_never_updated()
         return result
+
+    def _warn_if_resuming_on_an_empty_buffer(self) -> None:
+        """
+        Say once when training goes on past ``learning_starts`` from a replay buffer that holds fewer rows: a loaded
+        model's buffer starts empty (SB3 saves it apart), and its first updates would sample the few transitions
+        collected since, over and over.
+        """
+        if self._warned_empty_resume or self.num_timesteps < self.learning_starts or self.replay_buffer is None:
+            return
+        rows = self.replay_buffer.size() * self.replay_buffer.n_envs
+        if rows >= self.learning_starts:
+            return
+        self._warned_empty_resume = True
+        warnings.warn(
+            f"learn(reset_num_timesteps=False) goes on at step {self.num_timesteps:,}, past learning_starts="
+            f"{self.learning_starts:,}, with {rows:,} transitions in the replay buffer: a loaded model's buffer starts "
+            "empty, and its updates start at once on the few transitions collected since. Load the buffer saved with "
+            "the model (model.load_replay_buffer(path), saved by model.save_replay_buffer(path)), or accept that the "
+            "first updates overfit a small buffer.",
+            UserWarning,
+            stacklevel=user_stacklevel(),
+        )
 
     def _warn_if_never_updated(self) -> None:
         """Say once, naming learning_starts, that the model has not been trained at all: a short run is otherwise silent."""
@@ -440,4 +465,10 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
 
     def _excluded_save_params(self) -> list[str]:
         # The running returns belong to the env's episodes under way, which a loaded model's env starts again.
-        return [*super()._excluded_save_params(), "_discrete_components", "_warned_never_updated", "_agent_episode_returns"]
+        return [
+            *super()._excluded_save_params(),
+            "_discrete_components",
+            "_warned_never_updated",
+            "_warned_empty_resume",
+            "_agent_episode_returns",
+        ]

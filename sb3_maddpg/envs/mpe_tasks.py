@@ -8,6 +8,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from sb3_maddpg.common.argument_ranges import SIMPLE_SPREAD_RANGES
 from sb3_maddpg.envs.adapter import MetricsFn, PettingZooToGym
 from sb3_maddpg.envs.simple_spread import SIMPLE_SPREAD_TASK_METRICS, make_simple_spread
 from sb3_maddpg.envs.task_metric import TaskMetric
@@ -225,8 +226,7 @@ def make_mpe_env(
     :return: The gymnasium env.
     """
     module_name = _task_module(task)
-    if max_cycles < 1:
-        raise ValueError(f"max_cycles (the episode length) must be at least 1, got {max_cycles}.")
+    SIMPLE_SPREAD_RANGES["max_cycles"].check("max_cycles", max_cycles)  # every MPE task's episode length
     if task == "simple_spread":
         return make_simple_spread(
             max_cycles=max_cycles,

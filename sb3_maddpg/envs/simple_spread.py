@@ -3,6 +3,7 @@
 import math
 from typing import Any, Literal
 
+from sb3_maddpg.common.argument_ranges import SIMPLE_SPREAD_RANGES
 from sb3_maddpg.envs.adapter import PettingZooToGym
 from sb3_maddpg.envs.task_metric import TaskMetric
 
@@ -41,8 +42,7 @@ class SimpleSpreadMetrics:
     """
 
     def __init__(self, capture_radius: float = CAPTURE_RADIUS) -> None:
-        if capture_radius <= 0:
-            raise ValueError(f"capture_radius must be positive, got {capture_radius}.")
+        check_simple_spread_arguments(capture_radius=capture_radius)
         self.capture_radius = float(capture_radius)
 
     def __call__(self, parallel_env: Any) -> dict[str, Any]:
@@ -74,38 +74,18 @@ class SimpleSpreadMetrics:
         }
 
 
-def check_simple_spread_arguments(
-    n_agents: int,
-    num_agent_neighbors: int | None,
-    max_cycles: int,
-    local_ratio: float,
-    num_landmark_neighbors: int | None,
-) -> None:
+def check_simple_spread_arguments(**values: Any) -> None:
     """
-    Refuse simple_spread settings that mpe2 would reject or silently misread, naming the bound.
+    Refuse simple_spread settings that mpe2 would reject or silently misread, naming the argument and its range
+    (:data:`~sb3_maddpg.common.argument_ranges.SIMPLE_SPREAD_RANGES`).
 
-    :param n_agents: Number of agents (at least 2).
-    :param num_agent_neighbors: ``None``, or 1 to ``n_agents - 1``.
-    :param max_cycles: At least 1.
-    :param local_ratio: In [0, 1].
-    :param num_landmark_neighbors: ``None``, or 1 to ``n_agents``.
+    :param values: Any of ``n_envs``, ``n_agents``, ``num_agent_neighbors``, ``num_landmark_neighbors``,
+        ``max_cycles``, ``local_ratio`` and ``capture_radius``, by name; the neighbours' bounds need ``n_agents``.
     """
-    if n_agents < 2:
-        raise ValueError(f"simple_spread needs at least 2 agents, got n_agents={n_agents}.")
-    if num_agent_neighbors is not None and not 1 <= num_agent_neighbors <= n_agents - 1:
-        raise ValueError(
-            f"num_agent_neighbors must be between 1 and n_agents - 1 = {n_agents - 1} (or None for full "
-            f"observability), got {num_agent_neighbors}."
-        )
-    if num_landmark_neighbors is not None and not 1 <= num_landmark_neighbors <= n_agents:
-        raise ValueError(
-            f"num_landmark_neighbors must be between 1 and n_agents = {n_agents} (or None to observe every "
-            f"landmark), got {num_landmark_neighbors}."
-        )
-    if max_cycles < 1:
-        raise ValueError(f"max_cycles (the episode length) must be at least 1, got {max_cycles}.")
-    if not 0.0 <= local_ratio <= 1.0:
-        raise ValueError(f"local_ratio is a weight in [0, 1] (0: shared reward only), got {local_ratio}.")
+    n_agents = values.get("n_agents")
+    bounds = {} if n_agents is None else {"num_agent_neighbors": n_agents - 1, "num_landmark_neighbors": n_agents}
+    for name, value in values.items():
+        SIMPLE_SPREAD_RANGES[name].check(name, value, bounds.get(name))
 
 
 def make_simple_spread(
@@ -143,7 +123,12 @@ def make_simple_spread(
     from mpe2 import simple_spread_v3  # imported here so that `import sb3_maddpg` stays light
 
     check_simple_spread_arguments(
-        n_agents, num_agent_neighbors, max_cycles, local_ratio, mpe_kwargs.get("num_landmark_neighbors")
+        n_agents=n_agents,
+        num_agent_neighbors=num_agent_neighbors,
+        num_landmark_neighbors=mpe_kwargs.get("num_landmark_neighbors"),
+        max_cycles=max_cycles,
+        local_ratio=local_ratio,
+        capture_radius=capture_radius,
     )
     parallel_env = simple_spread_v3.parallel_env(
         N=n_agents,

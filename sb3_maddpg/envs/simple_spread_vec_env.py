@@ -73,9 +73,15 @@ class SimpleSpreadVecEnv(VecEnv):
         num_landmark_neighbors: int | None = None,
         continuous_actions: bool = True,
     ) -> None:
-        if isinstance(n_envs, bool) or not isinstance(n_envs, int | np.integer) or n_envs < 1:
-            raise ValueError(f"n_envs must be a positive integer, got {n_envs!r}.")
-        check_simple_spread_arguments(n_agents, num_agent_neighbors, max_cycles, local_ratio, num_landmark_neighbors)
+        check_simple_spread_arguments(
+            n_envs=n_envs,
+            n_agents=n_agents,
+            num_agent_neighbors=num_agent_neighbors,
+            num_landmark_neighbors=num_landmark_neighbors,
+            max_cycles=max_cycles,
+            local_ratio=local_ratio,
+            capture_radius=capture_radius,
+        )
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array' (worlds are drawn as images), got {render_mode!r}.")
         if team_reward not in ("sum", "mean"):
@@ -86,7 +92,7 @@ class SimpleSpreadVecEnv(VecEnv):
         self.num_agent_neighbors = num_agent_neighbors
         self.num_landmark_neighbors = num_landmark_neighbors
         self.max_cycles = max_cycles
-        self.capture_radius = _check_radius(capture_radius)
+        self.capture_radius = float(capture_radius)
         self.team_reward = team_reward
         self.render_mode = render_mode
         obs_size = self.worlds.obs_size
@@ -270,10 +276,11 @@ class SimpleSpreadVecEnv(VecEnv):
         if sorted(self._get_indices(indices)) != list(range(self.num_envs)):
             raise ValueError(f"{attr_name} is shared by all worlds of a SimpleSpreadVecEnv: set it with indices=None.")
         if attr_name == "local_ratio":
-            check_simple_spread_arguments(self.n_agents, None, self.max_cycles, value, None)
+            check_simple_spread_arguments(local_ratio=value)
             self.worlds.local_ratio = float(value)
         else:
-            self.capture_radius = _check_radius(value)
+            check_simple_spread_arguments(capture_radius=value)
+            self.capture_radius = float(value)
 
     def env_method(
         self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
@@ -315,12 +322,6 @@ def make_simple_spread_vec_env(n_envs: int = 1, vec_env: Literal["batched", "mpe
     if vec_env == "mpe2":
         return DummyVecEnv([lambda: make_simple_spread(**kwargs) for _ in range(n_envs)])
     raise ValueError(f"vec_env must be 'batched' or 'mpe2', got {vec_env!r}.")
-
-
-def _check_radius(capture_radius: float) -> float:
-    if not capture_radius > 0:
-        raise ValueError(f"capture_radius must be positive, got {capture_radius}.")
-    return float(capture_radius)
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:

@@ -10,11 +10,12 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
+from sb3_maddpg.common.argument_ranges import TEAM_ALGORITHM_RANGES, check_arguments
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.common.env_checks import refuse_unsupported_env
 from sb3_maddpg.common.gradient_step import gradient_step, polyak_update_foreach
 from sb3_maddpg.common.losses import SATURATION_THRESHOLD as SATURATION_THRESHOLD  # import paths of 0.2.0.dev
-from sb3_maddpg.common.losses import ActionParts, actor_loss_terms, check_loss_settings, critic_losses, critic_targets
+from sb3_maddpg.common.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
 from sb3_maddpg.common.losses import ActorLossTerms as ActorLossTerms
 from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.common.selection import Selector
@@ -138,8 +139,9 @@ class MADDPG(TeamOffPolicyAlgorithm):
         _init_setup_model: bool = True,
         selection: Selector | int | None = None,
     ) -> None:
+        # Every numeric argument in its range, before SB3 takes it as given (locals(): the arguments, by name).
+        check_arguments(TEAM_ALGORITHM_RANGES, locals())
         validate_critic_sharing(critic_sharing)  # fail early on an unknown name
-        check_loss_settings(actor_reg_coef, max_grad_norm)
         selector = renamed_argument(selector, selection, "selection", "selector")
         update_rule = UpdateSchedule.from_arguments(transitions_per_update, train_freq, gradient_steps)
         if env is not None and not isinstance(env, str):

@@ -553,12 +553,15 @@ def test_reset_without_the_whole_team_raises() -> None:
 
 @pytest.mark.parametrize("n_agents, neighbors", [(5, 0), (5, 5), (5, -1), (3, 3)])
 def test_num_agent_neighbors_out_of_range(n_agents: int, neighbors: int) -> None:
-    with pytest.raises(ValueError, match=rf"between 1 and n_agents - 1 = {n_agents - 1}.*got {neighbors}"):
+    with pytest.raises(
+        ValueError,
+        match=rf"^num_agent_neighbors .* must be an integer in \[1, n_agents - 1 = {n_agents - 1}\].*got {neighbors}",
+    ):
         make_simple_spread(n_agents=n_agents, num_agent_neighbors=neighbors)
 
 
 def test_too_few_agents_raise() -> None:
-    with pytest.raises(ValueError, match=r"at least 2 agents.*n_agents=1"):
+    with pytest.raises(ValueError, match=r"^n_agents \(.*\) must be an integer >= 2.*, got 1"):
         make_simple_spread(n_agents=1)
 
 
@@ -667,7 +670,7 @@ def test_metrics_custom_capture_radius(spread3: PettingZooToGym) -> None:
     place(env, [(-1.0, 0.0), (0.0, 0.05), (0.5, 0.5)], LANDMARKS3)
     assert env.metrics_fn(env.parallel_env)["success"] == 1.0
     for radius in (0.0, -0.1):
-        with pytest.raises(ValueError, match="capture_radius must be positive"):
+        with pytest.raises(ValueError, match=r"^capture_radius \(.*\) must be a number > 0"):
             SimpleSpreadMetrics(capture_radius=radius)
 
 

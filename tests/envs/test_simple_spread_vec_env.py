@@ -253,13 +253,19 @@ def test_attributes_and_methods() -> None:
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        (dict(n_envs=0), "n_envs must be a positive integer"),
-        (dict(n_agents=1), "at least 2 agents"),
-        (dict(n_agents=3, num_agent_neighbors=3), "num_agent_neighbors must be between 1 and n_agents - 1 = 2"),
-        (dict(n_agents=3, num_landmark_neighbors=4), "num_landmark_neighbors must be between 1 and n_agents = 3"),
-        (dict(max_cycles=0), "max_cycles"),
-        (dict(local_ratio=-0.1), "local_ratio is a weight in"),
-        (dict(capture_radius=0.0), "capture_radius must be positive"),
+        (dict(n_envs=0), r"^n_envs \(worlds stepped at once\) must be an integer >= 1, got 0: use"),
+        (dict(n_agents=1), r"^n_agents \(.*\) must be an integer >= 2.*, got 1"),
+        (
+            dict(n_agents=3, num_agent_neighbors=3),
+            r"^num_agent_neighbors \(.*\) must be an integer in \[1, n_agents - 1 = 2\].*, got 3",
+        ),
+        (
+            dict(n_agents=3, num_landmark_neighbors=4),
+            r"^num_landmark_neighbors \(.*\) must be an integer in \[1, n_agents = 3\].*, got 4",
+        ),
+        (dict(max_cycles=0), r"^max_cycles \(.*\) must be an integer >= 1.*, got 0"),
+        (dict(local_ratio=-0.1), r"^local_ratio \(.*\) must be a number in \[0, 1\].*, got -0.1"),
+        (dict(capture_radius=0.0), r"^capture_radius \(.*\) must be a number > 0.*, got 0.0"),
         (dict(render_mode="human"), "render_mode must be None or 'rgb_array'"),
         (dict(team_reward="max"), "team_reward must be 'sum' or 'mean'"),
     ],
