@@ -112,7 +112,7 @@ class GeneratedParallelEnv(ParallelEnv):
         self._rng = np.random.default_rng()
         self._t = 0
 
-    @functools.lru_cache(maxsize=None)  # noqa: B019  (PettingZoo asks for the same space object every time)
+    @functools.cache  # noqa: B019  (PettingZoo asks for the same space object every time)
     def observation_space(self, agent: str) -> spaces.Space:
         spec = self._by_id[agent]
         size = spec.obs_size + (2 if self.spec.positions else 0)
@@ -128,7 +128,7 @@ class GeneratedParallelEnv(ParallelEnv):
             return spaces.Discrete(spec.obs_size + 1)
         return spaces.MultiDiscrete([spec.obs_size + 1] * 2)
 
-    @functools.lru_cache(maxsize=None)  # noqa: B019
+    @functools.cache  # noqa: B019
     def action_space(self, agent: str) -> spaces.Space:
         spec = self._by_id[agent]
         if spec.action == "box":

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, note
 from gymnasium import spaces
+from hypothesis import given, note
 from hypothesis import strategies as st
 from pettingzoo.test import parallel_api_test
 
