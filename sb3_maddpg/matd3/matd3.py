@@ -9,6 +9,7 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
+from sb3_maddpg.common.argument_ranges import TD3_RANGES, check_arguments
 from sb3_maddpg.common.selection import Selector
 from sb3_maddpg.common.update_step import StepSettings
 from sb3_maddpg.compat import renamed_argument
@@ -133,14 +134,7 @@ class MATD3(MADDPG):
         _init_setup_model: bool = True,
         selection: Selector | int | None = None,
     ) -> None:
-        if isinstance(policy_delay, bool) or not isinstance(policy_delay, int) or policy_delay < 1:
-            raise ValueError(
-                f"policy_delay must be an int >= 1 (critic updates per actor and target update), got {policy_delay!r}: "
-                "use 2 (TD3's value), or 1 to update the actors at every critic update."
-            )
-        for name, value in (("target_policy_noise", target_policy_noise), ("target_noise_clip", target_noise_clip)):
-            if not value >= 0:
-                raise ValueError(f"{name} must be >= 0 (in the policy's [-1, 1] space), got {value}: TD3's is 0.2 / 0.5.")
+        check_arguments(TD3_RANGES, locals())  # MADDPG's constructor checks the others
         # Set before MADDPG's constructor, which ends with _setup_model(): the attributes exist from then on.
         self.policy_delay = policy_delay
         self.target_policy_noise = float(target_policy_noise)

@@ -337,9 +337,9 @@ def test_save_and_load_round_trip(scheme: str, tmp_path: Path, collected_model: 
 
 def test_refuses_bad_td3_settings() -> None:
     env = make_simple_spread(n_agents=N_AGENTS)
-    with pytest.raises(ValueError, match="policy_delay must be an int >= 1"):
+    with pytest.raises(ValueError, match=r"^policy_delay \(.*\) must be an integer >= 1.*, got 0: use 2"):
         MATD3("MlpPolicy", env, policy_delay=0)
-    with pytest.raises(ValueError, match="target_noise_clip must be >= 0"):
+    with pytest.raises(ValueError, match=r"^target_noise_clip \(.*\) must be a number >= 0.*, got -0.1: use 0.5"):
         MATD3("MlpPolicy", env, target_noise_clip=-0.1)
 
 
