@@ -127,14 +127,14 @@ def restore_object_state(target: Any, state: Mapping[str, Any], holders: tuple[t
     :param target: The new object.
     :param state: Its attributes, decoded.
     :param holders: As given to :func:`object_state`.
-    :raises ValueError: For an attribute the object does not have, or of another kind than the object's (another
-        type; an array of another dtype or shape): a snapshot of other code, or tampered with.
+    :raises ValueError: For a value of another kind than the object's (another type; an array of another dtype or
+        shape), or one that would hide the class's attribute (a method): a snapshot of other code, or tampered with.
     """
     attributes = vars(target)
     for name, value in state.items():
-        if name not in attributes:
-            raise ValueError(f"{type(target).__name__} has no attribute {name!r}")
-        current = attributes[name]
+        if name not in attributes and hasattr(type(target), name):  # e.g. a method, which plain data would shadow
+            raise ValueError(f"{type(target).__name__}.{name} is the class's, not state")
+        current = attributes.get(name)  # None: an attribute set in training (e.g. VecNormalize's old_obs)
         if isinstance(current, holders) and isinstance(value, dict):
             restore_object_state(current, value, holders)
         elif not _same_kind(current, value):
@@ -147,8 +147,11 @@ def _same_kind(current: Any, value: Any) -> bool:
     """Whether a saved value may replace an attribute's (``None`` either way: an attribute set later, e.g. ``_last_obs``)."""
     if current is None or value is None:
         return True
-    if isinstance(current, np.ndarray):
-        return isinstance(value, np.ndarray) and (value.dtype, value.shape) == (current.dtype, current.shape)
+    if isinstance(current, np.ndarray) or isinstance(value, np.ndarray):
+        # A 0-d array may become a NumPy scalar in an update, and back (VecNormalize's running statistics); an empty
+        # array is a placeholder, filled in training (VecNormalize's old_reward).
+        arrays = all(isinstance(item, np.ndarray | np.generic) for item in (current, value))
+        return arrays and (current.size == 0 or (value.dtype, value.shape) == (current.dtype, current.shape))
     number = (numbers.Number, np.generic)
     if isinstance(current, number):  # a count may become a NumPy scalar after an update
         return isinstance(value, number)

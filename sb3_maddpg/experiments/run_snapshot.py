@@ -24,6 +24,7 @@ pickled format of before (``state.pkl``) is refused by name, and the run starts 
 import contextlib
 import csv
 import dataclasses
+import io
 import json
 import os
 import random
@@ -378,8 +379,10 @@ def restore_snapshot(model: BaseAlgorithm, directory: Path) -> None:
     :param directory: The snapshot.
     :raises UNREADABLE: For files that are not whole, not of this code, or tampered with.
     """
-    with torch_errors_as_unreadable(TENSORS_FILE):  # a file cut short
-        tensors = th.load(directory / TENSORS_FILE, map_location="cpu", weights_only=True)
+    # Read here (a failing disk is an OSError, which fails the run), parsed there (a file cut short is not whole).
+    tensors_bytes = io.BytesIO((directory / TENSORS_FILE).read_bytes())
+    with torch_errors_as_unreadable(TENSORS_FILE):
+        tensors = th.load(tensors_bytes, map_location="cpu", weights_only=True)
     with np.load(directory / ARRAYS_FILE, allow_pickle=False) as arrays:
         state = decode(json.loads((directory / STATE_FILE).read_text()), arrays)
     restore_model_tensors(model, tensors)

@@ -2,9 +2,15 @@
 
 import csv
 import dataclasses
+import json
+import os
+import pickle
+import shutil
 from pathlib import Path
 from typing import Any
 
+import cloudpickle
+import numpy as np
 import pytest
 import torch as th
 
@@ -21,7 +27,15 @@ from sb3_maddpg.experiments.results import (
     read_json,
     run_directory,
 )
-from sb3_maddpg.experiments.run_snapshot import SNAPSHOT_DIR, STATE_FILE, SnapshotCallback, snapshot_steps
+from sb3_maddpg.experiments.run_snapshot import (
+    ARRAYS_FILE,
+    PICKLED_STATE_FILE,
+    SNAPSHOT_DIR,
+    STATE_FILE,
+    TENSORS_FILE,
+    SnapshotCallback,
+    snapshot_steps,
+)
 
 
 class Killed(BaseException):
@@ -64,10 +78,11 @@ def test_snapshots_fall_at_each_tenth_of_the_budget() -> None:
     assert snapshot_steps(5) == [1, 2, 3, 4]  # repeats merged, never at step 0
 
 
+@pytest.mark.parametrize("normalize_observations", [False, True], ids=["raw", "vecnormalize"])
 def test_a_run_killed_after_a_snapshot_resumes_to_the_files_of_an_uninterrupted_run(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, normalize_observations: bool
 ) -> None:
-    run = config()
+    run = config(normalize_observations=normalize_observations)  # VecNormalize's running statistics are state too
     whole, resumed = tmp_path / "whole", tmp_path / "resumed"
     runner.execute_run(run, whole, verbose=0)
     # Killed twice: at 200 steps, before learning starts (random actions from the action space's stream), then at
@@ -178,3 +193,136 @@ def test_a_resumed_run_loads_on_the_device_asked_for(tmp_path: Path, monkeypatch
     runner.execute_run(run, tmp_path, verbose=0, device="cpu")
     assert "resumed from its snapshot" in (run_directory(tmp_path, run) / LOG_FILE).read_text()
     assert devices == ["cpu"]  # the model the snapshot goes onto, built where --device says
+
+
+class Tripwire:
+    """Unpickled, it makes a directory: the proof that a file's code ran."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return os.mkdir, (str(self.path),)
+
+
+@pytest.fixture(scope="module")
+def killed_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A results directory whose run was killed after its snapshot at 300 steps (learning started at 250)."""
+    results = tmp_path_factory.mktemp("killed")
+    with pytest.MonkeyPatch.context() as patch:
+        run_killed(patch, config(), results, nth=3)
+    return results
+
+
+def copy_of(killed_run: Path, tmp_path: Path) -> Path:
+    """:return: The run's directory in a copy of ``killed_run``'s results, under ``tmp_path``."""
+    shutil.copytree(killed_run, tmp_path / "results")
+    return run_directory(tmp_path / "results", config())
+
+
+def test_a_snapshot_resumes_without_unpickling(killed_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    directory = copy_of(killed_run, tmp_path)
+
+    def refuse(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("unpickled while resuming")
+
+    class RefusingUnpickler:  # what torch.load without weights_only (and SB3's load of a .pt) subclasses
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            refuse()
+
+    with monkeypatch.context() as patch:
+        for module, name in [(pickle, "load"), (pickle, "loads"), (cloudpickle, "load"), (cloudpickle, "loads")]:
+            patch.setattr(module, name, refuse)
+        patch.setattr(pickle, "Unpickler", RefusingUnpickler)
+        model, _, _, why_not = runner.resume_or_start(config(), directory, "cpu")
+    assert why_not == "" and model.num_timesteps == 300 and model._n_updates > 0 and model.replay_buffer.pos > 0
+
+
+def test_a_snapshot_of_the_pickled_format_is_refused_by_name(killed_run: Path, tmp_path: Path) -> None:
+    directory = copy_of(killed_run, tmp_path)
+    snapshot, ran = directory / SNAPSHOT_DIR, tmp_path / "code_ran"
+    shutil.rmtree(snapshot)
+    snapshot.mkdir()  # format 1: state.pkl beside the model's .zip and the buffer's pickle
+    (snapshot / PICKLED_STATE_FILE).write_bytes(pickle.dumps(Tripwire(ran)))
+    (snapshot / "model.zip").write_bytes(b"")
+    summary = runner.execute_run(config(), tmp_path / "results", verbose=0)
+    log = (directory / LOG_FILE).read_text()
+    assert "starting afresh: its snapshot is of the pickled format 1 (state.pkl), which could run code when read" in log
+    assert not ran.exists() and summary["total_timesteps"] == 1_000 and "resumed" not in log
+
+
+def code_in_tensors(snapshot: Path, ran: Path) -> None:
+    th.save({"modules": Tripwire(ran)}, snapshot / TENSORS_FILE)
+
+
+def code_in_arrays(snapshot: Path, ran: Path) -> None:
+    np.savez(snapshot / ARRAYS_FILE, array_0=np.array([Tripwire(ran)], dtype=object))  # pickled by np.savez
+
+
+def arrays_cut_short(snapshot: Path, ran: Path) -> None:
+    (snapshot / ARRAYS_FILE).write_bytes((snapshot / ARRAYS_FILE).read_bytes()[:1000])
+
+
+def tensors_cut_short(snapshot: Path, ran: Path) -> None:
+    (snapshot / TENSORS_FILE).write_bytes((snapshot / TENSORS_FILE).read_bytes()[:1000])
+
+
+def tensors_missing(snapshot: Path, ran: Path) -> None:
+    (snapshot / TENSORS_FILE).unlink()
+
+
+def edit_state(snapshot: Path, edit: Any) -> None:
+    document = json.loads((snapshot / STATE_FILE).read_text())
+    edit(document)
+    (snapshot / STATE_FILE).write_text(json.dumps(document))
+
+
+def env_missing(snapshot: Path, ran: Path) -> None:
+    edit_state(snapshot, lambda document: document.pop("env"))
+
+
+def observations_swapped_for_rewards(snapshot: Path, ran: Path) -> None:
+    edit_state(snapshot, lambda document: document["replay_buffer"].update(observations=document["replay_buffer"]["rewards"]))
+
+
+def another_format(snapshot: Path, ran: Path) -> None:
+    edit_state(snapshot, lambda document: document.update(format=3))
+
+
+TAMPERED = {
+    # Files that would run code: refused by their readers, the code never run.
+    code_in_tensors: "could not be read (UnpicklingError: Weights only load failed",
+    code_in_arrays: "could not be read (ValueError: Object arrays cannot be loaded when allow_pickle=False",
+    # Files not whole.
+    arrays_cut_short: "could not be read (BadZipFile",
+    tensors_cut_short: "could not be read (ValueError: ",  # in PyTorch's words
+    tensors_missing: "could not be read (FileNotFoundError",
+    env_missing: "could not be read (KeyError: 'env')",
+    # Values of another kind than the new model's, and a format this version does not read.
+    observations_swapped_for_rewards: "could not be read (ValueError: MultiAgentReplayBuffer.observations is an array of "
+    "float32[2000, 5, 3] in the snapshot, an array of float32[2000, 5, 54] here)",
+    another_format: "its snapshot is of format 3, this version reads format 2",
+}
+"""Each way of tampering with a snapshot, or of finding one not whole, and what the run says of it."""
+
+
+@pytest.mark.parametrize("tamper", list(TAMPERED), ids=lambda tamper: tamper.__name__)
+def test_a_tampered_or_partial_snapshot_is_a_fresh_start(killed_run: Path, tmp_path: Path, tamper: Any) -> None:
+    directory = copy_of(killed_run, tmp_path)
+    ran = tmp_path / "code_ran"
+    tamper(directory / SNAPSHOT_DIR, ran)
+    model, _, _, why_not = runner.resume_or_start(config(), directory, "cpu")
+    assert TAMPERED[tamper] in why_not and not ran.exists()
+    assert model.num_timesteps == 0 and not (directory / SNAPSHOT_DIR).exists()  # the run's directory started afresh
+
+
+def test_a_state_that_is_not_plain_data_is_not_saved_and_training_goes_on(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # An attribute that holds an object (a schedule here): no snapshot is written, nothing pickled.
+    monkeypatch.setattr(run_snapshot, "MODEL_ATTRIBUTES", (*run_snapshot.MODEL_ATTRIBUTES, "lr_schedule"))
+    runner.execute_run(config(), tmp_path, verbose=0)
+    directory = run_directory(tmp_path, config())
+    log = (directory / LOG_FILE).read_text()
+    assert "snapshot at 100 steps not saved (NotPlainData: /model/lr_schedule (FloatSchedule) is not plain data" in log
+    assert (directory / "done").is_file() and not list(directory.glob(f"{SNAPSHOT_DIR}*"))
