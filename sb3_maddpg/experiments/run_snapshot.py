@@ -21,7 +21,6 @@ unpickles): the run builds its model from its config, and the snapshot's state g
 pickled format of before (``state.pkl``) is refused by name, and the run starts afresh.
 """
 
-import contextlib
 import csv
 import dataclasses
 import io
@@ -30,7 +29,7 @@ import os
 import random
 import shutil
 import zipfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from pickle import UnpicklingError  # what torch.load(weights_only=True) raises for a file that names code
@@ -41,14 +40,18 @@ import stable_baselines3
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.running_mean_std import RunningMeanStd
-from stable_baselines3.common.save_util import recursive_getattr
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.envs.simple_spread_vec_env import SimpleSpreadVecEnv
-from sb3_maddpg.envs.simple_spread_worlds import SimpleSpreadWorlds
 from sb3_maddpg.experiments.plain_state import NotPlainData, decode, encode, object_state, restore_object_state
+from sb3_maddpg.experiments.training_state import (
+    MADE_BY_CONSTRUCTION,
+    MODEL_ATTRIBUTES,
+    STATE_HOLDERS,
+    model_tensors,
+    restore_model_tensors,
+    torch_errors_as_unreadable,
+)
 from sb3_maddpg.version import __version__
 
 SNAPSHOT_DIR = "resume"
@@ -82,39 +85,6 @@ UNREADABLE = (
 )
 """Errors that say a snapshot's files are not whole, not of this code, or tampered with (the run starts afresh); any
 other error while loading one (e.g. out of memory) fails the run and keeps the snapshot for the next attempt."""
-
-STATE_HOLDERS = (SimpleSpreadWorlds, RunningMeanStd, UpdateSchedule)
-"""Objects whose attributes are training state, saved attribute by attribute: the simple_spread worlds, a
-``VecNormalize``'s running statistics, the update schedule's credit."""
-
-MADE_BY_CONSTRUCTION = frozenset(
-    {"venv", "class_attributes", "observation_space", "action_space", "device", "agent_layout", "layout", "selector"}
-    | {"task_metrics", "xp", "_renderer", "results_writer"}
-)
-"""Attributes of an env's layers and of the replay buffer that are not saved: a new env and model of the run's config
-have them as the saved ones had (the action space's random stream is saved apart). Any other attribute that is not
-plain data stops a snapshot from being saved (said in the run's log)."""
-
-MODEL_ATTRIBUTES = (
-    # SB3's counters and the rollout under way (BaseAlgorithm, OffPolicyAlgorithm); the exploration noise has no
-    # state to keep, since learn() resets it at its start.
-    "num_timesteps",
-    "_episode_num",
-    "_n_updates",
-    "_current_progress_remaining",
-    "gradient_steps",
-    "_last_obs",
-    "_last_episode_starts",
-    "_last_original_obs",
-    "ep_info_buffer",
-    "ep_success_buffer",
-    # TeamOffPolicyAlgorithm's: the update schedule's credit, the last log step, the per-agent returns under way.
-    "update_rule",
-    "_logs_dumped_at",
-    "_agent_episode_returns",
-)
-"""The model's attributes that change in training, besides its networks and optimisers (a model of the run's config
-has the others)."""
 
 
 @dataclass
@@ -215,43 +185,41 @@ def set_random_state(state: dict[str, Any]) -> None:
         th.cuda.set_rng_state_all(state["cuda"])
 
 
-def model_tensors(model: BaseAlgorithm) -> dict[str, Any]:
-    """:return: The state dicts of the model's networks and optimisers, and its other tensors, as SB3's ``save`` names them."""
-    modules, variables = model._get_torch_save_params()
-    return {
-        "modules": {name: recursive_getattr(model, name).state_dict() for name in modules},
-        "variables": {name: recursive_getattr(model, name) for name in variables},
+def capture_training_state(model: BaseAlgorithm) -> tuple[dict[str, Any], dict[str, Any]]:
+    """
+    :param model: A model between two rollouts, with a replay buffer.
+    :return: Its training state as plain data (for :func:`~sb3_maddpg.experiments.plain_state.encode`), and as
+        tensors (for ``torch.save``): the state dicts and PyTorch's random streams.
+    """
+    streams = random_state()
+    tensors = {**model_tensors(model), "random": {key: streams.pop(key) for key in ("torch", "cuda") if key in streams}}
+    state = {
+        "random": streams,
+        # The model's build seeds the action space from the model's seed: random actions before learning_starts come
+        # from it, so its stream is restored from here.
+        "action_space": model.action_space.np_random.bit_generator.state,
+        "model": object_state(model, STATE_HOLDERS, names=MODEL_ATTRIBUTES),
+        "replay_buffer": object_state(model.replay_buffer, STATE_HOLDERS, MADE_BY_CONSTRUCTION),  # type: ignore[attr-defined]
+        "env": env_layers(model.get_env()),  # type: ignore[arg-type]
     }
+    return state, tensors
 
 
-def restore_model_tensors(model: BaseAlgorithm, tensors: dict[str, Any]) -> None:
+def restore_training_state(model: BaseAlgorithm, state: dict[str, Any], tensors: dict[str, Any]) -> None:
     """
-    :param model: A new model of the run's config.
-    :param tensors: From :func:`model_tensors` (on the CPU: a state dict's ``load_state_dict`` puts it on the model's
-        device).
+    :param model: A new model of the saved one's config, on a new env.
+    :param state: From :func:`capture_training_state`, decoded.
+    :param tensors: From :func:`capture_training_state`, loaded (``weights_only=True``).
+    :raises ValueError: For a state of another kind than the model's (of other code, or tampered with); ``KeyError``
+        for a part missing.
     """
-    modules, variables = model._get_torch_save_params()
-    if sorted(tensors["modules"]) != sorted(modules) or sorted(tensors["variables"]) != sorted(variables):
-        raise ValueError(f"the snapshot's model has the tensors {sorted(tensors['modules'])}, this run's {sorted(modules)}")
-    with torch_errors_as_unreadable(TENSORS_FILE):  # e.g. networks of other sizes
-        for name, state_dict in tensors["modules"].items():
-            recursive_getattr(model, name).load_state_dict(state_dict)
-        with th.no_grad():
-            for name, tensor in tensors["variables"].items():
-                if tensor is not None:  # e.g. SAC's log_ent_coef, None when the coefficient is fixed
-                    recursive_getattr(model, name).copy_(tensor)
-
-
-@contextlib.contextmanager
-def torch_errors_as_unreadable(name: str) -> Iterator[None]:
-    """Turn PyTorch's ``RuntimeError`` for a file cut short or tensors of other shapes into a ``ValueError`` (the
-    snapshot is not whole, or not of this code), leaving out running out of memory, which fails the run."""
-    try:
-        yield
-    except th.OutOfMemoryError:
-        raise
-    except RuntimeError as error:
-        raise ValueError(f"{name}: {error}") from error
+    restore_model_tensors(model, tensors)
+    restore_object_state(model, state["model"], STATE_HOLDERS)
+    restore_object_state(model.replay_buffer, state["replay_buffer"], STATE_HOLDERS)  # type: ignore[attr-defined]
+    # After the build, which seeded the env and the spaces from the model's seed: their saved state goes back on top.
+    restore_env_layers(model.get_env(), state["env"])  # type: ignore[arg-type]
+    model.action_space.np_random.bit_generator.state = state["action_space"]
+    set_random_state({**state["random"], **tensors["random"]})  # last: the build drew the networks from the streams
 
 
 def read_progress_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
@@ -291,22 +259,15 @@ def save_snapshot(run_dir: str | os.PathLike[str], model: BaseAlgorithm, progres
     """
     final = Path(run_dir) / SNAPSHOT_DIR
     tmp, old = final.with_name(f"{SNAPSHOT_DIR}.tmp"), final.with_name(f"{SNAPSHOT_DIR}.old")
-    streams = random_state()
-    tensors = {**model_tensors(model), "random": {key: streams.pop(key) for key in ("torch", "cuda") if key in streams}}
+    state, tensors = capture_training_state(model)
     logger = model.logger
     document, arrays = encode(
         {
             "format": SNAPSHOT_FORMAT,
             "versions": versions(),
             "progress": dataclasses.asdict(progress),
-            "random": streams,
-            # The model's build seeds the action space from the model's seed: random actions before learning_starts
-            # come from it, so its stream is restored from here.
-            "action_space": model.action_space.np_random.bit_generator.state,
-            "model": object_state(model, STATE_HOLDERS, names=MODEL_ATTRIBUTES),
-            "replay_buffer": object_state(model.replay_buffer, STATE_HOLDERS, MADE_BY_CONSTRUCTION),  # type: ignore[attr-defined]
-            "env": env_layers(model.get_env()),  # type: ignore[arg-type]
             "logger": [dict(logger.name_to_value), dict(logger.name_to_count), dict(logger.name_to_excluded)],
+            **state,
         }
     )
     shutil.rmtree(tmp, ignore_errors=True)
@@ -364,19 +325,20 @@ def load_snapshot(
         return f"its snapshot was saved under other versions ({saved_versions}, now {versions()})"
     model = make_model()
     try:
-        restore_snapshot(model, directory)
+        state = restore_snapshot(model, directory)
     except UNREADABLE as error:
         model.get_env().close()  # type: ignore[union-attr]
         return f"its snapshot could not be read ({type(error).__name__}: {error})"
-    return model, {"progress": progress, "logger": decode(document["logger"], {})}
+    return model, {"progress": progress, "logger": state["logger"]}
 
 
-def restore_snapshot(model: BaseAlgorithm, directory: Path) -> None:
+def restore_snapshot(model: BaseAlgorithm, directory: Path) -> dict[str, Any]:
     """
-    Put a snapshot's state on a new model of its run.
+    Put a snapshot's training state on a new model of its run.
 
     :param model: The new model, on a new env.
     :param directory: The snapshot.
+    :return: The snapshot's state, decoded.
     :raises UNREADABLE: For files that are not whole, not of this code, or tampered with.
     """
     # Read here (a failing disk is an OSError, which fails the run), parsed there (a file cut short is not whole).
@@ -385,13 +347,8 @@ def restore_snapshot(model: BaseAlgorithm, directory: Path) -> None:
         tensors = th.load(tensors_bytes, map_location="cpu", weights_only=True)
     with np.load(directory / ARRAYS_FILE, allow_pickle=False) as arrays:
         state = decode(json.loads((directory / STATE_FILE).read_text()), arrays)
-    restore_model_tensors(model, tensors)
-    restore_object_state(model, state["model"], STATE_HOLDERS)
-    restore_object_state(model.replay_buffer, state["replay_buffer"], STATE_HOLDERS)  # type: ignore[attr-defined]
-    # After the build, which seeded the env and the spaces from the model's seed: their saved state goes back on top.
-    restore_env_layers(model.get_env(), state["env"])  # type: ignore[arg-type]
-    model.action_space.np_random.bit_generator.state = state["action_space"]
-    set_random_state({**state["random"], **tensors["random"]})  # last: the build drew the networks from the streams
+    restore_training_state(model, state, tensors)
+    return state
 
 
 def restore_logger_values(model: BaseAlgorithm, values: list[dict[str, Any]]) -> None:
