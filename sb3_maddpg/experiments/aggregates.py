@@ -7,7 +7,11 @@ the Edge of the Statistical Precipice", NeurIPS 2021; rliable and marl-eval comp
 - The **probability of improvement** P(X > Y): the probability that a random run of method X scores higher than a
   random run of method Y, ties counted half (the Mann-Whitney U statistic over ``n x m``), averaged over settings.
 - **95% stratified bootstrap confidence intervals** (``scipy.stats.bootstrap``, percentile method as rliable's
-  default): runs are resampled with replacement within each setting (stratum) and each method separately.
+  default): runs are resampled with replacement within each setting (stratum) and each method separately. They see
+  only the runs' own spread, so from a handful of runs they cover less than 95%.
+- **Differences of means** (a method's gap to another, a difference of two gaps) take **Welch's t interval**
+  (:func:`mean_difference_interval`), which keeps its coverage at 5 runs a side where a percentile bootstrap is too
+  narrow (the interaction of issue 43's 2 x 2: [+0.21, +0.55] by percentile, [+0.12, +0.60] by Welch).
 """
 
 import math
@@ -15,7 +19,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import bootstrap, trim_mean
+from scipy.stats import bootstrap, t, trim_mean
 
 CONFIDENCE_LEVEL = 0.95
 """The confidence level of every interval."""
@@ -142,3 +146,30 @@ def improvement_interval(strata_x: Sequence[Scores], strata_y: Sequence[Scores],
         return np.mean(pairs, axis=0)
 
     return bootstrap_interval(data, statistic, seed)
+
+
+def mean_difference_interval(samples: Sequence[Scores]) -> IntervalEstimate:
+    """
+    A difference of the means of independent samples with its 95% Welch t interval: the mean of one sample, ``a -
+    b`` of two, ``(a - b) - (c - d)`` of four; its standard error from each sample's own variance, its degrees of
+    freedom Welch-Satterthwaite's. For one sample, the one-sample t interval; for two, ``scipy.stats.ttest_ind(a, b,
+    equal_var=False).confidence_interval()``.
+
+    :param samples: One, two or four samples of per-run scores.
+    :return: The difference and its interval: ``nan`` ends when a sample has fewer than 2 runs, a zero-width interval
+        when no sample has any spread.
+    """
+    arrays = [np.asarray(sample, dtype=float) for sample in samples]
+    signs = {1: [1.0], 2: [1.0, -1.0], 4: [1.0, -1.0, -1.0, 1.0]}.get(len(arrays))
+    if signs is None:
+        raise ValueError(f"mean_difference_interval takes 1, 2 or 4 samples, got {len(arrays)}.")
+    value = float(sum(sign * array.mean() for sign, array in zip(signs, arrays)))
+    if min(array.size for array in arrays) < 2:  # one run says nothing about the spread
+        return IntervalEstimate(value, math.nan, math.nan)
+    variances = [array.var(ddof=1) / array.size for array in arrays]  # of each mean; the signs square away
+    variance = float(sum(variances))
+    if variance == 0.0:
+        return IntervalEstimate(value, value, value)
+    freedom = variance**2 / sum(v**2 / (array.size - 1) for v, array in zip(variances, arrays))
+    half = float(t.ppf(0.5 + CONFIDENCE_LEVEL / 2, freedom)) * math.sqrt(variance)
+    return IntervalEstimate(value, value - half, value + half)

@@ -128,3 +128,42 @@ def test_report_estimates_follow_the_metric_direction_and_aggregate_settings() -
     assert selected["improvement"].value == pytest.approx(1 - hand_improvement(X, Y))
     markdown = format_aggregates_markdown(rows, "min_dist_sum")
     assert "all settings (stratified)" in markdown and "lower is better" in markdown and "| baseline |" in markdown
+
+
+def rliable_modules():  # type: ignore[no-untyped-def]
+    """rliable's ``library`` and ``metrics``, or a skip: it is no dependency (and its dependency ``arch`` fails to
+    import under pandas 3 with a TypeError, not an ImportError)."""
+    try:
+        from rliable import library, metrics
+    except Exception as error:
+        pytest.skip(f"rliable is not importable here: {error!r}")
+    return library, metrics
+
+
+def test_iqm_improvement_and_their_intervals_agree_with_rliable() -> None:
+    library, metrics = rliable_modules()
+    # rliable's layout: runs x tasks; here two settings of 8 runs.
+    x = np.array([X, [value + 0.1 for value in Y]]).T
+    y = np.array([Y, X]).T
+    ours_iqm = iqm_interval([x[:, 0], x[:, 1]])
+    ours_improvement = improvement_interval([x[:, 0], x[:, 1]], [y[:, 0], y[:, 1]])
+    assert ours_iqm.value == pytest.approx(metrics.aggregate_iqm(x))
+    assert ours_improvement.value == pytest.approx(metrics.probability_of_improvement(x, y))
+    # Their stratified percentile bootstrap intervals, from other random draws: alike to a bootstrap's noise.
+    _, iqm_intervals = library.get_interval_estimates(
+        {"x": x}, lambda scores: np.array([metrics.aggregate_iqm(scores)]), reps=20_000, random_state=np.random.RandomState(0)
+    )
+    assert (ours_iqm.low, ours_iqm.high) == (
+        pytest.approx(iqm_intervals["x"][0, 0], abs=0.02),
+        pytest.approx(iqm_intervals["x"][1, 0], abs=0.02),
+    )
+    _, improvement_intervals = library.get_interval_estimates(
+        {"x,y": [x, y]},
+        lambda a, b: np.array([metrics.probability_of_improvement(a, b)]),
+        reps=2_000,
+        random_state=np.random.RandomState(0),
+    )
+    assert (ours_improvement.low, ours_improvement.high) == (
+        pytest.approx(improvement_intervals["x,y"][0, 0], abs=0.04),
+        pytest.approx(improvement_intervals["x,y"][1, 0], abs=0.04),
+    )
