@@ -15,7 +15,9 @@ study's independent networks (1.75M env steps) tell them apart:
 
 - a **cell** is the gap of one selection rule's runs against `full`'s, in one study (mean over runs, in the metric's
   units, percentage points for rates: positive is worse for the min-dist sum, better for a success rate), with a 95%
-  bootstrap interval (each scheme's runs resampled on their own) and the two-sided Mann-Whitney U test the paper uses;
+  Welch t interval (each scheme's runs with their own variance; a percentile bootstrap from 5 runs is too narrow) and
+  the two-sided Mann-Whitney U test the paper uses, exact, its p Holm-adjusted within the study's family (each scheme
+  against `full` in that setting, metric and budget, as the study's report adjusts it);
 - **the rule's effect** (stored minus next) within each study, **sharing's effect on the stored rule** (its gap with
   shared networks minus with independent ones) and their **interaction** (the rule's effect with shared networks minus
   with independent ones) are differences of means with the same kind of interval, signed as the gaps are; so are
@@ -23,14 +25,14 @@ study's independent networks (1.75M env steps) tell them apart:
   on the gap (a sharing that helps `full` more than the stored rule widens the gap too), which compare the two
   studies' levels and so carry their budgets' difference except at the matched budget;
 - **the reading**, from the two effects that separate the explanations: with shared networks the stored rule must be
-  worse than `full` (p < .05), else there is no reversal to explain on that metric. Then the reversal belongs to
-  *the rule* if the rule's effect with independent networks is harmful (its interval excludes 0 on the worse side);
+  worse than `full` (Holm-adjusted p < .05), else there is no reversal to explain on that metric. Then the reversal
+  belongs to *the rule* if the rule's effect with independent networks is harmful (its interval excludes 0 on the worse side);
   to *the sharing* if it is not and sharing's effect on the stored rule's gap is harmful; to *both* (the rule harms
   without sharing, and sharing makes its harm larger) if both are; else it is not decided at these seeds. Where the
   sharing widens the gap, the reading says through which part: the stored rule's own score (its interval excludes 0
   on the worse side), else `full`'s (excludes 0 on the better side), else neither measurably alone. Cells too
   small for the test to reach p < .05 even when completely separated (fewer than 4 runs against 4; the report's
-  "too few runs") are not read: their intervals, resampled from 2 or 3 runs, would look sure of what they cannot say.
+  "too few runs") are not read: their intervals, from 2 or 3 runs, would look sure of what they cannot say.
 
 Table 2 is each study's report's (the seeds every scheme of a setting has finished, as ``report --complete-seeds``),
 the two studies' settings under the paper's row of the same observability. The budgets:
@@ -40,8 +42,8 @@ a matched one: the mean of each run's learning-curve points from 800k to 1M env 
 points in the shared study, 6 in the independent one), where the shared study's protocol window is. The 2 x 2's runs
 are those whose seed `full`, `selected` and `selected_next` have all finished in that study and setting; the paper's
 claims are asked again at the matched budget on the same runs as at the studies' own (the seeds every scheme of a
-setting has finished). With 5 runs a percentile interval is narrower than it should be, and the page reads twelve 2 x 2
-tables (2 settings x 3 metrics x 2 budgets): where their readings disagree, none of them is the answer.
+setting has finished). The page reads twelve 2 x 2 tables (2 settings x 3 metrics x 2 budgets): where their readings
+disagree, none of them is the answer.
 
 Whether the runs had stopped improving: the budgets are fixed (the shared study's 1M steps from the tuning, the
 independent one's 1.75M from the learning curve of Exp. 1's `full`), so the page shows, per study, setting and scheme,
@@ -64,7 +66,7 @@ from typing import Any
 import numpy as np
 
 from sb3_maddpg.analysis.normalised_score import reference_scores
-from sb3_maddpg.experiments.aggregates import IntervalEstimate, bootstrap_interval
+from sb3_maddpg.experiments.aggregates import IntervalEstimate, mean_difference_interval
 from sb3_maddpg.experiments.paper_claims import (
     ClaimCheck,
     check_claims,
@@ -75,7 +77,7 @@ from sb3_maddpg.experiments.paper_claims import (
 )
 from sb3_maddpg.experiments.results import PROGRESS_FILE, link_complete_seeds, load_experiments, load_summaries, read_curve
 from sb3_maddpg.experiments.run_snapshot import read_progress_rows
-from sb3_maddpg.experiments.stats import METRICS, aggregate, mann_whitney
+from sb3_maddpg.experiments.stats import METRICS, aggregate, declare_families, holm, mann_whitney
 
 REPO = Path(__file__).resolve().parents[2]
 STUDIES = {"shared": REPO / "benchmarks/paper_n5/results", "independent": REPO / "benchmarks/paper_n5_independent/results"}
@@ -153,26 +155,12 @@ def _score(summary: dict[str, Any], metric: str, window: tuple[float, float] | N
     return float(np.mean(points))
 
 
-def mean_difference(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
-    """
-    :param samples: Two samples a, b or four a, b, c, d (runs along ``axis``, resamples before it).
-    :param axis: The runs' axis.
-    :return: mean(a) - mean(b), or (mean(a) - mean(b)) - (mean(c) - mean(d)).
-    """
-    means = [np.mean(sample, axis=axis) for sample in samples]
-    if len(means) == 2:
-        return np.asarray(means[0] - means[1])
-    if len(means) == 4:
-        return np.asarray((means[0] - means[1]) - (means[2] - means[3]))
-    raise ValueError(f"mean_difference takes 2 or 4 samples, got {len(means)}.")
-
-
 def difference(samples: Sequence[Sequence[float]]) -> IntervalEstimate:
     """
     :param samples: Two samples (a - b) or four ((a - b) - (c - d)) of per-run scores.
-    :return: The difference of their means with its 95% bootstrap interval.
+    :return: The difference of their means with its 95% Welch t interval.
     """
-    return bootstrap_interval(tuple(np.asarray(sample, dtype=float) for sample in samples), mean_difference)
+    return mean_difference_interval(samples)
 
 
 @dataclass(frozen=True)
@@ -185,7 +173,9 @@ class Cell:
     :param gap: mean(variant) - mean(baseline) with its interval.
     :param u_statistic: Its U statistic (of the rule's runs: above ``len(variant) * len(baseline) / 2`` when they
         tend to score higher).
-    :param p_value: Its two-sided p-value.
+    :param p_value: Its exact two-sided p-value.
+    :param p_adjusted: ``p_value`` Holm-adjusted within the study's family (see :func:`cell`).
+    :param family_size: The tests of that family.
     """
 
     variant: list[float]
@@ -193,6 +183,8 @@ class Cell:
     gap: IntervalEstimate
     u_statistic: float
     p_value: float
+    p_adjusted: float = math.nan
+    family_size: int = 1
 
     @property
     def readable(self) -> bool:
@@ -200,8 +192,9 @@ class Cell:
         return smallest_p_value(len(self.variant), len(self.baseline)) < SIGNIFICANCE
 
     def worse(self, higher_is_better: bool) -> bool:
-        """:return: The rule's runs are worse than `full`'s at p < .05 (the direction the test's ranks give)."""
-        return self.p_value < SIGNIFICANCE and harmful(
+        """:return: The rule's runs are worse than `full`'s at Holm-adjusted p < .05 (the direction the test's ranks
+        give)."""
+        return self.p_adjusted < SIGNIFICANCE and harmful(
             self.u_statistic - len(self.variant) * len(self.baseline) / 2, higher_is_better
         )
 
@@ -215,16 +208,44 @@ def harmful(value: float, higher_is_better: bool) -> bool:
     return value > 0 if not higher_is_better else value < 0
 
 
-def cell(scores: Scores, scheme: str) -> Cell:
+def cell(scores: Scores, scheme: str, family: Mapping[str, float] | None = None) -> Cell:
     """
     :param scores: One study's scores in one setting (:func:`read_scores`).
     :param scheme: The selection rule's scheme.
+    :param family: The raw p of each scheme of the study's family in this setting, metric and budget against `full`
+        (:func:`family_p_values`: its report's); the cell's own test takes its scheme's place there (the same test
+        where the cell's seeds are the report's). ``None``: the cell is a family of its own.
     :return: Its cell against `full`.
     """
     variant, baseline = list(scores[scheme].values()), list(scores[BASELINE].values())
     if not variant:  # no seed finished by all three schemes yet
         return Cell(variant, baseline, IntervalEstimate(math.nan, math.nan, math.nan), math.nan, math.nan)
-    return Cell(variant, baseline, difference([variant, baseline]), *mann_whitney(variant, baseline))
+    u_statistic, p_value = mann_whitney(variant, baseline)
+    members = {**(family or {}), scheme: p_value}
+    adjusted = dict(zip(members, holm(list(members.values()))))[scheme]
+    return Cell(variant, baseline, difference([variant, baseline]), u_statistic, p_value, float(adjusted), len(members))
+
+
+def family_p_values(
+    results: Path, experiment: str, metric: str, window: tuple[float, float] | None = None
+) -> dict[str, float]:
+    """
+    :param results: A study's results directory.
+    :param experiment: The setting's experiment there.
+    :param metric: The score read.
+    :param window: ``None``: each run's protocol score; else the mean of its learning-curve points in these env steps.
+    :return: The raw p of each scheme of the setting's family (its stored schemes but `full`) against `full`, on the
+        seeds every scheme has finished, as the study's report tests them (``nan`` for one without runs).
+    """
+    if not (results / experiment / "experiment.json").is_file():  # no stored config: no family declared
+        return {}
+    runs, configs = complete_seed_runs(results, [experiment])
+    if window is not None:
+        runs = scored_in_window(runs, metric, window)
+    families = declare_families(configs, [metric], BASELINE)
+    members = next((family.schemes for family in families if family.setting == experiment), ())
+    tested = {cell.scheme: cell.p_value for cell in aggregate(runs, metric, families=families)}
+    return {scheme: tested.get(scheme, math.nan) for scheme in members}
 
 
 RULE_SHARED = "the rule's effect with shared networks (stored minus next)"
@@ -238,7 +259,7 @@ INTERACTION = "interaction (the rule's effect, shared minus independent)"
 def effect_samples(scores: Mapping[str, Scores]) -> dict[str, list[list[float]]]:
     """
     :param scores: Each study's scores in one setting, by networks.
-    :return: Each effect's samples, in :func:`mean_difference`'s order, by its name.
+    :return: Each effect's samples, in :func:`difference`'s order, by its name.
     """
 
     def runs(networks: str, scheme: str) -> list[float]:
@@ -271,7 +292,10 @@ def reading(cells: Mapping[tuple[str, str], Cell], effects: Mapping[str, Interva
     if not all(c.readable for c in cells.values()):
         return "too few runs to read: in a cell even completely separated runs could not reach p < .05"
     if not cells["shared", STORED].worse(higher_is_better):
-        return "no reversal to explain: with shared networks the stored rule is not worse than `full` here"
+        return (
+            "no reversal to explain: with shared networks the stored rule is not worse than `full` here at Holm-adjusted "
+            "p < .05"
+        )
 
     def excludes_zero_harmfully(effect: IntervalEstimate) -> bool:
         return harmful(effect.low, higher_is_better) and harmful(effect.high, higher_is_better)
@@ -330,34 +354,44 @@ def _interval(estimate: IntervalEstimate, scale: float, readable: bool = True) -
     return f"{text} [{_number(estimate.low, scale, signed=True)}, {_number(estimate.high, scale, signed=True)}]"
 
 
-def _p(p_value: float, runs: int) -> str:
-    if runs < 2:
-        return "n/a (1 run)" if runs else "-"
-    return "< .001" if p_value < 0.001 else f"{p_value:.3f}".lstrip("0")
+def _p(c: Cell) -> str:
+    """A cell's raw p, and its Holm-adjusted p with the tests of its family."""
+    if len(c.variant) < 2:
+        return "n/a (1 run)" if c.variant else "-"
+    return f"{format_p_value(c.p_value)} (Holm {format_p_value(c.p_adjusted)} of {c.family_size})"
 
 
-def setting_table(scores: Mapping[str, Scores], metric: str) -> list[str]:
+def setting_table(
+    scores: Mapping[str, Scores], metric: str, families: Mapping[str, Mapping[str, float]] | None = None
+) -> list[str]:
     """
     :param scores: Each study's scores in one setting (:func:`read_scores`), by networks.
     :param metric: Their metric.
+    :param families: Each study's family in the setting, metric and budget (:func:`family_p_values`), by networks;
+        ``None`` or a study not in it: each cell a family of its own.
     :return: The setting's markdown lines: the four cells, the effects and the reading.
     """
     info = METRICS[metric]
     scale = info.scale
     units = "percentage points" if scale == 100.0 else "the metric's units"
     worse_sign = "negative" if info.higher_is_better else "positive"
-    cells = {(networks, scheme): cell(scores[networks], scheme) for networks in scores for scheme in RULES}
+    cells = {
+        (networks, scheme): cell(scores[networks], scheme, (families or {}).get(networks))
+        for networks in scores
+        for scheme in RULES
+    }
     lines = [
         f"Gaps and effects in {units}; {worse_sign} is worse.",
         "",
-        "| networks | target's selection | runs | the rule's runs, by seed | their mean | `full`'s mean | gap [95% CI] | p |",
+        "| networks | target's selection | runs | the rule's runs, by seed | their mean | `full`'s mean | gap [95% CI] "
+        "| p (Holm) |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for (networks, scheme), c in cells.items():
         by_seed = ", ".join(_number(value, scale) for value in c.variant) or "-"
         lines.append(
             f"| {networks} | {RULES[scheme]} | {len(c.variant)} | {by_seed} | {_mean(c.variant, scale)} | "
-            f"{_mean(c.baseline, scale)} | {_interval(c.gap, scale, c.readable)} | {_p(c.p_value, len(c.variant))} |"
+            f"{_mean(c.baseline, scale)} | {_interval(c.gap, scale, c.readable)} | {_p(c)} |"
         )
     lines.append("")
     effects = {}
@@ -443,7 +477,7 @@ def late_change_table(runs: Mapping[str, Sequence[dict[str, Any]]], scale: float
         changes = {scheme: [last - before for before, last in pairs] for scheme, pairs in window_means.items()}
         for scheme, pairs in window_means.items():
             runs_readable = smallest_p_value(len(pairs), len(pairs)) < SIGNIFICANCE  # the cells' rule: 4 runs or more
-            change = bootstrap_interval((np.asarray(changes[scheme]),), np.mean)
+            change = mean_difference_interval([changes[scheme]])
             normalised = [-value / scale for value in changes[scheme]]
             gaining = sum(value >= LATE_CHANGE_THRESHOLD for value in normalised)
             falling = sum(value <= -LATE_CHANGE_THRESHOLD for value in normalised)
@@ -509,7 +543,8 @@ def table2_beside_shared(studies: Mapping[str, Path], metric: str) -> list[str]:
 
 
 DECIDED_VERDICTS = ("holds", "reverses", "does not hold")
-"""The claims' verdicts that say something at p < .05 (the others: "not separated", "too few runs")."""
+"""The claims' verdicts that say something at Holm-adjusted p < .05 (the others: "not separated", "leans ...", "too few
+runs")."""
 NOT_IN_STUDY = "not in this study"
 """A claim's cell where the study does not run one of its schemes (e.g. Exp. 2's other three, independent networks)."""
 
@@ -520,18 +555,18 @@ def agreement(shared: str, independent: str) -> str:
         that scores better where a ``~`` claim does not hold).
     :param independent: Its outcome with independent networks.
     :return: What the two say together: ``"not yet"`` (too few runs on either side), ``"neither separates"`` (both
-        not separated: no evidence either way), ``"the same"`` (one decided outcome with both), ``"opposite"`` (decided
-        with both, differently), or ``"decided with shared only"`` / ``"decided with independent only"`` (not separated
-        with the other: which may come from the sharing, the budget, or the other's runs being too few or too spread;
-        this is no test of a difference).
+        undecided, not separated or leaning either way: no evidence at the adjusted level), ``"the same"`` (one decided
+        outcome with both), ``"opposite"`` (decided with both, differently), or ``"decided with shared only"`` /
+        ``"decided with independent only"`` (undecided with the other: which may come from the sharing, the budget, or
+        the other's runs being too few or too spread; this is no test of a difference).
     """
     if "too few runs" in (shared, independent):
         return "not yet"
-    if shared == independent:
-        return "neither separates" if shared == "not separated" else "the same"
     decided = [outcome.startswith(DECIDED_VERDICTS) for outcome in (shared, independent)]
+    if not any(decided):
+        return "neither separates"
     if all(decided):
-        return "opposite"
+        return "the same" if shared == independent else "opposite"
     return "decided with shared only" if decided[0] else "decided with independent only"
 
 
@@ -560,7 +595,8 @@ def study_claims(
     runs, configs = complete_seed_runs(results, [setting[networks] for setting in SETTINGS.values()])
     if window is not None:
         runs = scored_in_window(runs, metric, window)
-    checks = check_claims(aggregate(runs, metric), metric, configs) if runs else []
+    families = declare_families(configs, [metric])  # as the study's report declares them
+    checks = check_claims(aggregate(runs, metric, families=families), metric, configs) if runs else []
     return {(check.claim.observability, check.text): check for check in checks}
 
 
@@ -581,7 +617,8 @@ def _asked(check: ClaimCheck | None, runs_its_schemes: bool) -> list[str]:
         return ["0", "", "", "no runs yet" if runs_its_schemes else NOT_IN_STUDY]
     means = f"{np.mean(check.better_scores):.2f} vs {np.mean(check.worse_scores):.2f}"
     runs = f"{len(check.better_scores)}, {len(check.worse_scores)}"
-    return [runs, means, format_p_value(check.p_value), check.outcome]
+    adjusted = f"Holm {format_p_value(check.p_adjusted)} of {check.family_size}"
+    return [runs, means, f"{format_p_value(check.p_value)} ({adjusted})", check.outcome]
 
 
 def claims_beside_shared(studies: Mapping[str, Path], metric: str, window: tuple[float, float] | None = None) -> list[str]:
@@ -604,8 +641,8 @@ def claims_beside_shared(studies: Mapping[str, Path], metric: str, window: tuple
     lines = [
         f"#### The paper's claims in both studies: {info.label} ({direction}){budget}",
         "",
-        "| setting | claim | paper (success %) | shared: runs | means | p | verdict | independent: runs | means | p "
-        "| verdict | together |",
+        "| setting | claim | paper (success %) | shared: runs | means | p (Holm) | verdict | independent: runs | means "
+        "| p (Holm) | verdict | together |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for key in keys:
@@ -648,16 +685,19 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
     lines += [
         "",
         "Each of the paper's claims (Section 5.3) asked of both studies as their reports ask it (the seeds every scheme "
-        "of a setting has finished; two-sided Mann-Whitney U at p < .05; the verdicts as in the reports' claims "
-        "pages). *Together*: *the same* decided verdict with both networks; *opposite* (decided with both, "
-        "differently); *neither separates* (no evidence either way with both); *decided with shared only* or *decided "
-        "with independent only* (not separated with the other); *not yet* (too few runs with either); *asked of one "
-        "study only* (the other does not run one of its schemes). A claim decided with one only is no test that the "
-        "studies differ: the difference may come from the sharing, from the budget (1M against 1.75M env steps), or "
-        "from the other study's runs being too few or too spread to decide it; only a test of the difference tells "
+        "of a setting has finished; the exact two-sided Mann-Whitney U test, its p Holm-adjusted within the study's "
+        "family, the verdicts by the adjusted p at .05, as in the reports' claims pages, which say what a family is; "
+        "p: raw, then Holm-adjusted with the tests of its family). *Together*: *the same* decided verdict "
+        "with both networks; *opposite* (decided with both, differently); *neither separates* (no decided verdict "
+        "with either: not separated, or leaning one way without the adjusted p reaching .05); *decided with shared "
+        "only* or *decided with independent only* (undecided with the other); *not yet* (too few runs with either); "
+        "*asked of one study only* (the other does not run one of its schemes). A claim decided with one only is no "
+        "test that the studies differ: the difference may come from the sharing, from the budget (1M against 1.75M "
+        "env steps), or from the other study's runs being too few or too spread to decide it; only a test of the "
+        "difference tells "
         "these apart, which the 2 x 2 below makes for `selected` alone (its interaction, and its matched budget). "
-        "About 90 claims are asked here (15 a metric and budget) without correction: about one in twenty unrelated "
-        "differences would show by chance.",
+        "About 90 claims are asked here (15 a metric and budget), corrected within each study's families, not across "
+        "the page.",
         "",
         "Then each claim again with both studies at a matched budget: each run's score is the mean of its "
         "learning-curve points from {:g}M to {:g}M env steps (20 greedy episodes a point, 11 points a run in the "
@@ -674,10 +714,13 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
         "",
         "#### The 2 x 2: networks x the target's selection rule, each rule against `full`",
         "",
-        "A gap is mean(the rule's runs) - mean(`full`'s runs) in the same study and setting, with a 95% "
-        "bootstrap interval; p: two-sided Mann-Whitney U. Twelve tables (2 settings x 3 metrics x 2 budgets), none "
-        "corrected for the others: where their readings disagree, none of them is the answer. Shared networks: "
-        "`benchmarks/paper_n5` (1M env steps); independent: `benchmarks/paper_n5_independent` (1.75M).",
+        "A gap is mean(the rule's runs) - mean(`full`'s runs) in the same study and setting, with a 95% Welch t "
+        "interval (each scheme's runs with their own variance; the effects below are differences of means with the "
+        "same kind of interval). p: the exact two-sided Mann-Whitney U test, then Holm-adjusted within the study's "
+        "family (each of the setting's schemes against `full`, at that metric and budget, as its report adjusts it) "
+        "with the tests of that family; the reading asks the adjusted p. Twelve tables (2 settings x 3 metrics x 2 "
+        "budgets), none corrected for the others: where their readings disagree, none of them is the answer. Shared "
+        "networks: `benchmarks/paper_n5` (1M env steps); independent: `benchmarks/paper_n5_independent` (1.75M).",
     ]
     budgets = {
         "each study at its own budget (protocol score, last 20%)": None,
@@ -691,7 +734,11 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
                 scores = {
                     networks: read_scores(studies[networks], experiments[networks], metric, window) for networks in studies
                 }
-                lines += ["", f"#### {setting}: {info.label} ({direction}), {budget}", "", *setting_table(scores, metric)]
+                families = {
+                    networks: family_p_values(studies[networks], experiments[networks], metric, window) for networks in studies
+                }
+                table = setting_table(scores, metric, families)
+                lines += ["", f"#### {setting}: {info.label} ({direction}), {budget}", "", *table]
         losses = {
             networks: read_scores(studies[networks], experiments[networks], CRITIC_LOSS, CRITIC_LOSS_WINDOW)
             for networks in studies
@@ -726,7 +773,7 @@ def write_beside_shared(studies: Mapping[str, Path] = STUDIES, metrics: Sequence
         "steps; here two adjacent windows of unsmoothed points, so a single run's count partly measures noise). "
         "*Change minus `full`'s*: below 0 the scheme was gaining on `full` as the runs stopped, so where it trails "
         "`full` longer training might narrow its gap, and where it leads widen it (a trend over two windows, not a "
-        "forecast; some forty intervals, none corrected for the others). The runs are Table 2's (the seeds every "
+        "forecast; some forty t intervals, none corrected for the others). The runs are Table 2's (the seeds every "
         "scheme of a setting has finished).",
     ]
     for setting, experiments in SETTINGS.items():

@@ -19,7 +19,7 @@ from sb3_maddpg.experiments.normalised_table import format_normalised_markdown
 from sb3_maddpg.experiments.paper_claims import write_claims_report
 from sb3_maddpg.experiments.results import load_experiments, load_summaries, never_updated_warning, run_updates
 from sb3_maddpg.experiments.run_cost import write_cost_report
-from sb3_maddpg.experiments.stats import METRICS, Cell, Metric, aggregate
+from sb3_maddpg.experiments.stats import FAMILY_TEXT, METRICS, Cell, Metric, aggregate, declare_families, floor_text
 from sb3_maddpg.experiments.tasks import declared_metrics, declared_sides, metric_info
 
 
@@ -59,7 +59,9 @@ def format_markdown(
 ) -> str:
     """
     Table 2's layout: a row per setting, a column per method, ``mean (std)`` of the per-run scores with
-    the significance marks of the Mann-Whitney U test against the baseline; then the p-values.
+    the significance marks of the exact Mann-Whitney U test against the baseline (its raw p, as the paper marks its
+    table); then the raw and the Holm-adjusted p-values (each setting's family, see
+    :class:`~sb3_maddpg.experiments.stats.Family`).
 
     :param cells: From :func:`~sb3_maddpg.experiments.stats.aggregate`.
     :param metric: The score's key.
@@ -95,18 +97,26 @@ def format_markdown(
             run_counts.add(cell.n)
             row.append(f"{_number(cell.mean)} ({_number(cell.std)}){' ' + cell.stars if cell.stars else ''}")
             p_row.append(
-                "baseline" if scheme == baseline else f"{_number(cell.p_value, 4)} (U={_number(cell.u_statistic, 1)})"
+                "baseline"
+                if scheme == baseline
+                else f"{_number(cell.p_value, 4)}, Holm {_number(cell.p_adjusted, 4)} (U={_number(cell.u_statistic, 1)})"
             )
         lines.append("| " + " | ".join(row) + " |")
         p_lines.append("| " + " | ".join(p_row) + " |")
     counts = ", ".join(str(n) for n in sorted(run_counts))
+    baseline_name = PAPER_NAMES.get(baseline, baseline)
+    families = sorted({cell.family_size for cell in cells if cell.scheme != baseline})
     lines += [
         "",
         f"Each run's score is the mean {metric_label} of the models saved over the last part of training "
-        f"({_better(by_setting)}); runs per cell: {counts}. `*` p < .05, `**` p < .01: two-sided Mann-Whitney U "
-        f"test of the method's per-run scores against {PAPER_NAMES.get(baseline, baseline)}'s (`scipy.stats.mannwhitneyu`).",
+        f"({_better(by_setting)}); runs per cell: {counts}. `*` p < .05, `**` p < .01: the raw p of the two-sided "
+        f"Mann-Whitney U test of the method's per-run scores against {baseline_name}'s, as the paper marks its "
+        "table. The test is exact: p counts every split of the two methods' runs into groups of their sizes (ties "
+        f"ranked by their mean rank); {floor_text(run_counts)}. Holm: p adjusted within its family (tests per family: "
+        f"{', '.join(map(str, families)) or 'none'}), the p a finding must have below .05. "
+        f"{FAMILY_TEXT.format(baseline=baseline_name)}",
         "",
-        f"p-values (U statistic) against {PAPER_NAMES.get(baseline, baseline)}:",
+        f"p-values against {baseline_name}: raw, Holm-adjusted (U statistic):",
         "",
         *p_lines,
         "",
@@ -117,13 +127,15 @@ def format_markdown(
 def write_csv(cells: Sequence[Cell], metric: str, path: str | os.PathLike[str]) -> None:
     """
     One row per setting and method: ``setting, scheme, method, metric, n, mean, std, u_statistic,
-    p_value, stars, scores`` (scores in displayed units, ``;``-separated in seed order).
+    p_value, p_holm, family_size, stars, scores`` (scores in displayed units, ``;``-separated in seed order; ``p_holm``
+    the p Holm-adjusted within the setting's family of ``family_size`` tests).
 
     :param cells: From :func:`~sb3_maddpg.experiments.stats.aggregate`.
     :param metric: The score's key.
     :param path: The CSV file.
     """
-    fields = ["setting", "scheme", "method", "metric", "n", "mean", "std", "u_statistic", "p_value", "stars", "scores"]
+    fields = ["setting", "scheme", "method", "metric", "n", "mean", "std", "u_statistic", "p_value", "p_holm", "family_size"]
+    fields += ["stars", "scores"]
     with open(path, "w", newline="") as file:
         writer = csv.writer(file)
         writer.writerow(fields)
@@ -139,6 +151,8 @@ def write_csv(cells: Sequence[Cell], metric: str, path: str | os.PathLike[str]) 
                     repr(cell.std),
                     "" if math.isnan(cell.u_statistic) else repr(cell.u_statistic),
                     "" if math.isnan(cell.p_value) else repr(cell.p_value),
+                    "" if math.isnan(cell.p_adjusted) else repr(cell.p_adjusted),
+                    cell.family_size or "",
                     cell.stars,
                     ";".join(repr(score) for score in cell.scores),
                 ]
@@ -239,8 +253,10 @@ def format_aggregates_markdown(
         "). IQM: mean of the middle 50% of the runs' scores. P(better): the chance that a random run of the "
         f"method scores better than a random run of {baseline_name} (ties count half; 0.5: no difference), averaged "
         "over settings. Intervals: 95% stratified bootstrap (percentile, runs resampled within each setting and "
-        "method; `scipy.stats.bootstrap`), as in Agarwal et al. (2021). An interval of P(better) that excludes 0.5 "
-        f"says the method and {baseline_name} differ at this number of runs.",
+        "method; `scipy.stats.bootstrap`), as in Agarwal et al. (2021). A percentile interval sees only the runs' "
+        "own spread: from a handful of runs it covers less than 95%, so read it as a description of the runs, and "
+        "whether two methods differ from the Holm-adjusted p of the table. An interval of P(better) that excludes "
+        f"0.5 says the method and {baseline_name} differ at this number of runs, before any correction.",
         "",
     ]
     return "\n".join(lines)
@@ -354,7 +370,7 @@ def format_terminal_table(
         widths = [max(len(row[column]) for row in rows) for column in range(len(header))]
         lines += [
             f"{setting_label(setting, (experiments or {}).get(setting))}: mean (std) over runs; * p < .05, ** p < .01: "
-            f"Mann-Whitney U against {baseline_name}",
+            f"exact Mann-Whitney U against {baseline_name} (raw p; Holm-adjusted in table_<metric>.md)",
             *("  ".join(text.ljust(width) for text, width in zip(row, widths)).rstrip() for row in rows),
             "",
         ]
@@ -376,7 +392,9 @@ def make_report(
     verbose: int = 1,
 ) -> list[Path]:
     """
-    Write, for each metric, ``table_<metric>.md`` and ``table_<metric>.csv`` (Table 2: mean (std), Mann-Whitney U),
+    Write, for each metric, ``table_<metric>.md`` and ``table_<metric>.csv`` (Table 2: mean (std), the exact Mann-Whitney
+    U test, its p raw and Holm-adjusted within each setting's family, declared from the stored configs: see
+    :class:`~sb3_maddpg.experiments.stats.Family`),
     ``aggregates_<metric>.md`` and ``aggregates_<metric>.csv`` (IQM and probability of improvement with 95%
     bootstrap intervals), ``claims_<metric>.md`` and ``claims_<metric>.csv`` for the paper's settings (its Table 2
     beside these runs' and its findings asked of them, see :mod:`~sb3_maddpg.experiments.paper_claims`),
@@ -404,10 +422,10 @@ def make_report(
     :raise FileNotFoundError: When the directory has no finished runs.
     :raise UnscoredMetricError: When no run scores one of ``metrics`` (a ``ValueError``), before anything is written.
     """
+    experiments = load_experiments(results_dir)
     summaries = load_summaries(results_dir)
     if not summaries:
         raise FileNotFoundError(f"No finished runs under {results_dir} (expected <experiment>/<scheme>/seed_*/summary.json).")
-    experiments = load_experiments(results_dir)
     envs = {
         summary["experiment"]: (experiments.get(summary["experiment"]) or {}).get("env", DEFAULT_ENV) for summary in summaries
     }
@@ -429,8 +447,10 @@ def make_report(
     out.mkdir(parents=True, exist_ok=True)
     written = []
     tables, infos = {}, {}
+    # The families come from the stored configs (the schemes each setting runs), whatever the scores turn out to be.
+    families = declare_families(experiments, metrics, baseline)
     for metric in metrics:
-        cells = aggregate(scored[metric], metric, baseline=baseline)
+        cells = aggregate(scored[metric], metric, baseline=baseline, families=families)
         by_setting = {setting: metric_info(metric, envs[setting]) for setting in dict.fromkeys(cell.setting for cell in cells)}
         tables[metric], infos[metric] = cells, by_setting
         markdown_path, csv_path = out / f"table_{metric}.md", out / f"table_{metric}.csv"

@@ -8,8 +8,9 @@ from types import ModuleType
 
 import numpy as np
 import pytest
-from scipy.stats import mannwhitneyu
+from scipy.stats import mannwhitneyu, ttest_ind
 
+from sb3_maddpg.experiments.stats import holm, mann_whitney
 from tests.script_module import load_script
 
 REPO = Path(__file__).resolve().parents[2]
@@ -83,6 +84,9 @@ def test_gaps_effects_and_tests_match_a_hand_computation(beside_shared: ModuleTy
     assert stored.gap.value == pytest.approx(mean["shared", "selected"] - mean["shared", "full"])
     assert stored.p_value == pytest.approx(mannwhitneyu(SHARED["selected"], SHARED["full"], alternative="two-sided").pvalue)
     assert stored.gap.low < stored.gap.value < stored.gap.high and stored.gap.low > 0  # every stored run is worse
+    # The gap's interval is Welch's t interval (a percentile bootstrap from 5 runs is too narrow).
+    welch = ttest_ind(SHARED["selected"], SHARED["full"], equal_var=False).confidence_interval(0.95)
+    assert (stored.gap.low, stored.gap.high) == (pytest.approx(welch.low), pytest.approx(welch.high))
 
     interaction = beside_shared.difference(
         [independent["selected"], independent["selected_next"], SHARED["selected"], SHARED["selected_next"]]
@@ -186,7 +190,9 @@ def test_reading_needs_a_reversal_in_the_metrics_direction(beside_shared: Module
     }
     scores = {"shared": lower, "independent": lower}
     # The stored rule's runs score lower than `full`'s: better on the min-dist sum, worse as a success rate.
-    assert beside_shared.setting_table(scores, "min_dist_sum")[-1].endswith("not worse than `full` here")
+    assert beside_shared.setting_table(scores, "min_dist_sum")[-1].endswith(
+        "not worse than `full` here at Holm-adjusted p < .05"
+    )
     assert beside_shared.setting_table(scores, "success_rate_r0.3")[-1].startswith(
         "- **which explains the reversal**: the rule:"
     )
@@ -321,6 +327,10 @@ def test_table2_puts_both_studies_complete_seeds_under_the_papers_row(beside_sha
         ("reverses", "not separated", "decided with shared only"),
         ("not separated", "holds", "decided with independent only"),
         ("does not hold (IDDPG scores better)", "not separated", "decided with shared only"),
+        # leaning either way is no decided verdict (the adjusted p at .05 or above)
+        ("leans the claim's way", "leans the other way", "neither separates"),
+        ("not separated", "leans the other way", "neither separates"),
+        ("reverses", "leans the claim's way", "decided with shared only"),
         ("reverses", "too few runs", "not yet"),
         ("too few runs", "too few runs", "not yet"),
     ],
@@ -339,10 +349,15 @@ def test_claims_are_asked_of_both_studies_complete_seeds(beside_shared: ModuleTy
     assert lines[0] == "#### The paper's claims in both studies: sum of min. distances (lower is better)"
     rows = {line.split(" | ")[1]: line.split(" | ") for line in lines[4:]}
     stored, following = rows["MADDPG-soa > MADDPG"], rows["selected_next (MADDPG-soa) > MADDPG"]
-    p_independent = mannwhitneyu(overlapping["selected"], overlapping["full"]).pvalue
-    assert stored[3:8] == ["5, 5", "2.50 vs 0.55", ".008", "reverses", "5, 5"]  # p = 2 / C(10, 5), fully separated
-    assert stored[8:] == ["0.61 vs 0.60", f"{p_independent:.3f}"[1:], "not separated", "decided with shared only |"]
-    assert following[6] == "not separated" and following[10] == "reverses"
+    p_independent = mann_whitney(overlapping["selected"], overlapping["full"])[1]
+    # p = 2 / C(10, 5), fully separated; Holm within the family of the setting's two schemes against `full`.
+    assert stored[3:8] == ["5, 5", "2.50 vs 0.55", ".008 (Holm .016 of 2)", "reverses", "5, 5"]
+    # Holm: the family's other test (selected_next, apart: .016 after x 2) is the smaller, so this one keeps its p.
+    shown = f"{p_independent:.3f}"[1:]
+    assert stored[8:10] == ["0.61 vs 0.60", f"{shown} (Holm {shown} of 2)"]
+    # Undecided, leaning: the runs' P(better) below 0.5 for the claim (selected's distances a little larger).
+    assert stored[10:] == ["leans the other way", "decided with shared only |"]
+    assert following[6] == "leans the other way" and following[10] == "reverses"
     assert following[11] == "decided with independent only |"
 
 
@@ -361,14 +376,17 @@ def test_claims_at_the_matched_budget_read_each_runs_curve_in_the_window(beside_
         "matched budget (learning-curve points, 0.8M-1M env steps)"
     )
     stored = next(line.split(" | ") for line in lines[4:] if line.split(" | ")[1] == "MADDPG-soa > MADDPG")
-    # Per run: the mean of its points in the window; full 0.5 + 0.005 * seed, `selected` 1.1 + 0.1 * seed.
-    assert stored[3:] == ["4, 4", "1.25 vs 0.51", ".029", "reverses"] * 2 + ["the same |"]
+    # Per run: the mean of its points in the window; full 0.5 + 0.005 * seed, `selected` 1.1 + 0.1 * seed. Four runs
+    # apart give .029, which Holm within the family of two (`selected`, `selected_next` against `full`) takes to .057:
+    # no verdict, a lean.
+    assert stored[3:] == ["4, 4", "1.25 vs 0.51", ".029 (Holm .057 of 2)", "leans the other way"] * 2 + ["neither separates |"]
     own = beside_shared.claims_beside_shared(paths, "min_dist_sum")  # the protocol scores: all 0.5
     assert next(line for line in own if "| MADDPG-soa > MADDPG |" in line).endswith("neither separates |")
     # Seed 4 of `full` only: not a complete seed, left out at the matched budget too (its curve would weigh in).
     write_run(independent, "paper_n5i_exp1", "full", 4, 0.5, [(900_000.0, 5.0)])
     lines = beside_shared.claims_beside_shared(paths, "min_dist_sum", beside_shared.MATCHED_WINDOW)
-    assert "| 4, 4 | 1.25 vs 0.51 | .029 | reverses | the same |" in next(line for line in lines if "| MADDPG-soa >" in line)
+    row = next(line for line in lines if "| MADDPG-soa >" in line)
+    assert "| 4, 4 | 1.25 vs 0.51 | .029 (Holm .057 of 2) | leans the other way | neither separates |" in row
     # A complete seed with no curve point in the window is an error that names the run.
     write_run(independent, "paper_n5i_exp1", "selected", 4, 0.5, [(1_200_000.0, 1.0)])
     write_run(independent, "paper_n5i_exp1", "selected_next", 4, 0.5, [(900_000.0, 0.5)])
@@ -456,3 +474,41 @@ def test_late_change_intervals_wait_for_four_runs(beside_shared: ModuleType, tmp
     full, selected = (line.split(" | ") for line in beside_shared.late_change_table({"shared": runs}, 2.0)[2:4])
     assert full[4] == "-0.20 (too few runs for an interval)"
     assert selected[7] == "+0.30 (too few runs for an interval) |"
+
+
+def test_a_cell_takes_holm_within_its_study_s_family_and_the_reading_the_adjusted_p(beside_shared: ModuleType) -> None:
+    # Every stored run far worse than `full`'s, 5 against 5: raw p = 2/252 = .0079 in both studies.
+    scores = {
+        networks: {"full": dict(enumerate(FULL)), "selected": dict(enumerate(s)), "selected_next": dict(enumerate(NEXT))}
+        for networks, s in (("shared", [2.0, 2.5, 3.0, 2.2, 2.8]), ("independent", [2.0, 2.5, 3.0, 2.2, 2.8]))
+    }
+    # Without a family each cell is its own: the stored rule is worse, and the reading reads the rule.
+    assert beside_shared.setting_table(scores, "min_dist_sum")[-1].startswith("- **which explains the reversal**: the rule:")
+    # The shared study's family: seven schemes against `full`, the others far from it; the cell's own p takes its
+    # scheme's place: 7 x .0079 = .056, so with shared networks the stored rule is not worse at the adjusted level.
+    family = {"independent": 0.5, "observations": 0.6, "actions": 0.7, "x": 0.8, "y": 0.9, "selected": 1.0}
+    family["selected_next"] = mann_whitney(NEXT, FULL)[1]
+    stored = beside_shared.cell(scores["shared"], "selected", family)
+    raw = [stored.p_value if scheme == "selected" else p for scheme, p in family.items()]
+    assert stored.p_value == pytest.approx(2 / 252) and stored.family_size == 7
+    assert stored.p_adjusted == pytest.approx(holm(raw)[list(family).index("selected")]) == pytest.approx(7 * 2 / 252)
+    lines = beside_shared.setting_table(scores, "min_dist_sum", {"shared": family})
+    assert lines[-1].endswith(
+        "no reversal to explain: with shared networks the stored rule is not worse than `full` here at Holm-adjusted p < .05"
+    )
+    row = next(line for line in lines if line.startswith("| shared | stored"))
+    assert row.endswith("| .008 (Holm .056 of 7) |")
+
+
+def test_a_study_s_family_is_its_report_s(beside_shared: ModuleType, tmp_path: Path) -> None:
+    schemes = ["full", "independent", "selected", "selected_next"]
+    shared, _ = exp1_settings(tmp_path, schemes)
+    runs = {"full": FULL, "independent": [0.6, 0.7, 0.65, 0.62, 0.68], "selected": [2.0, 2.5, 3.0, 2.2, 2.8]}
+    write_study(shared, "paper_n5_exp1", {**runs, "selected_next": NEXT})
+    write_run(shared, "paper_n5_exp1", "selected", 5, 9.0)  # seed 5 of `selected` only: not a complete seed
+    family = beside_shared.family_p_values(shared, "paper_n5_exp1", "min_dist_sum")
+    assert list(family) == ["independent", "selected", "selected_next"]
+    for scheme, values in {**runs, "selected_next": NEXT}.items():
+        if scheme != "full":
+            assert family[scheme] == pytest.approx(mann_whitney(values, FULL)[1]), scheme
+    assert beside_shared.family_p_values(tmp_path / "nowhere", "paper_n5_exp1", "min_dist_sum") == {}

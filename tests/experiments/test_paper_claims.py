@@ -17,11 +17,12 @@ from sb3_maddpg.experiments.paper_claims import (
     check_claims,
     format_beside_paper,
     format_claims_markdown,
+    format_p_value,
     observability,
     smallest_p_value,
     write_claims_report,
 )
-from sb3_maddpg.experiments.stats import aggregate, seeds_to_separate
+from sb3_maddpg.experiments.stats import aggregate, declare_families, holm, seeds_to_separate
 from sb3_maddpg.experiments.tasks import metric_info
 
 FULL = {"env": "simple_spread", "n_agents": 5, "num_agent_neighbors": 4, "episodes": 100}
@@ -117,11 +118,11 @@ def test_runs_that_do_not_separate_say_how_many_seeds_would() -> None:
     rng = np.random.default_rng(0)
     close = {"e2": {"selected": list(0.5 + 0.1 * rng.standard_normal(6)), "full": list(0.48 + 0.1 * rng.standard_normal(6))}}
     check = checks_by_claim(close, {"e2": PARTIAL})["e2", "MADDPG-soa > MADDPG"]
-    assert check.p_value >= 0.05 and check.verdict == "not separated"
+    leaning = "the claim's way" if check.improvement.value > 0.5 else "the other way"
+    assert check.p_value >= 0.05 and check.verdict == f"leans {leaning}"
     assert check.seeds_needed is not None and check.seeds_needed > 6  # more than these runs
     markdown = format_claims_markdown([check], "success rate (%)", "higher is better")
-    leaning = "the claim's way" if check.improvement.value > 0.5 else "the other way"
-    assert f"(leans {leaning}; ~{check.seeds_needed} seeds per scheme" in markdown
+    assert f"| leans {leaning} (p = {format_p_value(check.p_value)}; ~{check.seeds_needed} seeds per scheme" in markdown
     # A claim that two schemes score alike is not separated when the runs do not separate them (no evidence that they
     # are alike either), and does not hold when they do, naming the one that scores better in the metric's direction.
     alike = checks_by_claim({"e2": {"actions": MIXED, "independent": [v + 0.01 for v in MIXED]}}, {"e2": PARTIAL})
@@ -216,3 +217,82 @@ def test_the_claims_table_shows_p_to_three_places_and_below_001_as_less_than(p_v
     header = next(line for line in markdown.splitlines() if line.startswith("| setting |"))
     assert header.split(" | ")[5] == "p"
     assert row.split(" | ")[5] == shown, row
+
+
+APART_HIGH = [0.70, 0.72, 0.71, 0.73, 0.69]
+APART_LOW = [0.30, 0.32, 0.31, 0.33, 0.29]
+
+
+def declared_checks(scores: dict[str, list[float]], experiment: dict[str, Any]):  # type: ignore[no-untyped-def]
+    """The claims asked of one setting ``e1`` whose stored config declares the family (its ``schemes``)."""
+    runs = [
+        {"experiment": "e1", "scheme": scheme, "seed": seed, "score": {"success_rate": value}}
+        for scheme, values in scores.items()
+        for seed, value in enumerate(values)
+    ]
+    table = aggregate(runs, "success_rate", families=declare_families({"e1": experiment}, ["success_rate"]))
+    infos = {"e1": metric_info("success_rate", "simple_spread")}
+    return table, {check.text: check for check in check_claims(table, "success_rate", {"e1": experiment}, infos)}
+
+
+def test_verdicts_follow_the_holm_adjusted_p_of_the_declared_family(tmp_path: Path) -> None:
+    # Every pair's runs completely apart, 5 against 5: raw p = 2/252 = .0079 each.
+    scores = {"actions": APART_HIGH, "full": APART_LOW, "observations": APART_LOW, "independent": [v + 1 for v in APART_HIGH]}
+    declared = ["full", "independent", "observations", "actions", "selected", "selected_next"]
+    _, checks = declared_checks(scores, {**FULL, "schemes": declared})
+    # Against MADDPG: a family of the five schemes e1 declares (selected and selected_next have no runs yet):
+    # 5 x .0079 = .040 < .05.
+    fa = checks["MADDPG-fa > MADDPG"]
+    assert fa.p_value == pytest.approx(2 / 252) and fa.p_adjusted == pytest.approx(5 * 2 / 252)
+    assert fa.family_size == 5 and fa.verdict == "holds"
+    # Between two other schemes: their own family, the claims of Exp. 1 between e1's declared schemes (IDDPG > fo
+    # only): a family of one.
+    between = checks["IDDPG > MADDPG-fo"]
+    assert between.family_size == 1 and between.p_adjusted == between.p_value and between.verdict == "holds"
+    # Seven schemes against MADDPG: 7 x .0079 = .056; the same runs only lean, with their raw p, and the seeds are
+    # estimated at the family's Bonferroni level .05 / 7.
+    wider = {**FULL, "schemes": [*declared, "extra_a", "extra_b"]}
+    table, checks = declared_checks(scores, wider)
+    fa = checks["MADDPG-fa > MADDPG"]
+    assert fa.p_adjusted == pytest.approx(7 * 2 / 252) and fa.verdict == "leans the claim's way"
+    assert fa.seeds_needed == seeds_to_separate(fa.better_scores, fa.worse_scores, alpha=0.05 / 7)
+    assert checks["MADDPG > IDDPG"].verdict == "leans the other way"
+    markdown = format_claims_markdown([fa], "success rate (%)", "higher is better")
+    assert "| .008 | .056 (7) |" in markdown
+    assert f"| leans the claim's way (p = .008; ~{fa.seeds_needed} seeds per scheme would likely confirm it" in markdown
+    assert "the smallest two-sided p is .0079 at 5 runs a side" in markdown
+    # The CSV has both p-values and the family's size.
+    write_claims_report(tmp_path, table, "success_rate", {"e1": wider}, {"e1": metric_info("success_rate", "simple_spread")})
+    row = next(r for r in csv.DictReader((tmp_path / "claims_success_rate.csv").open()) if r["better"] == "actions")
+    assert float(row["p_value"]) == pytest.approx(2 / 252) and float(row["p_holm"]) == pytest.approx(7 * 2 / 252)
+    assert row["family_size"] == "7" and row["verdict"] == "leans the claim's way"
+
+
+def test_claims_between_two_other_schemes_are_adjusted_together() -> None:
+    # Exp. 2 asks four claims between schemes other than MADDPG where all six run (the variant's too): fo > fa,
+    # soa > fo, selected_next (soa) > fo, fa ~ IDDPG.
+    scores = {
+        "full": APART_LOW,
+        "observations": [0.50, 0.52, 0.51, 0.53, 0.49],
+        "actions": APART_LOW,
+        "independent": APART_HIGH,
+        "selected": [0.51, 0.60, 0.45, 0.58, 0.47],
+        "selected_next": APART_HIGH,
+    }
+    variant = {"critic_sharing": "selected", "selector": {"k": 2, "target": "next"}}
+    experiment = {**PARTIAL, "schemes": list(scores), "scheme_model_kwargs": {"selected_next": variant}}
+    _, checks = declared_checks(scores, experiment)
+    between = [
+        "MADDPG-fo > MADDPG-fa",
+        "MADDPG-soa > MADDPG-fo",
+        "selected_next (MADDPG-soa) > MADDPG-fo",
+        "MADDPG-fa ~ IDDPG",
+    ]
+    adjusted = holm([checks[text].p_value for text in between])
+    for text, expected in zip(between, adjusted):
+        assert checks[text].family_size == 4 and checks[text].p_adjusted == pytest.approx(expected), text
+    # fa ~ IDDPG: apart (.0079), 4 x .0079 = .032: does not hold; fo > fa too.
+    assert checks["MADDPG-fa ~ IDDPG"].verdict == "does not hold"
+    assert checks["MADDPG-fo > MADDPG-fa"].verdict == "holds"
+    # soa's runs straddle fo's (P(better) exactly 0.5): neither order.
+    assert checks["MADDPG-soa > MADDPG-fo"].verdict == "not separated"
