@@ -1,6 +1,7 @@
 """Tests of team evaluation (``evaluate_team``) and its training callback (``TeamEvalCallback``)."""
 
 import csv
+import inspect
 import math
 import warnings
 from typing import Any
@@ -10,14 +11,16 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 from stable_baselines3.common.callbacks import CallbackList, EvalCallback
-from stable_baselines3.common.logger import configure
+from stable_baselines3.common.logger import Logger, configure
 from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.analysis.evaluation import EVAL_KEYS, RADIUS_KEYS, SUCCESS_RADII, TeamEvalCallback, evaluate_team, radius_key
+from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.envs import make_simple_spread
 from sb3_maddpg.envs.simple_spread import SIMPLE_SPREAD_TASK_METRICS
+from sb3_maddpg.experiments import EXP1
 
 TINY = dict(
     learning_starts=50, batch_size=32, buffer_size=2_000, train_freq=25, policy_kwargs=dict(net_arch=dict(pi=[8], qf=[8]))
@@ -334,3 +337,71 @@ def test_an_env_of_your_own_declares_a_task_metric_and_gets_it_scored_as_declare
     assert "success_rate" not in result and result["task_metrics"] == (steps, last)
     with pytest.raises(ValueError, match=r"task_metrics declares \['spread', 'spread_now'\], but no metrics_fn"):
         PettingZooToGym(Walkers(), task_metrics=[steps, last])
+
+
+class ScriptedTeam(ConstantModel):
+    """A ConstantModel as a callback sees a model: no VecNormalize, a logger that writes nowhere."""
+
+    def __init__(self, action: np.ndarray | None = None) -> None:
+        super().__init__(np.zeros(2, np.float32) if action is None else action)
+        self.num_timesteps = 0
+        self.logger = Logger(folder=None, output_formats=[])
+
+    def get_vec_normalize_env(self) -> None:
+        return None
+
+    def get_env(self) -> None:
+        return None
+
+
+def test_the_callback_evaluates_the_papers_100_episodes_by_default() -> None:
+    """The callback's default is evaluate_team's, the paper's 100 episodes (Experiment 1's evaluation)."""
+    assert inspect.signature(TeamEvalCallback).parameters["n_eval_episodes"].default == 100
+    assert inspect.signature(evaluate_team).parameters["n_episodes"].default == 100 == EXP1.eval_episodes
+    callback = TeamEvalCallback(ScriptedEnv(lengths=(3, 5)), eval_freq=1)
+    callback.init_callback(ScriptedTeam())  # type: ignore[arg-type]
+    callback.on_step()
+    # Episode e of the scripted env lasts 3 steps (e even) or 5 (e odd) with a reward of e + 1 per step.
+    returns = [(e + 1) * (3 if e % 2 == 0 else 5) for e in range(100)]
+    assert callback.history[-1]["return_mean"] == pytest.approx(np.mean(returns))
+    assert callback.history[-1]["episode_length"] == 4.0
+
+
+def test_the_callback_evaluates_without_exploration_by_default() -> None:
+    """As evaluate_team by default: a model with exploration noise acts without it."""
+    assert inspect.signature(TeamEvalCallback).parameters["deterministic"].default is True
+    assert inspect.signature(evaluate_team).parameters["deterministic"].default is True
+    team = ScriptedTeam(np.full(2, 0.5, np.float32))
+    team.action_noise = NormalActionNoise(np.zeros(2), np.full(2, 0.2))  # type: ignore[attr-defined]
+    env = RecordingEnv()
+    callback = TeamEvalCallback(env, eval_freq=1, n_eval_episodes=3)
+    callback.init_callback(team)  # type: ignore[arg-type]
+    callback.on_step()
+    assert len(env.actions) == 3 * 4 and np.all(np.asarray(env.actions) == 0.5)
+
+
+@pytest.mark.parametrize("verbose", [0, 1])
+def test_a_verbose_callback_prints_each_evaluation(verbose: int, capsys: pytest.CaptureFixture[str]) -> None:
+    callback = TeamEvalCallback(ScriptedEnv(lengths=(3, 5)), eval_freq=1, n_eval_episodes=2, verbose=verbose)
+    callback.init_callback(ScriptedTeam())  # type: ignore[arg-type]
+    callback.on_step()
+    printed = capsys.readouterr().out
+    assert printed.startswith("Team eval num_timesteps=0: ") if verbose else printed == ""
+
+
+class TwoSidedEnv(ScriptedEnv):
+    """A ScriptedEnv whose two agents, ``a`` and ``b``, play on two sides."""
+
+    agent_layout = AgentLayout(("a", "b"), (1, 1), (1, 1))
+
+
+def test_each_side_scores_its_own_agents_returns_in_place_of_the_team_return() -> None:
+    """With sides, each side's return (the mean of its agents' returns) stands where the team return's mean and std
+    stood: the other scores keep their order."""
+    result = evaluate_team(ConstantModel(np.zeros(2, np.float32)), TwoSidedEnv(), n_episodes=4, sides={"A": ["a"], "B": ["b"]})
+    keys = list(EVAL_KEYS)
+    at = keys.index("return_mean")
+    keys[at : at + 2] = ["return_A", "return_B"]
+    assert [key for key in result if key not in ("agent_returns", "n_episodes")] == keys
+    # Episodes 0-3 return 3, 10, 9 and 20 (mean 10.5), split 1:3 between a and b.
+    assert (result["return_A"], result["return_B"]) == pytest.approx((0.25 * 10.5, 0.75 * 10.5))

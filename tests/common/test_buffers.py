@@ -1,5 +1,9 @@
 """The multi-agent replay buffer: joint rows, per-agent rewards and terminations, stored selections."""
 
+import os
+import re
+import warnings
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -9,7 +13,12 @@ import torch as th
 from gymnasium import spaces
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, check_replay_buffer_fits, replay_buffer_bytes
+from sb3_maddpg.common.buffers import (
+    MultiAgentReplayBuffer,
+    available_memory_bytes,
+    check_replay_buffer_fits,
+    replay_buffer_bytes,
+)
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.selection import NearestAgents
 from sb3_maddpg.envs import make_simple_spread
@@ -207,6 +216,24 @@ def test_the_memory_planned_before_allocation_is_what_the_arrays_take(n_envs: in
     assert buffer.planned_bytes == buffer.nbytes() == replay_buffer_bytes(101, n_envs, env.agent_layout, k, next_stored)
 
 
+@pytest.mark.parametrize("buffer_size", [1, 4, 7, 8])
+def test_a_buffer_of_fewer_transitions_than_two_per_env_plans_the_rows_sb3_allocates(buffer_size: int) -> None:
+    """SB3 keeps ``max(buffer_size // n_envs, 1)`` rows of ``n_envs`` transitions: at 4 envs, a buffer_size of 1, 4 or 7
+    is one row and 8 is two; the memory planned before allocation is what those rows take."""
+    buffer = MultiAgentReplayBuffer(buffer_size, OBS_SPACE, ACTION_SPACE, "cpu", n_envs=4, layout=LAYOUT)
+    assert buffer.buffer_size == (2 if buffer_size == 8 else 1)
+    assert buffer.nbytes() == replay_buffer_bytes(buffer_size, 4, LAYOUT, 0, False) == buffer.planned_bytes
+
+
+@pytest.mark.skipif(not Path("/proc/meminfo").exists(), reason="reads Linux's /proc/meminfo")
+def test_the_memory_available_is_read_on_linux_in_bytes() -> None:
+    """Where Linux says (MemAvailable, in kB), the memory check has a number to check against: some bytes, whole kB,
+    no more than the machine has."""
+    available = available_memory_bytes()
+    physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    assert available is not None and 0 < available <= physical and available % 1024 == 0
+
+
 def test_a_buffer_larger_than_the_memory_is_refused_and_over_half_of_it_warned_about() -> None:
     per = 1000
     check_replay_buffer_fits(500 * per, 500, 1000 * per)  # exactly half: quiet
@@ -218,6 +245,54 @@ def test_a_buffer_larger_than_the_memory_is_refused_and_over_half_of_it_warned_a
     with pytest.raises(ValueError, match=message + r".*lower buffer_size \(e\.g\. buffer_size=100 takes"):
         check_replay_buffer_fits(1001 * per, 1001, 1000 * per)
     check_replay_buffer_fits(10**15, 10**12, None)  # memory unknown: no check
+
+
+def test_a_buffer_of_exactly_half_the_memory_is_quiet_and_one_byte_more_warns() -> None:
+    """The warning is for a buffer that takes *over* half of the memory: at exactly half nothing is said, one byte more
+    is warned about (with an odd number of bytes, half is rounded down: 500,000 of 1,000,001)."""
+    for available in (1_000_000, 1_000_001):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # any warning fails
+            check_replay_buffer_fits(500_000, 500, available)
+        with pytest.warns(UserWarning, match="over half of the"):
+            check_replay_buffer_fits(500_001, 500, available)
+
+
+def suggested_buffer_size(needed: int, buffer_size: int, available: int) -> int:
+    """:return: The ``buffer_size`` that :func:`check_replay_buffer_fits`'s warning or refusal suggests."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            check_replay_buffer_fits(needed, buffer_size, available)
+        except ValueError as error:
+            message = str(error)
+        else:
+            assert len(caught) == 1, "a warning or a refusal was expected"
+            message = str(caught[0].message)
+    found = re.search(r"e\.g\. buffer_size=([\d_]+) takes", message)
+    assert found, message
+    return int(found.group(1))
+
+
+@pytest.mark.parametrize(
+    "available, expected",
+    [
+        (2_000_000, 1_000),  # half is 1,000,000 bytes: 1,000 rows of 1,000 bytes fit it exactly (quiet, as above)
+        (1_999_998, 100),  # half is 999,999 bytes: 1,000 rows are one byte too many, so the next power of ten down
+        (50_000, 10),  # half holds 25 rows
+        (1_000, 1),  # half holds not one row: the smallest buffer there is
+    ],
+)
+def test_the_suggested_buffer_size_is_the_largest_power_of_ten_that_fits_half_the_memory(
+    available: int, expected: int
+) -> None:
+    per_row = 1_000
+    # A buffer of all the memory (warned about) and one of twice it (refused) get the same suggestion.
+    for buffer_size in (available // per_row, 2 * available // per_row):
+        suggested = suggested_buffer_size(buffer_size * per_row, buffer_size, available)
+        assert suggested == expected
+        if suggested > 1:  # the suggestion is quiet, and ten times it would not be
+            assert suggested * per_row <= available // 2 < 10 * suggested * per_row
 
 
 def test_maddpg_with_a_buffer_that_cannot_fit_is_refused_before_allocating_it_but_a_saved_one_loads(

@@ -1,5 +1,6 @@
 """The losses with a member dimension: M teams evaluated at once give each team's own losses, independently."""
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -8,7 +9,17 @@ import torch as th
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.common.losses import ActorLossTerms, actor_loss_terms, critic_losses, critic_targets, one_member
+from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.losses import (
+    SATURATION_THRESHOLD,
+    ActionParts,
+    ActorLossTerms,
+    actor_loss_terms,
+    check_loss_settings,
+    critic_losses,
+    critic_targets,
+    one_member,
+)
 from sb3_maddpg.envs import make_simple_spread
 from tests.loss_helpers import team_actor_terms, team_critic_losses
 
@@ -127,3 +138,104 @@ def test_the_target_reads_the_next_selection_when_the_batch_has_one(next_selecte
     else:  # the next one: 2, 2, (1) and 1, 0, 0
         expected = [[2.0, 2.0, 1.0], [1.5, 1.0, 1.0]]
     assert targets[0].tolist() == expected
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Values set by hand: networks that return fixed numbers, so each loss is known without running a model.
+
+TWO_BY_TWO = AgentLayout(("a", "b"), (2, 2), (2, 2))  # two continuous agents, two action components each
+
+
+def fixed_batch(n_rows: int, active: th.Tensor | None, n_agents: int = 2) -> MultiAgentReplayBufferSamples:
+    """One member's batch of ``n_rows`` zero rows for a team of ``n_agents`` agents (2 observation and 2 action
+    components each): the networks below decide every value."""
+    zeros = th.zeros(1, n_rows, 2 * n_agents)
+    return MultiAgentReplayBufferSamples(
+        observations=zeros,
+        actions=zeros,
+        next_observations=zeros,
+        dones=th.zeros(1, n_rows, n_agents),
+        rewards=th.zeros(1, n_rows, n_agents),
+        selections=None,
+        active=None if active is None else active.unsqueeze(0),
+    )
+
+
+def test_a_departed_agents_terms_are_the_mean_over_its_active_rows_only() -> None:
+    """Each agent's critic loss and policy loss average its active rows: the sum over them divided by their count
+    (an agent with none gets 0, not a division by zero)."""
+    q = th.tensor([[1.0, 2.0, 0.5], [2.0, 2.0, 0.5], [3.0, 2.0, 0.5], [4.0, 6.0, 0.5]])  # [rows, agents]
+    active = th.tensor([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+
+    def critic(observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        return q.unsqueeze(0)  # [M=1, rows, agents], whatever the actions
+
+    batch = fixed_batch(4, active, n_agents=3)
+    # Squared errors against targets of 0: agent 0's active rows hold 1 and 4, agent 1's 4 and 36, agent 2 has none.
+    losses = critic_losses(critic, batch, th.zeros(1, 4, 3))
+    assert losses[0].tolist() == [(1 + 4) / 2, (4 + 36) / 2, 0.0]
+
+    def policy(observations: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        return th.zeros(1, 4, 6), th.zeros(1, 4, 6)
+
+    parts = ActionParts.of(AgentLayout(("a", "b", "c"), (2, 2, 2), (2, 2, 2)))
+    terms = actor_loss_terms(policy, critic, batch, parts, reg_coef=0.0)
+    assert terms.policy_loss[0].tolist() == [-(1 + 2) / 2, -(2 + 6) / 2, 0.0]  # -Q's mean over the same rows
+
+
+@pytest.mark.parametrize("active", [None, th.ones(3, 2)], ids=["whole team", "agents that may leave"])
+def test_an_action_at_the_saturation_threshold_is_not_saturated_and_one_just_above_is(active: th.Tensor | None) -> None:
+    """``|a| > SATURATION_THRESHOLD`` counts, as documented: a component exactly at the threshold (as the float32
+    actions hold it) does not; the next float32 above it does, either sign; the same with or without ``active``."""
+    at = th.tensor(SATURATION_THRESHOLD, dtype=th.float32)
+    above = th.nextafter(at, th.tensor(1.0))
+    # Rows 0 and 1: agent a's two components at +-threshold, agent b's just above it; row 2: all zero.
+    row_a = th.stack((at, -at))
+    actions = th.stack([th.cat((row_a, th.stack((above, -above)))), th.cat((row_a, th.stack((-above, above)))), th.zeros(4)])
+
+    def policy(observations: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        return actions.unsqueeze(0), th.zeros(1, 3, 4)
+
+    def critic(observations: th.Tensor, joint: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        return th.zeros(1, 3, 2)
+
+    terms = actor_loss_terms(policy, critic, fixed_batch(3, active), ActionParts.of(TWO_BY_TWO), reg_coef=0.0)
+    th.testing.assert_close(terms.saturation[0], th.tensor([0.0, 2 / 3]))
+
+
+@pytest.mark.parametrize("active", [None, th.tensor([[1.0, 1.0], [1.0, 1.0], [0.0, 1.0]])], ids=["whole team", "a leaves"])
+def test_the_regulariser_is_the_coefficient_times_the_mean_squared_preactivation_over_active_rows(
+    active: th.Tensor | None,
+) -> None:
+    """``reg_coef`` times the mean, over the agent's (active) rows, of its own components' mean squared pre-``tanh``
+    output (Lowe et al.'s ``p_reg``), for any coefficient in (0, 1] too."""
+    # Agent a's pre-activations per row: (1, 3), (2, 2), (5, 5), mean squares 5, 4, 25; agent b's (0, 2): 2 each row.
+    pre = th.tensor([[1.0, 3.0, 0.0, 2.0], [2.0, 2.0, 0.0, 2.0], [5.0, 5.0, 0.0, 2.0]])
+
+    def policy(observations: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        return th.tanh(pre).unsqueeze(0), pre.unsqueeze(0)
+
+    def critic(observations: th.Tensor, joint: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
+        return th.zeros(1, 3, 2)
+
+    terms = actor_loss_terms(policy, critic, fixed_batch(3, active), ActionParts.of(TWO_BY_TWO), reg_coef=0.5)
+    mean_a = (5 + 4 + 25) / 3 if active is None else (5 + 4) / 2  # a left before row 2: rows 0 and 1 only
+    th.testing.assert_close(terms.reg_loss[0], th.tensor([0.5 * mean_a, 0.5 * 2.0]))
+    th.testing.assert_close(terms.total, terms.policy_loss + terms.reg_loss)
+
+
+def test_a_regulariser_weight_must_be_finite_and_at_least_zero() -> None:
+    """0 turns the regulariser off and is taken; anything below it, or not finite, is refused by name."""
+    check_loss_settings(0.0, max_grad_norm=0.5)
+    for refused in (-1e-3, math.inf, math.nan):
+        with pytest.raises(ValueError, match=r"^actor_reg_coef\b.* >= 0"):
+            check_loss_settings(refused, max_grad_norm=0.5)
+
+
+def test_a_gradient_clip_must_be_above_zero_or_none() -> None:
+    """None turns clipping off and the least positive norm is taken; 0 (every gradient zeroed) and below are refused."""
+    for taken in (None, 1e-9):
+        check_loss_settings(1e-3, taken)
+    for refused in (0.0, -0.5):
+        with pytest.raises(ValueError, match=r"^max_grad_norm\b.* > 0"):
+            check_loss_settings(1e-3, refused)

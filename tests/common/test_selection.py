@@ -1,11 +1,19 @@
 """Who each agent selects: k nearest, fixed graph and roles, user callables, and their errors."""
 
+import warnings
+
 import numpy as np
 import pytest
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.common.layout import AgentLayout
-from sb3_maddpg.common.selection import CallableSelector, FixedGraph, NearestAgents
+from sb3_maddpg.common.selection import (
+    CallableSelector,
+    FixedGraph,
+    NearestAgents,
+    resolve_selector,
+    warn_if_selecting_everyone,
+)
 from sb3_maddpg.envs import make_simple_spread
 
 # Positions as MPE lays them out, [vel(2), pos(2), ...], declared as the MPE tasks declare them.
@@ -137,3 +145,99 @@ def test_the_stored_selection_is_made_from_the_observation_at_time_t() -> None:
     # the check below can tell the two apart.
     assert (from_obs != from_next_obs).any(axis=(1, 2)).sum() >= 5
     np.testing.assert_array_equal(buffer.selections[:100, 0], from_obs)
+
+
+def ring_of_three(observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
+    """Agent i selects agent i + 1 (mod 3), whatever it observes."""
+    return np.broadcast_to(np.array([[1], [2], [0]]), (observations.shape[0], 3, 1))
+
+
+@pytest.mark.filterwarnings("ignore:learn\\(\\) ended at step .* without a single gradient update")
+@pytest.mark.parametrize(
+    "selector", [FixedGraph([[1], [2], [0]]), CallableSelector(ring_of_three, k=1)], ids=["FixedGraph", "CallableSelector"]
+)
+def test_rules_that_need_no_positions_select_from_the_observations_on_an_env_that_reports_positions(
+    selector: FixedGraph | CallableSelector,
+) -> None:
+    """An env that reports its agents' positions in its infos (``PettingZooToGym(positions=fn)``) serves a rule that
+    does not select by position as any env does: the buffer asks it for the selection from the observations, and it
+    stores no next-step selection (a rule that did need the positions would be handed them instead)."""
+    from tests.envs.walkers import walkers_with_positions
+
+    env = walkers_with_positions(n_agents=3, max_cycles=5)
+    layout = env.agent_layout  # type: ignore[attr-defined]
+    assert layout.positions_in_info
+    assert not selector.needs_positions and not selector.stores_next_selection(layout)
+    model = MADDPG(
+        "MlpPolicy",
+        env,  # type: ignore[arg-type]
+        critic_sharing="selected",
+        selector=selector,
+        learning_starts=1_000,  # collect only
+        buffer_size=1_000,
+        policy_kwargs=dict(net_arch=[8]),
+        seed=0,
+    )
+    model.learn(20)
+    buffer = model.replay_buffer
+    assert buffer.pos >= 20 and buffer.next_selections is None
+    assert buffer.selections[: buffer.pos, 0, :, 0].tolist() == [[1, 2, 0]] * buffer.pos
+
+
+def every_other(observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
+    """Agent i selects every other agent, in index order."""
+    table = [[j for j in range(layout.n_agents) if j != i] for i in range(layout.n_agents)]
+    return np.broadcast_to(np.array(table), (observations.shape[0], layout.n_agents, layout.n_agents - 1))
+
+
+def test_k_may_be_every_other_agent_which_is_said_to_be_full_sharing_but_no_more() -> None:
+    """On 4 agents any rule may select all 3 others (taken, with a warning: it is full sharing in another order);
+    2 is a selection and nothing is said; 4 is refused."""
+    for selector in (
+        NearestAgents(k=3),
+        FixedGraph(every_other(np.zeros((1, 1)), LAYOUT)[0]),
+        CallableSelector(every_other, 3),
+    ):
+        selector.validate(LAYOUT)  # the boundary itself: no error
+    with pytest.warns(UserWarning, match="with k=3 selects every other agent of this 4-agent team"):
+        warn_if_selecting_everyone(NearestAgents(k=3), LAYOUT)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_if_selecting_everyone(NearestAgents(k=2), LAYOUT)
+    with pytest.raises(ValueError, match="k=4 other agents.*use k <= 3"):
+        CallableSelector(every_other, 4).validate(LAYOUT)
+
+
+def test_the_default_selector_is_the_papers_two_nearest_agents() -> None:
+    """No selector, a dict without k and NearestAgents() all select the paper's k = 2 nearest agents."""
+    for default in (resolve_selector(None), resolve_selector({}), resolve_selector({"target": "next"}), NearestAgents()):
+        assert isinstance(default, NearestAgents) and default.k == 2
+    assert resolve_selector(3).k == 3 and resolve_selector({"k": 1}).k == 1
+
+
+@pytest.mark.filterwarnings("ignore:learn\\(\\) ended at step .* without a single gradient update")
+@pytest.mark.parametrize("target", ["stored", "next"])
+def test_only_a_next_target_by_positions_from_the_infos_stores_the_next_selection(target: str) -> None:
+    """Positions the env reports in its infos cannot be read again at sampling: a ``target="next"`` rule by position
+    stores the next step's selection with each row. A ``"stored"`` target uses each row's own selection and stores
+    nothing more, and on an env whose positions are in its observations neither stores it (the next observation is
+    at hand when sampling)."""
+    from tests.envs.walkers import walkers_with_positions
+
+    env = walkers_with_positions(n_agents=3, max_cycles=5)
+    selector = NearestAgents(k=1, target=target)  # type: ignore[arg-type]
+    assert selector.stores_next_selection(env.agent_layout) is (target == "next")  # type: ignore[attr-defined]
+    assert not selector.stores_next_selection(LAYOUT)
+    model = MADDPG(
+        "MlpPolicy",
+        env,  # type: ignore[arg-type]
+        critic_sharing="selected",
+        selector=selector,
+        learning_starts=1_000,  # collect only
+        buffer_size=1_000,
+        policy_kwargs=dict(net_arch=[8]),
+        seed=0,
+    )
+    model.learn(20)
+    assert (model.replay_buffer.next_selections is not None) is (target == "next")
+    assert (model.replay_buffer.sample(8).next_selections is not None) is (target == "next")
