@@ -43,10 +43,10 @@ def out_of_range(valid: Range) -> st.SearchStrategy[Any]:
     high = _upper(valid)
     if valid.low is not None:
         below = st.floats(max_value=valid.low, exclude_max=not valid.low_open, allow_nan=False, allow_infinity=False)
-        refused.append(below.map(lambda x: int(math.floor(x)) - (0 if valid.low_open else 1)) if valid.integer else below)
+        refused.append(below.map(lambda x: math.floor(x) - (0 if valid.low_open else 1)) if valid.integer else below)
     if high is not None:
         above = st.floats(min_value=high, exclude_min=not valid.high_open, allow_nan=False, allow_infinity=False)
-        refused.append(above.map(lambda x: int(math.ceil(x)) + (0 if valid.high_open else 1)) if valid.integer else above)
+        refused.append(above.map(lambda x: math.ceil(x) + (0 if valid.high_open else 1)) if valid.integer else above)
     if valid.integer:
         refused.append(st.floats(allow_nan=False, allow_infinity=False).filter(lambda x: x != int(x)))
     if valid.none_means is None:
@@ -60,7 +60,7 @@ def in_range(valid: Range) -> st.SearchStrategy[Any]:
     high = _upper(valid)
     high = 1e9 if high is None else high
     if valid.integer:
-        taken: st.SearchStrategy[Any] = st.integers(int(math.ceil(low)) + valid.low_open, int(high) - valid.high_open)
+        taken: st.SearchStrategy[Any] = st.integers(math.ceil(low) + valid.low_open, int(high) - valid.high_open)
     else:
         taken = st.floats(low, high, exclude_min=valid.low_open, exclude_max=valid.high_open)
     return st.one_of(taken, st.none()) if valid.none_means is not None else taken
