@@ -180,7 +180,8 @@ def mann_whitney(x: Sequence[float], y: Sequence[float]) -> tuple[float, float]:
     :param y: The other (e.g. MADDPG's).
     :return: The U statistic of ``x`` (pairs in which ``x`` scores higher, ties counted half) and the p-value;
         ``(nan, nan)`` if a sample is empty or holds a ``nan`` (no rank for it). Every split of samples whose runs all
-        score the same is as extreme as the observed one: ``p = 1``. Completely separated samples of 5 give the smallest p of 5 against 5, 2/252 = .0079.
+        score the same is as extreme as the observed one: ``p = 1``. Completely separated samples of 5 give the smallest
+        p of 5 against 5, 2/252 = .0079.
     """
     a, b = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     if a.size == 0 or b.size == 0 or np.isnan(a).any() or np.isnan(b).any():
