@@ -25,9 +25,7 @@ from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples  # noqa: E40
 from sb3_maddpg.envs import make_simple_spread  # noqa: E402
 
 # Generated inputs (hypothesis): a small, seeded sample in CI; HYPOTHESIS_PROFILE=long for the longer run by hand.
-settings.register_profile(
-    "ci", max_examples=12, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
-)
+settings.register_profile("ci", max_examples=12, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("long", max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
