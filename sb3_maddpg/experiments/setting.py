@@ -8,9 +8,11 @@ import dataclasses
 import json
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar
 
+from sb3_maddpg.common.argument_ranges import TEAM_ALGORITHM_RANGES
 from sb3_maddpg.compat import migrate_stored_config
 from sb3_maddpg.experiments.defaults import (
     ALGORITHMS,
@@ -304,6 +306,25 @@ class RunConfig(Setting):
         return json.dumps(self.to_dict(), sort_keys=True) == json.dumps(other.to_dict(), sort_keys=True)
 
 
+RUN_SEED = dataclasses.replace(TEAM_ALGORITHM_RANGES["seed"], none_means=None)
+"""A run's seed: the model's seed, but never None (a run is one seeded trial)."""
+
+
+def check_seeds(seeds: Sequence[int]) -> None:
+    """
+    Refuse an experiment with no seed, a seed out of range or one seed twice (its runs would share a directory).
+
+    :param seeds: An experiment's seeds.
+    """
+    if len(seeds) == 0:
+        raise ValueError("seeds (the independent trials of each scheme) is empty: give at least one, e.g. [0, 1, 2].")
+    for seed in seeds:
+        RUN_SEED.check("seeds", seed)
+    repeated = sorted({seed for seed in seeds if list(seeds).count(seed) > 1})
+    if repeated:
+        raise ValueError(f"seeds holds {repeated} more than once: each seed is one run of each scheme; give each once.")
+
+
 NOTE_KEEPING_FIELDS = frozenset(("name", "schemes", "seeds", "keep_checkpoints", "vec_env", "n_envs", "description"))
 """The fields whose change leaves a setting's note (:meth:`ExperimentConfig.described`) true: which runs, where, and
 what is kept."""
@@ -359,6 +380,7 @@ class ExperimentConfig(Setting):
     def __post_init__(self) -> None:
         super().__post_init__()
         check_scheme_variants(self.schemes, self.model_kwargs, self.scheme_model_kwargs)
+        check_seeds(self.seeds)
         if not self.description:
             object.__setattr__(self, "description", describe_setting(self))
 

@@ -8,8 +8,8 @@ import pytest
 
 from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.experiments import EXP1, SMOKE, RunConfig
-from sb3_maddpg.experiments.config import setting_label
-from sb3_maddpg.experiments.setting import describe_setting, scaled_schedule
+from sb3_maddpg.experiments.config import EXPERIMENTS, setting_label
+from sb3_maddpg.experiments.setting import ExperimentConfig, describe_setting, scaled_schedule
 from sb3_maddpg.experiments.tasks import run_task
 
 
@@ -98,3 +98,22 @@ def test_a_budget_too_small_for_any_evaluation_count_gets_each_counts_floor() ->
     """At 100 of Experiment 1's 100,000 episodes the square-root scaling (x 0.0316) gives 1 checkpoint, 4 episodes,
     2 curve points and 1 curve episode: each is raised to its floor (1, 10, 2, 5)."""
     assert scaled_schedule(EXP1, 100) == {"n_checkpoints": 1, "eval_episodes": 10, "curve_points": 2, "curve_eval_episodes": 5}
+
+
+@pytest.mark.parametrize(
+    ("seeds", "refusal"),
+    [
+        ([], r"^seeds \(the independent trials of each scheme\) is empty: give at least one"),
+        ([0, -1], r"^seeds \(.*\) must be an integer in \[0, 4,294,967,295\], got -1: use a non-negative integer"),
+        ([0, None], r"^seeds \(.*\) must be an integer .*, got None"),
+        ([1.5], r"^seeds \(.*\) must be an integer .*, got 1\.5"),
+        ([True], r"^seeds \(.*\) must be an integer .*, got True"),
+        ([0, 3, 0], r"^seeds holds \[0\] more than once"),
+    ],
+)
+def test_an_experiment_s_seeds_are_refused_by_name(seeds: list[Any], refusal: str) -> None:
+    """Seeds no run can take (or two runs in one directory) are refused when the experiment is read, not at its runs."""
+    fields = {**EXPERIMENTS["smoke"].to_dict(), "seeds": seeds}
+    with pytest.raises(ValueError, match=refusal):
+        ExperimentConfig.from_fields(fields)
+    assert ExperimentConfig.from_fields({**fields, "seeds": [0, 4_294_967_295]}).seeds == (0, 4_294_967_295)
