@@ -12,7 +12,6 @@ minimum of its twins, and its critic returns both twins stacked in front (``[2, 
 each agent's terms over its active rows only.
 """
 
-import math
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -34,26 +33,6 @@ QValues = Callable[[th.Tensor, th.Tensor, th.Tensor | None], th.Tensor]
 """``(observations [M, batch, obs_dim], actions, selections [M, batch, n_agents, k] or None)`` to every agent's Q-value
 ``[..., M, batch, n_agents]``. The actions are ``[M, batch, action_dim]``, the same for every critic, or
 ``[M, n_agents, batch, action_dim]``, critic i's own joint action in ``[:, i]``."""
-
-
-def check_loss_settings(actor_reg_coef: float, max_grad_norm: float | None) -> None:
-    """
-    Refuse an actor regulariser or a gradient clip that would silently train wrong (a norm of 0 zeroes every
-    gradient, a negative one flips it).
-
-    :param actor_reg_coef: The weight of the actor regulariser.
-    :param max_grad_norm: The largest norm each agent's gradient is clipped to, or None.
-    """
-    if not (math.isfinite(actor_reg_coef) and actor_reg_coef >= 0):
-        raise ValueError(
-            f"actor_reg_coef must be a finite number >= 0, got {actor_reg_coef}: use 1e-3 (Lowe et al.'s value) "
-            "or 0 to turn the actor regulariser off."
-        )
-    if max_grad_norm is not None and not max_grad_norm > 0:
-        raise ValueError(
-            f"max_grad_norm must be > 0 (the largest norm each agent's gradient is clipped to), got {max_grad_norm}: "
-            "use 0.5 (Lowe et al.'s value), or None to turn gradient clipping off."
-        )
 
 
 class ActorLossTerms(NamedTuple):

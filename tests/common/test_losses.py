@@ -8,6 +8,7 @@ import pytest
 import torch as th
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.common.argument_ranges import TEAM_ALGORITHM_RANGES
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.losses import (
@@ -15,7 +16,6 @@ from sb3_maddpg.common.losses import (
     ActionParts,
     ActorLossTerms,
     actor_loss_terms,
-    check_loss_settings,
     critic_losses,
     critic_targets,
     one_member,
@@ -226,16 +226,18 @@ def test_the_regulariser_is_the_coefficient_times_the_mean_squared_preactivation
 
 def test_a_regulariser_weight_must_be_finite_and_at_least_zero() -> None:
     """0 turns the regulariser off and is taken; anything below it, or not finite, is refused by name."""
-    check_loss_settings(0.0, max_grad_norm=0.5)
+    valid = TEAM_ALGORITHM_RANGES["actor_reg_coef"]
+    valid.check("actor_reg_coef", 0.0)
     for refused in (-1e-3, math.inf, math.nan):
         with pytest.raises(ValueError, match=r"^actor_reg_coef\b.* >= 0"):
-            check_loss_settings(refused, max_grad_norm=0.5)
+            valid.check("actor_reg_coef", refused)
 
 
 def test_a_gradient_clip_must_be_above_zero_or_none() -> None:
     """None turns clipping off and the least positive norm is taken; 0 (every gradient zeroed) and below are refused."""
+    valid = TEAM_ALGORITHM_RANGES["max_grad_norm"]
     for taken in (None, 1e-9):
-        check_loss_settings(1e-3, taken)
+        valid.check("max_grad_norm", taken)
     for refused in (0.0, -0.5):
         with pytest.raises(ValueError, match=r"^max_grad_norm\b.* > 0"):
-            check_loss_settings(1e-3, refused)
+            valid.check("max_grad_norm", refused)
