@@ -17,10 +17,16 @@ from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.marl_eval import MARL_EVAL_FILE, write_marl_eval
 from sb3_maddpg.experiments.normalised_table import format_normalised_markdown
 from sb3_maddpg.experiments.paper_claims import write_claims_report
+from sb3_maddpg.experiments.references import (
+    format_references_markdown,
+    load_references,
+    reference_rows,
+    write_references_csv,
+)
 from sb3_maddpg.experiments.results import load_experiments, load_summaries, never_updated_warning, run_updates
 from sb3_maddpg.experiments.run_cost import write_cost_report
 from sb3_maddpg.experiments.stats import FAMILY_TEXT, METRICS, Cell, Metric, aggregate, declare_families, floor_text
-from sb3_maddpg.experiments.tasks import declared_metrics, declared_sides, metric_info
+from sb3_maddpg.experiments.tasks import declared_sides, metric_info, named_metrics, recorded_metrics
 
 
 def _number(value: float, digits: int = 2) -> str:
@@ -309,26 +315,42 @@ DEFAULT_REPORT_METRICS = ("success_rate", "min_dist_sum")
 min-dist sum (lower is better; informative at every scale). Other tasks: see :func:`default_metrics`."""
 
 
-def default_metrics(score: dict[str, float], env: str = DEFAULT_ENV) -> list[str]:
+def default_metrics(score: dict[str, float], env: str = DEFAULT_ENV, declared: Sequence[Any] | None = None) -> list[str]:
     """
     The metrics of a task's main table.
 
     :param score: One run's score.
     :param env: Its task (an experiment's ``env``).
-    :return: simple_spread: the metrics of :data:`DEFAULT_REPORT_METRICS` the run has (not NaN). Another MPE task: its
-        own metrics (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`), then each side's return in a competitive task
-        (the team return in a cooperative one; never a sum over opponents), then ``group_return`` when the runs score
-        one, those the run has. Else, or when the run has none of them: ``["return_mean"]``.
+    :param declared: The task metrics its env declares (a run summary's record, :func:`summary_metrics`); ``None``:
+        an MPE task's by its name.
+    :return: simple_spread: the metrics of :data:`DEFAULT_REPORT_METRICS` the run has (not NaN). Another task: the
+        metrics its env declares (an MPE task's :data:`~sb3_maddpg.envs.MPE_TASK_METRICS`, a factory's env's own), then
+        each side's return in a competitive task (the team return in a cooperative one; never a sum over opponents),
+        then ``group_return`` when the runs score one, those the run has. Else, or when the run has none of them:
+        ``["return_mean"]``.
     """
     if env == DEFAULT_ENV:
         candidates: list[str] = list(DEFAULT_REPORT_METRICS)
     else:
-        declared = [metric.key for metric in declared_metrics(env)]
+        keys = [metric.key for metric in (named_metrics(env) if declared is None else declared)]
         sides = [side_return_key(side) for side in side_returns(score)]
         returns = sides or ([] if declared_sides(env) else ["return_mean"])
-        candidates = [*declared, *returns, "group_return"]
+        candidates = [*keys, *returns, "group_return"]
     present = [metric for metric in candidates if not math.isnan(score.get(metric, math.nan))]
     return present or ["return_mean"]
+
+
+def summary_metrics(summaries: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """
+    :param summaries: Run summaries.
+    :return: Each setting's task metrics as its runs' summaries record them (the first that records any;
+        :func:`~sb3_maddpg.experiments.tasks.recorded_metrics`), ``None`` for a setting whose summaries record none.
+    """
+    recorded: dict[str, Any] = {}
+    for summary in summaries:
+        if recorded.get(summary["experiment"]) is None:
+            recorded[summary["experiment"]] = recorded_metrics(summary.get("task_metrics"))
+    return recorded
 
 
 def format_terminal_table(
@@ -392,24 +414,25 @@ def make_report(
     verbose: int = 1,
 ) -> list[Path]:
     """
-    Write, for each metric, ``table_<metric>.md`` and ``table_<metric>.csv`` (Table 2: mean (std), the exact Mann-Whitney
-    U test, its p raw and Holm-adjusted within each setting's family, declared from the stored configs: see
-    :class:`~sb3_maddpg.experiments.stats.Family`),
-    ``aggregates_<metric>.md`` and ``aggregates_<metric>.csv`` (IQM and probability of improvement with 95%
-    bootstrap intervals), ``claims_<metric>.md`` and ``claims_<metric>.csv`` for the paper's settings (its Table 2
-    beside these runs' and its findings asked of them, see :mod:`~sb3_maddpg.experiments.paper_claims`),
-    ``normalised.md`` for simple_spread settings (min-dist sum and team return between the
-    random team, 0, and the scripted controller, 1), ``cost.md`` and ``cost.csv`` (training time per run by setting
-    and scheme, see :mod:`~sb3_maddpg.experiments.run_cost`), ``marl_eval.json`` (every run in marl-eval's JSON, see
-    :mod:`~sb3_maddpg.experiments.marl_eval`) and, with ``plots``, ``learning_curves_<metric>.png`` (IQM over
-    runs with a 95% bootstrap band, vs env steps) and ``boxplot_<metric>.png`` (per-run scores, like the paper's
-    Figures 7 and 8).
+    Write, for each metric, ``table_<metric>.md`` and ``table_<metric>.csv`` (Table 2: mean (std), the exact
+    Mann-Whitney U test, its p raw and Holm-adjusted within each setting's family, declared from the stored configs: see
+    :class:`~sb3_maddpg.experiments.stats.Family`), ``aggregates_<metric>.md`` and ``aggregates_<metric>.csv`` (IQM and
+    probability of improvement with 95% bootstrap intervals), ``claims_<metric>.md`` and ``claims_<metric>.csv`` for the
+    paper's settings (its Table 2 beside these runs' and its findings asked of them, see
+    :mod:`~sb3_maddpg.experiments.paper_claims`), ``normalised.md`` for simple_spread settings (min-dist sum and team
+    return between the random team, 0, and the scripted controller, 1), ``references.md`` and ``references.csv`` for
+    settings with reference policies (each scheme's and each reference's mean over seeds with its 95% interval, the
+    references on the runs' own evaluation episodes: :mod:`~sb3_maddpg.experiments.references`), ``cost.md`` and
+    ``cost.csv`` (training time per run by setting and scheme, see :mod:`~sb3_maddpg.experiments.run_cost`),
+    ``marl_eval.json`` (every run in marl-eval's JSON, see :mod:`~sb3_maddpg.experiments.marl_eval`) and, with
+    ``plots``, ``learning_curves_<metric>.png`` (IQM over runs with a 95% bootstrap band, vs env steps) and
+    ``boxplot_<metric>.png`` (per-run scores, like the paper's Figures 7 and 8).
 
-    Each metric takes its label and direction from each setting's task
-    (:func:`~sb3_maddpg.experiments.tasks.metric_info`), and a table holds the runs that score it (a setting whose task
-    does not have the metric is left out of its table). Runs that never took a gradient update (their summary's
-    ``n_updates``, or their ``progress.csv``'s ``train/n_updates``, is 0) are warned about (a ``UserWarning``), and
-    the warning heads every table.
+    Each metric takes its label and direction from each setting's task, as its runs' summaries record the metrics its
+    env declares (:func:`~sb3_maddpg.experiments.tasks.metric_info`), and a table holds the runs that score it (a
+    setting whose task does not have the metric is left out of its table). Runs that never took a gradient update (their
+    summary's ``n_updates``, or their ``progress.csv``'s ``train/n_updates``, is 0) are warned about (a
+    ``UserWarning``), and the warning heads every table.
 
     :param results_dir: The results directory of a sweep.
     :param out_dir: Where to write the report.
@@ -417,7 +440,8 @@ def make_report(
         main ones (:func:`default_metrics`).
     :param plots: Also draw the figures (needs matplotlib).
     :param baseline: The scheme the others are tested against.
-    :param verbose: 1: print the main table (:func:`format_terminal_table`) to stdout; 0: nothing.
+    :param verbose: 1: print the main table (:func:`format_terminal_table`) and the reference policies' to stdout;
+        0: nothing.
     :return: The files written.
     :raise FileNotFoundError: When the directory has no finished runs.
     :raise UnscoredMetricError: When no run scores one of ``metrics`` (a ``ValueError``), before anything is written.
@@ -429,10 +453,15 @@ def make_report(
     envs = {
         summary["experiment"]: (experiments.get(summary["experiment"]) or {}).get("env", DEFAULT_ENV) for summary in summaries
     }
+    declared = summary_metrics(summaries)
     if metrics is None:
         firsts = {summary["experiment"]: summary for summary in reversed(summaries)}
         metrics = list(
-            dict.fromkeys(metric for setting in envs for metric in default_metrics(firsts[setting]["score"], envs[setting]))
+            dict.fromkeys(
+                metric
+                for setting in envs
+                for metric in default_metrics(firsts[setting]["score"], envs[setting], declared[setting])
+            )
         )
     scored = {metric: [summary for summary in summaries if _scored(summary, metric)] for metric in metrics}
     unknown = [metric for metric, runs in scored.items() if not runs]
@@ -451,7 +480,10 @@ def make_report(
     families = declare_families(experiments, metrics, baseline)
     for metric in metrics:
         cells = aggregate(scored[metric], metric, baseline=baseline, families=families)
-        by_setting = {setting: metric_info(metric, envs[setting]) for setting in dict.fromkeys(cell.setting for cell in cells)}
+        by_setting = {
+            setting: metric_info(metric, envs[setting], declared[setting])
+            for setting in dict.fromkeys(cell.setting for cell in cells)
+        }
         tables[metric], infos[metric] = cells, by_setting
         markdown_path, csv_path = out / f"table_{metric}.md", out / f"table_{metric}.csv"
         markdown_path.write_text(heading + format_markdown(cells, metric, experiments, baseline=baseline, infos=by_setting))
@@ -475,8 +507,16 @@ def make_report(
     if normalised is not None:
         (out / "normalised.md").write_text(normalised)
         written.append(out / "normalised.md")
+    reference_rows_ = reference_rows(summaries, load_references(results_dir), metrics, infos)
+    references = format_references_markdown(reference_rows_, metrics, infos, experiments)
+    if references is not None:
+        (out / "references.md").write_text(heading + references)
+        write_references_csv(reference_rows_, metrics, out / "references.csv")
+        written += [out / "references.md", out / "references.csv"]
     written += write_cost_report(out, summaries, experiments)
     written.append(write_marl_eval(results_dir, out / MARL_EVAL_FILE))
     if verbose >= 1:
         print(format_terminal_table(tables, infos, experiments, baseline=baseline))
+        if references is not None:
+            print(references)
     return written

@@ -41,6 +41,9 @@ RESULT_FILES = (CONFIG_FILE, SUMMARY_FILE, CURVE_FILE, CHECKPOINT_EVALS_FILE, PR
 """The small text files of a finished run (they travel back from remote workers; model files do not)."""
 EXPERIMENT_FILE = "experiment.json"
 """An experiment's config, in ``<results>/<experiment>/``."""
+REFERENCES_FILE = "references.json"
+"""An experiment's reference policies' scores, in ``<results>/<experiment>/``
+(:mod:`~sb3_maddpg.experiments.references`)."""
 SWEEP_LOG = "sweep.log"
 """The sweeps' progress lines, in ``<results>/``."""
 LOCK_FILE = "sweep.lock"
@@ -367,8 +370,9 @@ def link_complete_seeds(
     out whole.
 
     :param results_dir: A results directory.
-    :param view: An empty or missing directory, filled with ``<experiment>/experiment.json`` and
-        ``<experiment>/<scheme>/seed_<seed>`` symbolic links (absolute) into ``results_dir``.
+    :param view: An empty or missing directory, filled with ``<experiment>/experiment.json``,
+        ``<experiment>/references.json`` where there is one, and ``<experiment>/<scheme>/seed_<seed>`` symbolic links
+        (absolute) into ``results_dir``.
     :param experiments: Only these experiments (``None``: every experiment there).
     :return: The finished runs left out, ``<experiment>/<scheme>/seed_<seed>``.
     :raise ValueError: When ``results_dir`` holds no experiment of one of ``experiments``' names.
@@ -390,6 +394,8 @@ def link_complete_seeds(
             continue
         (view / name).mkdir(parents=True)
         (view / name / EXPERIMENT_FILE).symlink_to(results / name / EXPERIMENT_FILE)
+        if (results / name / REFERENCES_FILE).exists():  # the reference policies, reported on the seeds linked
+            (view / name / REFERENCES_FILE).symlink_to(results / name / REFERENCES_FILE)
         for scheme in finished:
             (view / name / scheme).mkdir()
             for seed in sorted(common):

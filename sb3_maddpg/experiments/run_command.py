@@ -107,6 +107,7 @@ def run_command(args: argparse.Namespace) -> int:
     :return: The exit status.
     """
     from sb3_maddpg.experiments.group_plan import BatchedRunRefused
+    from sb3_maddpg.experiments.references import ReferencePolicyError
     from sb3_maddpg.experiments.results import ResultsDirectoryLocked
     from sb3_maddpg.experiments.sweep import SweepInterrupted, plan_sweep, run_sweep  # torch: imported for runs only
 
@@ -139,7 +140,7 @@ def run_command(args: argparse.Namespace) -> int:
         execution["workers"] = 1 if args.backend == "local" else 0
     try:
         result = run_sweep(experiments, args.results, verbose=1 if args.quiet else 2, **execution)
-    except BatchedRunRefused as error:  # said before anything trained
+    except (BatchedRunRefused, ReferencePolicyError) as error:  # said before anything trained
         print(f"sb3-maddpg run: {error}", file=sys.stderr)
         return 2
     except ResultsDirectoryLocked as error:

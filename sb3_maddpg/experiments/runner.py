@@ -52,7 +52,7 @@ from sb3_maddpg.experiments.run_snapshot import (
     write_progress_rows,
 )
 from sb3_maddpg.experiments.setting import RunConfig
-from sb3_maddpg.experiments.tasks import run_task
+from sb3_maddpg.experiments.tasks import metric_record, run_task
 from sb3_maddpg.sharing.registry import resolve_scheme
 
 
@@ -465,16 +465,20 @@ def run_summary(
     :param wall_time: Its whole wall time, seconds.
     :param resources: What trained it: ``device``, ``torch_threads`` and ``runs_trained_together`` go into the summary
         (the report's cost table reads them); ``None`` leaves them out.
-    :return: Its ``summary.json``: the score (each of the task's scores' mean over the checkpoints), timings, what
+    :return: Its ``summary.json``: the score (each of the task's scores' mean over the checkpoints), the task metrics
+        its env declares (``task_metrics``, :func:`~sb3_maddpg.experiments.tasks.metric_record`'s), timings, what
         trained it, and the last checkpoint's ``n_updates`` and ``behaviour`` where known.
     """
+    task = run_task(config)
     summary: dict[str, Any] = {
         "run_id": config.run_id,
         "experiment": config.experiment,
         "scheme": config.scheme,
         "method": PAPER_NAMES.get(config.scheme, config.scheme),
         "seed": config.seed,
-        "score": {key: sum(row[key] for row in rows) / len(rows) for key in run_task(config).keys},
+        "score": {key: sum(row[key] for row in rows) / len(rows) for key in task.keys},
+        # What the task's env declares, so that a report labels and directs its metrics without building the env.
+        "task_metrics": [metric_record(metric) for metric in task.metrics],
         "n_checkpoints": len(rows),
         "total_timesteps": config.total_timesteps,
         "train_time_s": round(train_time, 2),

@@ -23,6 +23,7 @@ from sb3_maddpg.experiments.defaults import (
     SCHEMES,
     VEC_ENVS,
 )
+from sb3_maddpg.experiments.references import check_reference_policies
 from sb3_maddpg.experiments.task_envs import check_env_name, task_team_size
 
 SettingT = TypeVar("SettingT", bound="Setting")
@@ -325,9 +326,11 @@ def check_seeds(seeds: Sequence[int]) -> None:
         raise ValueError(f"seeds holds {repeated} more than once: each seed is one run of each scheme; give each once.")
 
 
-NOTE_KEEPING_FIELDS = frozenset(("name", "schemes", "seeds", "keep_checkpoints", "vec_env", "n_envs", "description"))
-"""The fields whose change leaves a setting's note (:meth:`ExperimentConfig.described`) true: which runs, where, and
-what is kept."""
+NOTE_KEEPING_FIELDS = frozenset(
+    ("name", "schemes", "seeds", "keep_checkpoints", "vec_env", "n_envs", "description", "reference_policies")
+)
+"""The fields whose change leaves a setting's note (:meth:`ExperimentConfig.described`) true: which runs, where, what
+is kept, and which references are evaluated beside them."""
 
 
 @dataclass(frozen=True)
@@ -343,6 +346,11 @@ class ExperimentConfig(Setting):
         are a few words then those values (:meth:`described`), so that a changed value changes them.
     :param scheme_model_kwargs: Keyword arguments for the algorithm of one scheme only, over ``model_kwargs``, e.g.
         ``{"selected": {"selector": 1}}`` (the nearest agent) for the ``selected`` runs.
+    :param reference_policies: Teams that need no training, evaluated once per seed on the same seeded episodes as
+        that seed's runs and reported beside the schemes, by name: ``{"kind": "random"}`` (uniformly random actions)
+        or ``{"kind": "no_op", "action": 4}`` (doing nothing: zero actions, and ``action`` for discrete agents), e.g.
+        ``{"random": {"kind": "random"}, "nothing": {"kind": "no_op", "action": 4}}`` for pursuit
+        (:mod:`~sb3_maddpg.experiments.references`); empty for none.
     """
 
     STORED_KEYS: ClassVar[tuple[str, ...]] = (
@@ -369,6 +377,7 @@ class ExperimentConfig(Setting):
         "env_kwargs",
         "score_agents",
         "normalize_observations",
+        "reference_policies",
     )
 
     name: str
@@ -376,10 +385,12 @@ class ExperimentConfig(Setting):
     seeds: tuple[int, ...] = tuple(range(31))
     description: str = ""
     scheme_model_kwargs: dict[str, dict[str, Any]] = field(default_factory=dict)
+    reference_policies: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         super().__post_init__()
         check_scheme_variants(self.schemes, self.model_kwargs, self.scheme_model_kwargs)
+        check_reference_policies(self.reference_policies)
         check_seeds(self.seeds)
         if not self.description:
             object.__setattr__(self, "description", describe_setting(self))

@@ -10,6 +10,7 @@ from typing import Any
 from sb3_maddpg.common.progress import format_seconds, log_line
 from sb3_maddpg.experiments.backends import Backend, Execution, SweepPlan, make_backend
 from sb3_maddpg.experiments.local_pool import LOST_RUN, OnResult
+from sb3_maddpg.experiments.references import write_references
 from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, lock_results, write_experiment
 from sb3_maddpg.experiments.runner import never_updated_line, score_line
 from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig
@@ -139,7 +140,8 @@ def run_sweep(
 ) -> SweepResult:
     """
     Run every (scheme, seed) of the experiments, skipping runs finished before (resume an
-    interrupted sweep by running the same command again).
+    interrupted sweep by running the same command again). An experiment's reference policies are evaluated first, on
+    each seed it does not hold yet (:func:`~sb3_maddpg.experiments.references.write_references`).
 
     One sweep at a time holds a results directory (:func:`~sb3_maddpg.experiments.results.lock_results`). A run
     that fails, or is lost with a worker process that dies, is reported in the result and the sweep goes on;
@@ -171,6 +173,7 @@ def run_sweep(
     :return: What the sweep did.
     :raise ResultsDirectoryLocked: When another sweep is running in ``results_dir``.
     :raise BatchedRunRefused: When the batched backend cannot train a run (nothing has trained then).
+    :raise ReferencePolicyError: When an experiment's reference policy cannot act in its task (nothing has trained).
     """
     results_path = Path(results_dir).resolve()
     names = [experiment.name for experiment in experiments]
@@ -193,6 +196,8 @@ def run_sweep(
             *plan.notes,
         ):
             progress.log(line)
+        for experiment in experiments:  # once per setting, on its runs' evaluation episodes, before any run
+            write_references(experiment, results_path, progress.log)
         return execute_plan(chosen, plan, progress)
 
 

@@ -3,29 +3,95 @@
 it is scored by and their directions, its sides, its evaluation schedule and its description."""
 
 import dataclasses
-from collections.abc import Callable
-from typing import TYPE_CHECKING
+import functools
+import json
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor, VecNormalize
 
-from sb3_maddpg.analysis.evaluation import SIDE_RETURN_PREFIX, DeclaredMetric, eval_keys, side_return_label
-from sb3_maddpg.experiments.defaults import DEFAULT_ENV
+from sb3_maddpg.analysis.evaluation import (
+    SIDE_RETURN_PREFIX,
+    DeclaredMetric,
+    declared_task_metrics,
+    eval_keys,
+    side_return_label,
+)
+from sb3_maddpg.experiments.defaults import DEFAULT_ENV, EPISODE_LENGTH
 from sb3_maddpg.experiments.stats import METRICS, Metric
 from sb3_maddpg.experiments.task_envs import task_env_factory
 
 if TYPE_CHECKING:
-    from sb3_maddpg.envs import TaskMetric
     from sb3_maddpg.experiments.setting import RunConfig
 
 
-def declared_metrics(env: str) -> tuple["TaskMetric", ...]:
+def declared_metrics(env: str, env_kwargs: Mapping[str, Any] | None = None) -> tuple[DeclaredMetric, ...]:
     """
-    The one place the experiments read a task's metrics from its name.
+    The one place the experiments read a task's metrics: those its env declares (its ``task_metrics``, see
+    :class:`~sb3_maddpg.envs.TaskMetric`), so that any task's own metrics are scored and reported.
 
     :param env: A task (an experiment's ``env``).
-    :return: The metrics an MPE task declares (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`, simple_spread's among them);
-        none for any other task (its evaluations score its returns and episode length).
+    :param env_kwargs: Its constructor's keyword arguments.
+    :return: simple_spread's (what :class:`~sb3_maddpg.envs.SimpleSpreadVecEnv` declares, read without building
+        it); for any other task, what one env of it declares, built once per task and keyword arguments in a process:
+        an MPE task's (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`), a factory's env's own (e.g.
+        :func:`~sb3_maddpg.envs.sisl.pursuit_env`'s evaders caught), none for an env that declares none (its
+        evaluations score its returns and episode length).
+    """
+    if env == DEFAULT_ENV:
+        from sb3_maddpg.envs.simple_spread import SIMPLE_SPREAD_TASK_METRICS
+
+        return tuple(SIMPLE_SPREAD_TASK_METRICS)
+    return _env_declared_metrics(env, json.dumps(dict(env_kwargs or {}), sort_keys=True, default=repr))
+
+
+@functools.lru_cache(maxsize=64)
+def _env_declared_metrics(env: str, kwargs_json: str) -> tuple[DeclaredMetric, ...]:
+    """:return: What one env of ``env`` built with the keyword arguments ``kwargs_json`` declares (cached: one build)."""
+    built = task_env_factory(env, json.loads(kwargs_json), EPISODE_LENGTH)()
+    try:
+        return declared_task_metrics(built)
+    finally:
+        built.close()
+
+
+def metric_record(metric: DeclaredMetric) -> dict[str, str]:
+    """
+    :param metric: A declared task metric.
+    :return: It as JSON values (a run's summary records its task's, :func:`recorded_metrics` reads them back).
+    """
+    fields = ("key", "per_episode", "better", "team", "description")
+    return {name: str(getattr(metric, name)) for name in fields if getattr(metric, name, None) is not None}
+
+
+def recorded_metrics(records: Sequence[Mapping[str, str]] | None) -> tuple[DeclaredMetric, ...] | None:
+    """
+    :param records: The task metrics a run's summary records (its ``task_metrics``, :func:`metric_record`'s), or
+        ``None`` for a summary that records none (written before summaries recorded them).
+    :return: The metrics, or ``None`` when none are recorded.
+    """
+    if records is None:
+        return None
+    from sb3_maddpg.envs.task_metric import TaskMetric
+
+    return tuple(
+        TaskMetric(
+            key=record["key"],
+            per_episode=record.get("per_episode", "last"),  # type: ignore[arg-type]  # as the env declared it
+            better=record.get("better", "higher"),  # type: ignore[arg-type]
+            team=record.get("team", "team"),  # type: ignore[arg-type]
+            description=record.get("description", ""),
+        )
+        for record in records
+    )
+
+
+def named_metrics(env: str) -> tuple[DeclaredMetric, ...]:
+    """
+    :param env: A task's name.
+    :return: The metrics an MPE task of that name declares (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`), none for
+        another task: how results whose summaries record no metrics are read, without building an env.
     """
     from sb3_maddpg.envs import MPE_TASK_METRICS
 
@@ -49,7 +115,7 @@ class RunTask:
     training, evaluation and progress lines need, so that no module derives it again from the env's name.
 
     :param config: The run.
-    :param metrics: The task metrics its evaluations score (an MPE task's, simple_spread's among them; none otherwise).
+    :param metrics: The task metrics its evaluations score: those its env declares (:func:`declared_metrics`).
     :param sides: The sides its evaluations score each return of (:data:`~sb3_maddpg.envs.MPE_TASK_SIDES`, for a
         competitive MPE task), so that no return adds opponents' rewards; empty for a cooperative task or any other.
     :param keys: The scores each evaluation gives (:func:`~sb3_maddpg.analysis.evaluation.eval_keys`), in order.
@@ -80,7 +146,7 @@ class RunTask:
         :return: Its task, derived now (:func:`run_task` derives it once per config and keeps it).
         """
         simple_spread = config.env == DEFAULT_ENV
-        metrics = declared_metrics(config.env)
+        metrics = declared_metrics(config.env, config.env_kwargs)
         sides = declared_sides(config.env)
         keys = eval_keys(metrics, config.score_agents, tuple(sides))
         landmarks_seen = config.env_kwargs.get("num_landmark_neighbors")
@@ -89,7 +155,7 @@ class RunTask:
             metrics=metrics,
             sides=sides,
             keys=keys,
-            higher_is_better={key: metric_info(key, config.env).higher_is_better for key in keys},
+            higher_is_better={key: metric_info(key, config.env, metrics).higher_is_better for key in keys},
             checkpoint_steps=tuple(config.checkpoint_steps()),
             curve_interval=config.curve_interval,
             eval_seed=config.eval_seed,
@@ -179,26 +245,30 @@ def task_metrics(config: "RunConfig") -> tuple[DeclaredMetric, ...]:
     return run_task(config).metrics
 
 
-def metric_info(metric: str, env: str = DEFAULT_ENV) -> Metric:
+def metric_info(metric: str, env: str = DEFAULT_ENV, declared: Sequence[DeclaredMetric] | None = None) -> Metric:
     """
     How a report shows a score of a task: its label, scale and direction in that task.
 
-    An MPE task's own metric takes the direction and the side that :data:`~sb3_maddpg.envs.MPE_TASK_METRICS` give it
-    (``collisions`` of ``simple_tag`` counts catches: higher is better, for the adversaries; in simple_spread fewer
-    collisions are better); a side's return (``return_adversaries``) is higher-is-better for that side; any other
-    metric is :data:`~sb3_maddpg.experiments.stats.METRICS`'s.
+    A task's own metric takes the direction and the side its env declares (``collisions`` of ``simple_tag`` counts
+    catches: higher is better, for the adversaries; pursuit's ``evaders_caught``: higher is better); simple_spread's
+    keep :data:`~sb3_maddpg.experiments.stats.METRICS`'s (in simple_spread fewer collisions are better); a side's
+    return (``return_adversaries``) is higher-is-better for that side; any other metric is
+    :data:`~sb3_maddpg.experiments.stats.METRICS`'s.
 
     :param metric: The score's key.
     :param env: The task (an experiment's ``env``).
+    :param declared: The metrics the task's env declares (:func:`declared_metrics`, or those a run's summary records:
+        :func:`recorded_metrics`); ``None``: an MPE task's by its name (:func:`named_metrics`).
     :return: The metric as the report shows it.
     """
     if env != DEFAULT_ENV:
-        for declared in declared_metrics(env):
-            if declared.key == metric:
-                per_episode = " per episode" if declared.per_episode == "sum" else ""
-                whose = "" if declared.team == "team" else f" ({declared.team})"
+        for metric_declared in named_metrics(env) if declared is None else declared:
+            if metric_declared.key == metric:
+                per_episode = " per episode" if metric_declared.per_episode == "sum" else ""
+                team = getattr(metric_declared, "team", "team")
+                whose = "" if team == "team" else f" ({team})"
                 label = f"{metric.replace('_', ' ')}{per_episode}{whose}"
-                return Metric(metric, label, 1.0, declared.better == "higher")
+                return Metric(metric, label, 1.0, getattr(metric_declared, "better", "higher") == "higher")
     if metric.startswith(SIDE_RETURN_PREFIX) and metric not in METRICS and metric != "return_std":
         side = metric.removeprefix(SIDE_RETURN_PREFIX).replace("_", " ")
         return Metric(metric, f"{side_return_label(side)} per agent", 1.0, True)

@@ -84,19 +84,22 @@ def task_objectives(experiment: ExperimentConfig) -> dict[str, str]:
 
     :param experiment: The setting.
     :return: ``"minimize"`` or ``"maximize"`` by objective, the default first: on simple_spread
-        :data:`~sb3_maddpg.experiments.config.TUNE_OBJECTIVES` (the min-dist sum first); on another MPE task its metrics
-        (:data:`~sb3_maddpg.envs.MPE_TASK_METRICS`) in their direction, e.g. ``goal_distance`` (minimised) or
-        ``simple_tag``'s ``collisions`` (the catches, maximised), then, for a cooperative task (every metric the whole
-        team's), ``return_mean``; on any other task ``return_mean``. A competitive task's team return would add
-        opponents' rewards: it is not offered. ``group_return`` (maximised) follows when the experiment scores a group
-        (``score_agents``), e.g. the adversaries of ``simple_tag``.
+        :data:`~sb3_maddpg.experiments.config.TUNE_OBJECTIVES` (the min-dist sum first); on any other task the metrics
+        its env declares (:func:`~sb3_maddpg.experiments.tasks.declared_metrics`: an MPE task's
+        :data:`~sb3_maddpg.envs.MPE_TASK_METRICS`, a factory's env's own) in their direction, e.g. ``goal_distance``
+        (minimised) or ``simple_tag``'s ``collisions`` (the catches, maximised), then, for a cooperative task (every
+        metric the whole team's), ``return_mean`` (alone for an env that declares none). A competitive task's team
+        return would add opponents' rewards: it is not offered. ``group_return`` (maximised) follows when the
+        experiment scores a group (``score_agents``), e.g. the adversaries of ``simple_tag``.
     """
     if experiment.env == DEFAULT_ENV:
         objectives = dict(TUNE_OBJECTIVES)
     else:
-        metrics = declared_metrics(experiment.env)
-        objectives = {metric.key: "minimize" if metric.better == "lower" else "maximize" for metric in metrics}
-        if all(metric.team == "team" for metric in metrics):
+        metrics = declared_metrics(experiment.env, experiment.env_kwargs)
+        objectives = {
+            metric.key: "minimize" if getattr(metric, "better", "higher") == "lower" else "maximize" for metric in metrics
+        }
+        if all(getattr(metric, "team", "team") == "team" for metric in metrics):
             objectives["return_mean"] = "maximize"
     if experiment.score_agents:
         objectives["group_return"] = "maximize"

@@ -1,0 +1,404 @@
+"""Reference policies beside a setting's runs: teams that need no training, evaluated on the runs' own episodes.
+
+A setting declares them in ``reference_policies`` (:class:`~sb3_maddpg.experiments.setting.ExperimentConfig`), by
+name, each a kind of :data:`REFERENCE_KINDS`::
+
+    reference_policies:
+      random: {kind: random}            # uniform over each agent's actions
+      nothing: {kind: no_op, action: 4}  # every agent does nothing (pursuit's no-op: 4, stay)
+
+``sb3-maddpg run`` evaluates each once per seed of the setting, before its runs (:func:`write_references`): on the
+evaluation env a run of that seed evaluates its checkpoints on, from the same seed, for as many episodes, and scored
+by the same keys, so that a reference and a run of one seed see the same seeded episodes. The scores go into
+``<results>/<experiment>/references.json`` (kept across sweeps: a seed evaluated before is not evaluated again), and
+``sb3-maddpg report`` shows them beside the schemes' with their intervals (``references.md``,
+:func:`format_references_markdown`).
+"""
+
+import math
+import os
+import re
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.vec_env import VecEnv
+
+    from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig
+    from sb3_maddpg.experiments.stats import Metric
+
+REFERENCE_KINDS = {
+    "random": "uniformly random actions: each agent's uniform over its action space (a discrete agent's moves alike)",
+    "no_op": "doing nothing: a zero action for each continuous agent (clipped into its space), the no-op `action` "
+    "for each discrete agent",
+}
+"""The kinds of reference policy a setting may declare, and what each does."""
+
+REFERENCE_KEYS = {"random": ("kind",), "no_op": ("kind", "action")}
+"""The keys each kind takes."""
+
+
+REFERENCE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+"""What a reference policy's name may be (it names it in the results and the report)."""
+
+REFERENCE_PROTOCOL_KEYS = (
+    "env",
+    "env_kwargs",
+    "n_agents",
+    "num_agent_neighbors",
+    "episode_length",
+    "eval_episodes",
+    "vec_env",
+    "score_agents",
+)
+"""A setting's fields that decide a reference's evaluation episodes and scores: stored scores of other values are
+evaluated again."""
+
+
+class ReferencePolicyError(ValueError):
+    """A setting's reference policy cannot act in its task (e.g. no no-op action for discrete agents): a user's
+    error, which ``sb3-maddpg run`` says in one line, before any run trains."""
+
+
+def check_reference_policies(policies: Any) -> None:
+    """
+    Refuse a setting's ``reference_policies`` that cannot be evaluated, naming the cause and what to give.
+
+    :param policies: The setting's ``reference_policies``: name -> ``{"kind": <a kind of REFERENCE_KINDS>, ...}``.
+    """
+    example = "{random: {kind: random}, nothing: {kind: no_op, action: 4}}"
+    if not isinstance(policies, Mapping):
+        raise ValueError(f"reference_policies must map names to policies, e.g. {example}, got {policies!r}.")
+    for name, spec in policies.items():
+        if not isinstance(name, str) or not REFERENCE_NAME.match(name):
+            raise ValueError(
+                f"reference_policies: name {name!r} cannot name a reference policy: use letters, digits, '_', '-' and "
+                "'.', starting with a letter or digit (e.g. 'random')."
+            )
+        kind = spec.get("kind") if isinstance(spec, Mapping) else None
+        if kind not in REFERENCE_KINDS:
+            raise ValueError(
+                f"reference_policies: {name!r} is {spec!r}, no policy: give a mapping with a kind of "
+                f"{list(REFERENCE_KINDS)}, e.g. {example}."
+            )
+        unknown = sorted(set(spec) - set(REFERENCE_KEYS[kind]))
+        if unknown:
+            raise ValueError(
+                f"reference_policies: {name!r} ({kind}) has unknown key(s) {unknown}: a {kind} policy takes "
+                f"{list(REFERENCE_KEYS[kind])}."
+            )
+        action = spec.get("action")
+        if action is not None and (not isinstance(action, int) or isinstance(action, bool) or action < 0):
+            raise ValueError(
+                f"reference_policies: {name!r} has action={action!r}: give the discrete agents' no-op action as an "
+                "index of their moves (an integer of at least 0, e.g. pursuit's 4), or leave it out for continuous ones."
+            )
+
+
+class NoOpTeamPolicy:
+    """
+    A team that does nothing: each continuous agent's action is zero (clipped into its space), each discrete agent's
+    is its no-op action (a one-hot slot of the joint action, as MADDPG's actions are on
+    :class:`~sb3_maddpg.envs.PettingZooToGym`).
+
+    :param action_space: The env's joint action space (a ``Box``).
+    :param layout: The team's :class:`~sb3_maddpg.common.layout.AgentLayout` (which agents are discrete, and where).
+    :param no_op: The discrete agents' no-op action (an index of their moves); ``None`` for a team with none.
+    """
+
+    def __init__(self, action_space: Any, layout: Any, no_op: int | None = None) -> None:
+        action = np.clip(np.zeros(action_space.shape, dtype=action_space.dtype), action_space.low, action_space.high)
+        for agent, (part, size) in enumerate(zip(layout.action_slices, layout.action_sizes)):
+            if not layout.is_discrete(agent):
+                continue
+            if no_op is None or no_op >= size:
+                cause = "no no-op action is given" if no_op is None else f"its no-op action {no_op} is not one of them"
+                raise ValueError(
+                    f"reference_policies: agent {layout.agent_ids[agent]!r} has {size} discrete actions, and {cause}: give "
+                    f"the no_op policy the action that does nothing, e.g. {{kind: no_op, action: {size - 1}}} if its last "
+                    "is 'stay' (pursuit's is 4)."
+                )
+            action[part] = 0.0
+            action[part.start + no_op] = 1.0
+        self.action = action
+
+    def predict(
+        self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True
+    ) -> tuple[np.ndarray, None]:
+        """
+        :param observation: A joint observation, or a batch of them (only its batch size is read).
+        :param state: Unused.
+        :param episode_start: Unused.
+        :param deterministic: Unused: the team does the same either way.
+        :return: The no-op joint action (one per observation of a batch) and ``None``.
+        """
+        observation = np.asarray(observation)
+        if observation.ndim == 1:
+            return self.action.copy(), None
+        return np.repeat(self.action[None], observation.shape[0], axis=0), None
+
+
+def reference_policy(spec: Mapping[str, Any], env: "VecEnv", seed: int) -> Any:
+    """
+    :param spec: A reference policy as a setting declares it (:func:`check_reference_policies`).
+    :param env: The evaluation env it acts in.
+    :param seed: Seed of its draws (a random policy's).
+    :return: The policy, with SB3's ``predict``: :class:`~sb3_maddpg.envs.RandomTeamPolicy` or
+        :class:`NoOpTeamPolicy`.
+    """
+    from sb3_maddpg.envs import RandomTeamPolicy
+
+    if spec["kind"] == "random":  # uniform over a discrete agent's one-hot slot: its largest entry, uniform
+        return RandomTeamPolicy(env.action_space, seed=seed)
+    return NoOpTeamPolicy(env.action_space, env.get_attr("agent_layout")[0], spec.get("action"))
+
+
+def evaluate_reference(spec: Mapping[str, Any], config: "RunConfig") -> dict[str, Any]:
+    """
+    Evaluate a reference policy as a run's checkpoints are evaluated
+    (:func:`~sb3_maddpg.experiments.runner.evaluate_checkpoints`): the same evaluation env, seed, episodes and scores.
+
+    :param spec: The reference policy.
+    :param config: A run of the seed to evaluate it on (its scheme does not matter).
+    :return: ``{"eval_seed": ..., "n_episodes": ..., "score": {key: value}}``, the score's keys the run's
+        (:attr:`~sb3_maddpg.experiments.tasks.RunTask.keys`).
+    """
+    from sb3_maddpg.analysis.evaluation import evaluate_team
+    from sb3_maddpg.experiments.tasks import run_task
+
+    task = run_task(config)
+    env = task.make_eval_env(config.eval_episodes)
+    try:
+        result = evaluate_team(
+            reference_policy(spec, env, seed=task.eval_seed),
+            env,
+            n_episodes=config.eval_episodes,
+            seed=task.eval_seed,
+            task_metrics=task.metrics,
+            score_agents=config.score_agents,
+            sides=task.sides,
+        )
+    finally:
+        env.close()
+    return {"eval_seed": task.eval_seed, "n_episodes": result["n_episodes"], "score": {k: result[k] for k in task.keys}}
+
+
+def reference_protocol(experiment: "ExperimentConfig") -> dict[str, Any]:
+    """:return: The setting's fields that decide its references' scores (:data:`REFERENCE_PROTOCOL_KEYS`), as JSON."""
+    stored = experiment.to_dict()
+    return {key: stored[key] for key in REFERENCE_PROTOCOL_KEYS}
+
+
+def write_references(
+    experiment: "ExperimentConfig", results_dir: str | os.PathLike[str], log: Callable[[str], None] | None = None
+) -> Path | None:
+    """
+    Evaluate a setting's reference policies on each of its seeds that the results directory does not hold yet, and
+    write ``<results_dir>/<experiment>/references.json``: ``protocol`` (:func:`reference_protocol`) and, per policy,
+    ``policy`` (as declared) and ``seeds``: seed -> :func:`evaluate_reference`'s result. Scores of another protocol
+    or another declaration are evaluated again; seeds the setting no longer runs are kept.
+
+    :param experiment: The setting.
+    :param results_dir: The results directory of its sweep.
+    :param log: Where to say what was evaluated (e.g. the sweep's log), or ``None``.
+    :return: The file, or ``None`` for a setting that declares no reference policy.
+    :raise ReferencePolicyError: When a policy cannot act in the task (the file is left as it was).
+    """
+    from sb3_maddpg.compat import with_version
+    from sb3_maddpg.experiments.results import REFERENCES_FILE, read_json, write_json_atomic
+
+    if not experiment.reference_policies:
+        return None
+    path = Path(results_dir) / experiment.name / REFERENCES_FILE
+    protocol = reference_protocol(experiment)
+    stored = read_json(path)
+    held = stored.get("policies", {}) if isinstance(stored, dict) and stored.get("protocol") == protocol else {}
+    runs = {config.seed: config for config in experiment.runs()}  # a run of each seed: its eval env and seed
+    policies, evaluated, started = {}, [], time.perf_counter()
+    for name, spec in experiment.reference_policies.items():
+        before = held.get(name) if isinstance(held.get(name), dict) and held[name].get("policy") == spec else None
+        seeds = dict(before["seeds"]) if before else {}
+        for seed, config in runs.items():
+            if str(seed) not in seeds:
+                try:
+                    seeds[str(seed)] = evaluate_reference(spec, config)
+                except ValueError as error:  # the policy does not fit the task: nothing of it is written
+                    raise ReferencePolicyError(f"{experiment.name}: {error}") from None
+                evaluated.append(f"{name} seed {seed}")
+        policies[name] = {"policy": dict(spec), "seeds": dict(sorted(seeds.items(), key=lambda item: int(item[0])))}
+    if evaluated or held != policies:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(path, with_version({"experiment": experiment.name, "protocol": protocol, "policies": policies}))
+    if log is not None:
+        done = f"evaluated {len(evaluated)} ({', '.join(evaluated)}) in {time.perf_counter() - started:.0f} s"
+        log(f"{experiment.name}: reference policies {', '.join(policies)}: " + (done if evaluated else "held already"))
+    return path
+
+
+def load_references(results_dir: str | os.PathLike[str]) -> dict[str, dict[str, Any]]:
+    """
+    :param results_dir: A results directory.
+    :return: Each experiment's reference policies as :func:`write_references` wrote them (its ``policies``), by
+        experiment; experiments without any are left out.
+    """
+    from sb3_maddpg.experiments.results import REFERENCES_FILE, read_json
+
+    found = {}
+    for path in sorted(Path(results_dir).glob(f"*/{REFERENCES_FILE}")):
+        stored = read_json(path)
+        if isinstance(stored, dict) and isinstance(stored.get("policies"), dict):
+            found[path.parent.name] = stored["policies"]
+    return found
+
+
+def seed_interval(values: Sequence[float]) -> tuple[float, float, float]:
+    """
+    :param values: One value per seed (a run's score, or a reference's mean over that seed's episodes).
+    :return: Their mean and its 95% t interval (:func:`~sb3_maddpg.experiments.aggregates.mean_difference_interval`;
+        ``nan`` ends from fewer than 2 seeds).
+    """
+    from sb3_maddpg.experiments.aggregates import mean_difference_interval
+
+    if not values:
+        return math.nan, math.nan, math.nan
+    estimate = mean_difference_interval([values])
+    return estimate.value, estimate.low, estimate.high
+
+
+def reference_rows(
+    summaries: Sequence[dict[str, Any]],
+    references: Mapping[str, Mapping[str, Any]],
+    metrics: Sequence[str],
+    infos: Mapping[str, Mapping[str, "Metric"]],
+) -> list[dict[str, Any]]:
+    """
+    One row per setting that has reference policies and per scheme or reference policy: each metric's mean over seeds
+    and its 95% t interval; the references on the seeds the setting's runs here have (each seed's episodes are a
+    run's), the schemes over their runs.
+
+    :param summaries: Run summaries (``experiment``, ``scheme``, ``seed``, ``score``).
+    :param references: Each setting's reference policies (:func:`load_references`).
+    :param metrics: The report's metrics.
+    :param infos: Each metric as each setting's task shows it: metric -> setting -> its ``Metric`` (scale, label).
+    :return: Rows with ``setting``, ``kind`` (``"scheme"`` or ``"reference"``), ``name``, ``seeds`` (the seeds) and,
+        per metric, ``(mean, low, high)`` in displayed units, or ``None`` where the metric is not scored.
+    """
+    from sb3_maddpg.experiments.config import ordered_schemes
+
+    rows = []
+    for setting, policies in references.items():
+        runs = [summary for summary in summaries if summary["experiment"] == setting]
+        if not runs:
+            continue
+        shown = [metric for metric in metrics if setting in infos.get(metric, {})]
+        seeds = sorted({int(summary["seed"]) for summary in runs})
+        groups: list[tuple[str, str, dict[int, Mapping[str, float]]]] = [
+            (
+                "scheme",
+                scheme,
+                {int(summary["seed"]): summary["score"] for summary in runs if summary["scheme"] == scheme},
+            )
+            for scheme in ordered_schemes(summary["scheme"] for summary in runs)
+        ]
+        groups += [
+            ("reference", name, {seed: entry["seeds"][str(seed)]["score"] for seed in seeds if str(seed) in entry["seeds"]})
+            for name, entry in policies.items()
+        ]
+        for kind, name, scores in groups:
+            row: dict[str, Any] = {"setting": setting, "kind": kind, "name": name, "seeds": sorted(scores)}
+            for metric in shown:
+                scale = infos[metric][setting].scale
+                values = [float(score[metric]) * scale for score in scores.values() if score.get(metric) is not None]
+                values = [value for value in values if not math.isnan(value)]
+                row[metric] = seed_interval(values) if values else None
+            rows.append(row)
+    return rows
+
+
+def _interval_text(estimate: tuple[float, float, float] | None) -> str:
+    if estimate is None:
+        return ""
+    mean, low, high = estimate
+    return f"{mean:.2f}" + ("" if math.isnan(low) else f" [{low:.2f}, {high:.2f}]")
+
+
+def format_references_markdown(
+    rows: Sequence[dict[str, Any]],
+    metrics: Sequence[str],
+    infos: Mapping[str, Mapping[str, "Metric"]],
+    experiments: Mapping[str, dict[str, Any]],
+) -> str | None:
+    """
+    :param rows: From :func:`reference_rows`.
+    :param metrics: The report's metrics.
+    :param infos: Each metric as each setting's task shows it.
+    :param experiments: The stored experiment configs (for setting labels and the episodes per evaluation).
+    :return: Markdown: per setting, a row per scheme and per reference policy, a column per metric, each ``mean [95%
+        interval]`` over seeds; ``None`` when no setting has reference policies.
+    """
+    from sb3_maddpg.experiments.config import PAPER_NAMES, setting_label
+
+    if not rows:
+        return None
+    lines = ["### Reference policies beside the schemes", ""]
+    for setting in dict.fromkeys(row["setting"] for row in rows):
+        chosen = [row for row in rows if row["setting"] == setting]
+        shown = [metric for metric in metrics if metric in chosen[0]]
+        experiment = experiments.get(setting) or {}
+        header = ["policy", "seeds"] + [
+            f"{infos[m][setting].label} ({'higher' if infos[m][setting].higher_is_better else 'lower'} is better)"
+            for m in shown
+        ]
+        lines += [
+            f"#### {setting_label(setting, experiment)}",
+            "",
+            "| " + " | ".join(header) + " |",
+            "|" + "|".join("---" for _ in header) + "|",
+        ]
+        for row in chosen:
+            if row["kind"] == "reference":
+                name = f"reference: {row['name']}"
+            else:  # the paper's name of a scheme, with the scheme's where they differ
+                paper = PAPER_NAMES.get(row["name"], row["name"])
+                name = paper if paper == row["name"] else f"{paper} (`{row['name']}`)"
+            cells = [name, ", ".join(map(str, row["seeds"]))] + [_interval_text(row[m]) for m in shown]
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+    episodes = {str((experiments.get(row["setting"]) or {}).get("eval_episodes", "?")) for row in rows}
+    lines += [
+        "Each cell: the mean over seeds and its 95% t interval (one value per seed). A scheme's value for a seed is its "
+        "run's score (the mean of its checkpoints' evaluations); a reference policy's is its mean over the same "
+        f"evaluation episodes ({' or '.join(sorted(episodes))} per seed, reset from the run's evaluation seed), on "
+        "the seeds the runs here have. Reference policies: "
+        + "; ".join(f"{kind}: {text}" for kind, text in REFERENCE_KINDS.items())
+        + " (`sb3_maddpg.experiments.references`).",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_references_csv(rows: Sequence[dict[str, Any]], metrics: Sequence[str], path: str | Path) -> None:
+    """
+    One row per setting, policy and metric: ``setting, kind, name, metric, seeds, mean, low, high`` (seeds
+    ``;``-separated).
+
+    :param rows: From :func:`reference_rows`.
+    :param metrics: The report's metrics.
+    :param path: The CSV file.
+    """
+    import csv
+
+    with open(path, "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(["setting", "kind", "name", "metric", "seeds", "mean", "low", "high"])
+        for row in rows:
+            for metric in metrics:
+                if row.get(metric) is not None:
+                    writer.writerow(
+                        [row["setting"], row["kind"], row["name"], metric, ";".join(map(str, row["seeds"]))]
+                        + [repr(value) for value in row[metric]]
+                    )
