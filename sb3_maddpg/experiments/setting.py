@@ -313,12 +313,11 @@ RUN_SEED = dataclasses.replace(TEAM_ALGORITHM_RANGES["seed"], none_means=None)
 
 def check_seeds(seeds: Sequence[int]) -> None:
     """
-    Refuse an experiment with no seed, a seed out of range or one seed twice (its runs would share a directory).
+    Refuse a seed out of range or one seed twice (its runs would share a directory). No seed is an experiment of no
+    runs, which ``sb3-maddpg run`` refuses by name.
 
     :param seeds: An experiment's seeds.
     """
-    if len(seeds) == 0:
-        raise ValueError("seeds (the independent trials of each scheme) is empty: give at least one, e.g. [0, 1, 2].")
     for seed in seeds:
         RUN_SEED.check("seeds", seed)
     repeated = sorted({seed for seed in seeds if list(seeds).count(seed) > 1})

@@ -103,7 +103,6 @@ def test_a_budget_too_small_for_any_evaluation_count_gets_each_counts_floor() ->
 @pytest.mark.parametrize(
     ("seeds", "refusal"),
     [
-        ([], r"^seeds \(the independent trials of each scheme\) is empty: give at least one"),
         ([0, -1], r"^seeds \(.*\) must be an integer in \[0, 4,294,967,295\], got -1: use a non-negative integer"),
         ([0, None], r"^seeds \(.*\) must be an integer .*, got None"),
         ([1.5], r"^seeds \(.*\) must be an integer .*, got 1\.5"),
