@@ -33,6 +33,7 @@ from typing import Any
 from packaging.version import InvalidVersion, Version
 from stable_baselines3.common.save_util import json_to_data, open_path
 
+from sb3_maddpg.common.package_warnings import SB3MADDPGDeprecationWarning
 from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.common.user_code import user_stacklevel
 from sb3_maddpg.provenance import COMMIT_KEY, source_commit
@@ -93,7 +94,7 @@ def renamed_argument(value: Any, old_value: Any, old: str, new: str) -> Any:
         raise TypeError(f"Got both {new}= and {old}=: {old} is the name {new} had before sb3-maddpg 0.3; give {new} only.")
     warnings.warn(
         f"{old}= is renamed {new}= in sb3-maddpg 0.3: use {new}= (the old name will go).",
-        FutureWarning,
+        SB3MADDPGDeprecationWarning,
         stacklevel=user_stacklevel(),
     )
     return old_value

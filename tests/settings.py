@@ -6,6 +6,8 @@ needs another value says so beside its call, e.g. ``{**TRAINS_QUICKLY, "learning
 
 from typing import Any
 
+import pytest
+
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
 
 N_AGENTS = 3
@@ -41,3 +43,22 @@ def make_team(n_agents: int = N_AGENTS, max_cycles: int = 25) -> PettingZooToGym
     :return: simple_spread over mpe2, through the adapter.
     """
     return make_simple_spread(n_agents=n_agents, max_cycles=max_cycles)
+
+
+# The package's warnings are errors in the tests (pyproject.toml). A test that triggers one on purpose asserts it with
+# pytest.warns; a test in which it is a side effect of a short setup says which one it expects, with one of these:
+_PACKAGE_WARNING = "sb3_maddpg.common.package_warnings.SB3MADDPGWarning"
+FILLS_THE_BUFFER_ONLY = pytest.mark.filterwarnings(
+    rf"ignore:learn\(\) ended at step .* without a single gradient update:{_PACKAGE_WARNING}"
+)
+"""``learn()`` only fills the replay buffer (shorter than ``learning_starts``); the test then updates by hand."""
+SELECTS_EVERY_OTHER_AGENT = pytest.mark.filterwarnings(
+    rf"ignore:critic_sharing='selected' with k=\d+ selects every other agent:{_PACKAGE_WARNING}"
+)
+"""A small team whose selection holds every other agent (k = n_agents - 1): the scheme's path, not its point."""
+RESUMES_WITHOUT_ITS_BUFFER = pytest.mark.filterwarnings(
+    rf"ignore:learn\(reset_num_timesteps=False\) goes on at step:{_PACKAGE_WARNING}"
+)
+"""A loaded model goes on learning without its replay buffer (the test checks what the save carries)."""
+NEVER_UPDATED_RUNS = pytest.mark.filterwarnings(rf"ignore:\d+ run\(s\) never updated:{_PACKAGE_WARNING}")
+"""A report of smoke runs too short to update (the test checks the files, not the learning)."""

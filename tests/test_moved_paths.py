@@ -15,6 +15,7 @@ import pytest
 import sb3_maddpg
 from sb3_maddpg import MADDPG
 from sb3_maddpg.compat import MOVED_IN_0_3, MovedModule, old_module_paths
+from tests.settings import FILLS_THE_BUFFER_ONLY
 
 DATA = Path(__file__).parent / "data"
 RECORDED = json.loads((DATA / "module_names_0_2.json").read_text())
@@ -83,6 +84,7 @@ def test_the_algorithm_packages_keep_the_names_their_modules_of_0_2_exported() -
     assert (log_interval, threshold, terms) == (LOG_INTERVAL, SATURATION_THRESHOLD, ActorLossTerms)
 
 
+@FILLS_THE_BUFFER_ONLY
 def test_a_replay_buffer_saved_under_the_0_2_paths_loads(tmp_path: Path) -> None:
     from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
     from sb3_maddpg.envs import make_simple_spread

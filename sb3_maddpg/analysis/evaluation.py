@@ -16,6 +16,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, unwrap_vec_nor
 
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.noise import add_noise, noise_copy_for_envs
+from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
 from sb3_maddpg.common.torch_threads import in_package_threads
 from sb3_maddpg.common.user_code import user_stacklevel
 
@@ -382,6 +383,7 @@ def _warn_missing_metrics(tally: EpisodeTally) -> None:
             "from the env's metrics function, e.g. PettingZooToGym(env, metrics_fn=lambda e: {'food_eaten': ...}, "
             "task_metrics=[TaskMetric('food_eaten', 'sum', 'higher', 'team', 'food eaten')]), or score only what it "
             "declares (task_metrics=None, the default).",
+            SB3MADDPGWarning,
             stacklevel=user_stacklevel(),
         )
 

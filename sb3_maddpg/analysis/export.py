@@ -24,6 +24,7 @@ from torch import nn
 
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.networks import LAYER_NORM_EPS, AgentEnsembleMLP
+from sb3_maddpg.common.package_warnings import SB3MADDPGDeprecationWarning
 from sb3_maddpg.common.user_code import user_stacklevel
 from sb3_maddpg.version import __version__
 
@@ -145,7 +146,7 @@ def export_actors(model: Any, directory: str | os.PathLike[str], format: str = "
         warnings.warn(
             "export_actors(format='torchscript') traces each actor with torch.jit.trace, which PyTorch deprecates: "
             "use format='onnx' (the default; onnxruntime runs it without PyTorch).",
-            FutureWarning,
+            SB3MADDPGDeprecationWarning,
             stacklevel=user_stacklevel(),
         )
     out = Path(directory)

@@ -14,6 +14,7 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
 from sb3_maddpg.common.selection import Selector
 from sb3_maddpg.common.user_code import user_stacklevel
 
@@ -303,7 +304,7 @@ def check_replay_buffer_fits(needed: int, buffer_size: int, available: int | Non
             f"{what}, over half of the {available / 2**30:.1f} GiB of memory available; it fills as training goes: "
             f"{fix} if other work needs the memory."
         )
-    warnings.warn(message, UserWarning, stacklevel=user_stacklevel())
+    warnings.warn(message, SB3MADDPGWarning, stacklevel=user_stacklevel())
 
 
 def refuse_buffer_of_another_team(buffer: ReplayBuffer, layout: AgentLayout | None, selection_size: int, n_envs: int) -> None:

@@ -14,6 +14,7 @@ from typing import Any, Literal
 import numpy as np
 
 from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
 from sb3_maddpg.common.user_code import user_stacklevel
 
 TargetSelection = Literal["stored", "next"]
@@ -347,6 +348,6 @@ def warn_if_selecting_everyone(selector: Selector, layout: AgentLayout) -> None:
                 if layout.n_agents > 2
                 else "A team of 2 has one other agent to select: compare 'selected' with 'full' on a larger team."
             ),
-            UserWarning,
+            SB3MADDPGWarning,
             stacklevel=user_stacklevel(),
         )

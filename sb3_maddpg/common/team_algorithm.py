@@ -30,6 +30,7 @@ from sb3_maddpg.common.buffers import (
 from sb3_maddpg.common.env_checks import check_same_layout, layout_of, refuse_env_of_another_team, refuse_reward_normalization
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.noise import add_noise, default_noise, fit_noise_to_envs
+from sb3_maddpg.common.package_warnings import SB3MADDPGDeprecationWarning, SB3MADDPGWarning
 from sb3_maddpg.common.selection import Selector, resolve_selector, warn_if_selecting_everyone
 from sb3_maddpg.common.torch_threads import package_threads
 from sb3_maddpg.common.train_logs import record_agent_returns
@@ -145,7 +146,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         """The name :attr:`selector` had before sb3-maddpg 0.3 (it warns)."""
         warnings.warn(
             "model.selection is renamed model.selector in sb3-maddpg 0.3: use model.selector (the old name will go).",
-            FutureWarning,
+            SB3MADDPGDeprecationWarning,
             stacklevel=user_stacklevel(),
         )
         return self.selector
@@ -341,7 +342,8 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         if self._warned_empty_resume or self.num_timesteps < self.learning_starts or self.replay_buffer is None:
             return
         rows = self.replay_buffer.size() * self.replay_buffer.n_envs
-        if rows >= self.learning_starts:
+        capacity = self.replay_buffer.buffer_size * self.replay_buffer.n_envs  # a smaller buffer never holds more
+        if rows >= min(self.learning_starts, capacity):
             return
         self._warned_empty_resume = True
         warnings.warn(
@@ -350,7 +352,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             "empty, and its updates start at once on the few transitions collected since. Load the buffer saved with "
             "the model (model.load_replay_buffer(path), saved by model.save_replay_buffer(path)), or accept that the "
             "first updates overfit a small buffer.",
-            UserWarning,
+            SB3MADDPGWarning,
             stacklevel=user_stacklevel(),
         )
 
@@ -365,7 +367,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             f"learning_starts={self.learning_starts:,} steps (all envs counted) are uniformly random actions that fill "
             f"the replay buffer, and then the model takes {self.update_schedule}. Train for longer, or lower "
             f"learning_starts for a short test (e.g. {type(self).__name__}(..., learning_starts=2_000)).",
-            UserWarning,
+            SB3MADDPGWarning,
             stacklevel=user_stacklevel(),
         )
 

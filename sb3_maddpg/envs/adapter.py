@@ -9,6 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
 from sb3_maddpg.envs.task_metric import TaskMetric
 
 MetricsFn = Callable[[Any], dict[str, float]]
@@ -310,7 +311,7 @@ def _warn_about_black_death(env: Any) -> None:
                 "fixed itself) and which changes how episodes end: at a time limit the wrapped env goes on for one "
                 "more step of zero observations reported as termination, so SB3 stops bootstrapping there. Pass the "
                 "env without black_death_v3.",
-                UserWarning,
+                SB3MADDPGWarning,
                 stacklevel=3,
             )
             return

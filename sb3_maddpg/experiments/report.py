@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from sb3_maddpg.analysis.evaluation import side_return_key, side_returns
+from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
 from sb3_maddpg.experiments.aggregates import improvement_interval, iqm_interval
 from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, ordered_schemes, setting_label
 from sb3_maddpg.experiments.defaults import DEFAULT_ENV
@@ -470,7 +471,7 @@ def make_report(
         raise UnscoredMetricError(unknown, known, results_dir)
     warning = never_updated_warning([summary["run_id"] for summary in summaries if run_updates(summary) == 0])
     if warning is not None:
-        warnings.warn(warning, UserWarning, stacklevel=2)
+        warnings.warn(warning, SB3MADDPGWarning, stacklevel=2)
     heading = "" if warning is None else f"> **Warning**: {warning}\n\n"
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -21,6 +21,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
 from sb3_maddpg.compat import migrate_stored_config, with_version
 from sb3_maddpg.experiments.setting import RunConfig
 
@@ -248,7 +249,9 @@ def load_summaries(results_dir: str | os.PathLike[str]) -> list[dict[str, Any]]:
             continue
         summary = read_summary(path.parent)
         if summary is None:
-            warnings.warn(f"{path} is unreadable (a crash while it was written?): left out; a sweep runs it again.")
+            warnings.warn(
+                f"{path} is unreadable (a crash while it was written?): left out; a sweep runs it again.", SB3MADDPGWarning
+            )
             continue
         summary["directory"] = str(path.parent)
         summaries.append(summary)

@@ -22,6 +22,7 @@ from sb3_maddpg.common.buffers import (
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.selection import NearestAgents
 from sb3_maddpg.envs import make_simple_spread
+from tests.settings import FILLS_THE_BUFFER_ONLY
 
 LAYOUT = AgentLayout(("a", "b", "c"), (4, 4, 4), (2, 2, 2), position_slices=(slice(2, 4),) * 3)
 OBS_SPACE = spaces.Box(-np.inf, np.inf, (12,), np.float32)
@@ -153,6 +154,7 @@ def test_a_selector_targeting_the_next_step_selects_again_from_the_next_observat
         assert th.equal(data.next_selections, th.as_tensor(selector.select(next_obs[envs], LAYOUT)))
 
 
+@FILLS_THE_BUFFER_ONLY
 def test_true_termination_stops_bootstrapping() -> None:
     model = MADDPG("MlpPolicy", TerminatingTeam(), policy_kwargs=dict(net_arch=[8]), learning_starts=1000, batch_size=4)
     model.learn(9)

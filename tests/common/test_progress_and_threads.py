@@ -22,6 +22,7 @@ from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.common.progress import INTERRUPTED_EXIT_CODE, ProgressLogCallback, ctrl_c_ends_quietly, interrupted_line
 from sb3_maddpg.common.torch_threads import THREAD_VARIABLES, threads_set_by_user, use_torch_threads
 from sb3_maddpg.envs import MPE_TASK_SIDES, make_mpe_env, make_simple_spread
+from tests.settings import FILLS_THE_BUFFER_ONLY
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -83,6 +84,7 @@ def tiny_model() -> MADDPG:
     )
 
 
+@FILLS_THE_BUFFER_ONLY
 def test_learn_and_evaluate_run_on_one_thread_and_give_the_callers_back(restore_threads) -> None:
     """What makes every snippet fast without a line of its own: learn() and evaluate_team set one thread for their
     work and restore the count torch had (here 2, as if torch had started with it)."""
@@ -98,6 +100,7 @@ def test_learn_and_evaluate_run_on_one_thread_and_give_the_callers_back(restore_
     assert set(counts) == {1} and th.get_num_threads() == 2
 
 
+@FILLS_THE_BUFFER_ONLY
 def test_learn_keeps_the_users_thread_count(restore_threads, monkeypatch: pytest.MonkeyPatch) -> None:
     use_torch_threads(1)
     th.set_num_threads(2)  # the user's call, after importing sb3_maddpg

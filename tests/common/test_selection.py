@@ -15,6 +15,7 @@ from sb3_maddpg.common.selection import (
     warn_if_selecting_everyone,
 )
 from sb3_maddpg.envs import make_simple_spread
+from tests.settings import FILLS_THE_BUFFER_ONLY
 
 # Positions as MPE lays them out, [vel(2), pos(2), ...], declared as the MPE tasks declare them.
 LAYOUT = AgentLayout(("a", "b", "c", "d"), (6,) * 4, (2,) * 4, position_slices=(slice(2, 4),) * 4)
@@ -125,6 +126,7 @@ def test_callable_selector_is_checked_on_every_call() -> None:
         CallableSelector(3, k=1)  # type: ignore[arg-type]
 
 
+@FILLS_THE_BUFFER_ONLY
 def test_the_stored_selection_is_made_from_the_observation_at_time_t() -> None:
     """Each buffer row holds the selection made from its o_t, not from o_{t+1} (the paper's Algorithm 3)."""
     model = MADDPG(

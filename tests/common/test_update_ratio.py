@@ -78,7 +78,7 @@ def test_the_rule_follows_the_env_on_load(tmp_path: object) -> None:
 
 @pytest.mark.parametrize("value", [0, -5, 2.5, True])
 def test_bad_transitions_per_update_is_refused(value: object) -> None:
-    with pytest.raises(ValueError, match="transitions_per_update must be a positive integer"):
+    with pytest.raises(ValueError, match=r"^transitions_per_update \(.*\) must be an integer >= 1, got "):
         make_model(2, transitions_per_update=value)
 
 

@@ -5,6 +5,7 @@ import warnings
 import pytest
 
 from sb3_maddpg import MADDPG, MATD3
+from sb3_maddpg.common.package_warnings import SB3MADDPGDeprecationWarning, SB3MADDPGWarning
 from sb3_maddpg.envs import make_simple_spread
 from tests.settings import NEVER_UPDATES
 
@@ -17,10 +18,12 @@ def test_warnings_point_at_the_line_that_called_the_package(algorithm: type[MADD
         model = algorithm("MlpPolicy", make_simple_spread(n_agents=3), critic_sharing="selected", selection=2, **NEVER_UPDATES)
         model.learn(50)  # ends before learning_starts: the never-updated warning
     messages = {
-        "selects every other agent": UserWarning,
-        "selection= is renamed selector=": FutureWarning,
-        "without a single gradient update": UserWarning,
+        # The package's own classes (what a suite filters), each still a UserWarning / FutureWarning for everyone else.
+        "selects every other agent": SB3MADDPGWarning,
+        "selection= is renamed selector=": SB3MADDPGDeprecationWarning,
+        "without a single gradient update": SB3MADDPGWarning,
     }
     for text, category in messages.items():
         (warning,) = [w for w in caught if text in str(w.message)]
         assert warning.category is category and warning.filename == __file__, (text, warning.filename)
+        assert issubclass(category, FutureWarning if "renamed" in text else UserWarning)

@@ -11,6 +11,7 @@ from stable_baselines3.common.env_checker import check_env
 from sb3_maddpg import MADDPG
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
 from sb3_maddpg.envs import PettingZooToGym
+from tests.settings import FILLS_THE_BUFFER_ONLY
 
 kaz = pytest.importorskip("pettingzoo.butterfly.knights_archers_zombies_v11")
 
@@ -88,6 +89,7 @@ def test_maddpg_trains_on_kaz_through_departures() -> None:
     assert rows.any(axis=1).any()  # some agent left within the 300 steps (seed 0), and training went on
 
 
+@FILLS_THE_BUFFER_ONLY
 def test_an_agent_truncated_alone_bootstraps_and_its_later_rows_train_nothing() -> None:
     """A lone truncation mid-episode (a real ParallelEnv): the row where the agent leaves bootstraps; the rows after it
     are marked inactive for that agent, and the losses average each agent's terms over its active rows only."""

@@ -9,6 +9,7 @@ from sb3_maddpg import MADDPG
 from sb3_maddpg.common.selection import NearestAgents
 from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASKS, PettingZooToGym, make_mpe_env, make_simple_spread
 from tests.envs.walkers import Walkers
+from tests.settings import FILLS_THE_BUFFER_ONLY
 
 
 def nearest(positions: np.ndarray, k: int) -> np.ndarray:
@@ -132,6 +133,7 @@ def test_the_mpe_tasks_declare_their_positions() -> None:
     np.testing.assert_allclose(env.agent_layout.positions(obs[None])[0], world, rtol=1e-6)
 
 
+@FILLS_THE_BUFFER_ONLY
 def test_a_replay_buffer_without_the_next_selections_a_model_needs_is_refused(tmp_path) -> None:  # type: ignore[no-untyped-def]
     def build(target: str) -> MADDPG:
         env = PettingZooToGym(Walkers(observe="noise", max_cycles=5), positions=lambda e: e.positions())

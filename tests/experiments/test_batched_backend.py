@@ -22,6 +22,7 @@ from sb3_maddpg.experiments.results import DONE_FILE, load_summaries
 from sb3_maddpg.experiments.tasks import run_task
 from sb3_maddpg.run_group import RunGroup
 from sb3_maddpg.run_group.trainer import STATE_VERSION
+from tests.settings import NEVER_UPDATED_RUNS
 
 
 def tiny(**changes: Any) -> ExperimentConfig:
@@ -84,6 +85,7 @@ def warm_up_results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]
     return results
 
 
+@NEVER_UPDATED_RUNS
 def test_a_group_writes_the_runners_files(warm_up_results: dict[str, Path], tmp_path: Path) -> None:
     local, batched = warm_up_results["local"], warm_up_results["batched"]
     for config in WARM_UP_ONLY.runs():

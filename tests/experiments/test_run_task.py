@@ -16,8 +16,11 @@ from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import SMOKE, load_experiment
 from sb3_maddpg.experiments.runner import build_model, execute_run
 from sb3_maddpg.experiments.tasks import RunTask, run_task
+from tests.settings import FILLS_THE_BUFFER_ONLY, SELECTS_EVERY_OTHER_AGENT
 
 
+@FILLS_THE_BUFFER_ONLY
+@SELECTS_EVERY_OTHER_AGENT
 def test_a_run_derives_its_task_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     config = SMOKE.replace(schemes=("full",), seeds=(0,), episodes=10, n_checkpoints=2).runs()[0]
     derived = []
@@ -70,6 +73,7 @@ def test_a_json_configs_selector_dict_reaches_the_model_as_nearest_agents_with_i
     assert isinstance(model.selector, NearestAgents) and (model.selector.k, model.selector.target) == (1, "next")
 
 
+@SELECTS_EVERY_OTHER_AGENT
 def test_a_schemes_variant_names_its_critic_sharing_and_runs_in_its_own_directory(tmp_path: Path) -> None:
     variant = {"critic_sharing": "selected", "selector": {"k": 1, "target": "next"}}
     experiment = dataclasses.replace(

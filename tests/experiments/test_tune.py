@@ -33,6 +33,7 @@ from sb3_maddpg.experiments.tune import (
     sample_maddpg_params,
 )
 from tests.process_helpers import alive, spawned_workers, wait_for
+from tests.settings import FILLS_THE_BUFFER_ONLY, SELECTS_EVERY_OTHER_AGENT
 
 TINY = SMOKE.replace(schemes=("full",))
 
@@ -84,6 +85,7 @@ def test_a_tiny_study_runs_and_gives_a_preset_run_takes(tmp_path: Path, capsys: 
     assert main(["run", "--config", str(preset), "--seeds", "1", "--episodes", "20", "--results", str(tmp_path / "r")]) == 0
 
 
+@FILLS_THE_BUFFER_ONLY
 def test_every_trial_is_pruned_by_a_pruner_that_always_prunes(tmp_path: Path) -> None:
     # min-dist sums are positive: a threshold of 0 prunes at the first report after warm-up (step 0 here).
     study = run_study(settings(tmp_path, pruner=optuna.pruners.ThresholdPruner(upper=0.0)))
@@ -93,6 +95,8 @@ def test_every_trial_is_pruned_by_a_pruner_that_always_prunes(tmp_path: Path) ->
     assert all(len(trial.intermediate_values) == 1 for trial in study.trials)
 
 
+@FILLS_THE_BUFFER_ONLY
+@SELECTS_EVERY_OTHER_AGENT
 def test_the_callback_stops_training_when_the_pruner_says_so() -> None:
     reports = []
 

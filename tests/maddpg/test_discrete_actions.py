@@ -15,7 +15,7 @@ from sb3_maddpg.common.policies import AgentActor, MultiAgentActor
 from sb3_maddpg.envs import PettingZooToGym, SimpleSpreadVecEnv, make_simple_spread, make_simple_spread_vec_env
 from tests.loss_helpers import team_actor_terms
 from tests.mixed_team import MixedTeam
-from tests.settings import UPDATES_PER_10_TRANSITIONS
+from tests.settings import SELECTS_EVERY_OTHER_AGENT, UPDATES_PER_10_TRANSITIONS
 
 # Agent 0 continuous (2 components), agent 1 discrete (3 actions).
 MIXED = AgentLayout(("mover", "chooser"), (4, 4), (2, 3), discrete_actions=(False, True))
@@ -132,6 +132,7 @@ def test_the_batched_env_replays_mpe2s_discrete_mode() -> None:
         np.testing.assert_array_equal(dones, ref_dones)
 
 
+@SELECTS_EVERY_OTHER_AGENT
 @pytest.mark.parametrize("scheme", ["full", "selected", "attention"])
 def test_discrete_speaker_listener_makes_updates_under_each_scheme(scheme: str) -> None:
     """speaker-listener with discrete actions: heterogeneous, every agent discrete."""

@@ -13,6 +13,9 @@ from stable_baselines3.common.logger import KVWriter, Logger
 from sb3_maddpg import MADDPG
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
 from tests.loss_helpers import team_actor_terms
+from tests.settings import FILLS_THE_BUFFER_ONLY
+
+pytestmark = [FILLS_THE_BUFFER_ONLY]  # a side effect of the tests' short setups (tests/settings.py)
 
 BATCH = 8
 TEAMS = ("homogeneous", "heterogeneous", "shared")

@@ -57,3 +57,13 @@ def test_starting_over_or_before_learning_starts_is_quiet(tmp_path: Path) -> Non
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         fresh.learn(LEARNING_STARTS + 100, reset_num_timesteps=False)  # from step 0: it fills its buffer first
+
+
+def test_a_buffer_smaller_than_learning_starts_full_is_quiet(tmp_path: Path) -> None:
+    """A buffer that holds fewer rows than learning_starts is as full as it gets once full: nothing to warn of."""
+    small = {**SETTINGS, "buffer_size": 100}
+    model = MADDPG("MlpPolicy", SimpleSpreadVecEnv(n_envs=4, n_agents=3), seed=0, **small).learn(400)
+    assert model.replay_buffer.full
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model.learn(100, reset_num_timesteps=False)

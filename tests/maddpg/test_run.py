@@ -22,7 +22,9 @@ from sb3_maddpg import MADDPG, MATD3, AgentLayout
 from sb3_maddpg.common.selection import CallableSelector, FixedGraph, NearestAgents
 from sb3_maddpg.envs import SIMPLE_SPREAD_ID, PettingZooToGym, SimpleSpreadVecEnv, make_mpe_env, make_simple_spread
 from sb3_maddpg.sharing import SCHEME_ALIASES, SHARING_SCHEMES, CriticFeaturesExtractor
-from tests.settings import N_AGENTS, TRAINS_QUICKLY, make_team
+from tests.settings import FILLS_THE_BUFFER_ONLY, N_AGENTS, SELECTS_EVERY_OTHER_AGENT, TRAINS_QUICKLY, make_team
+
+pytestmark = [SELECTS_EVERY_OTHER_AGENT]  # a side effect of the tests' short setups (tests/settings.py)
 
 SCHEMES = ("independent", "full", "observations", "actions", "selected")
 ACTION_SIZE = 5  # simple_spread: Box(0, 1, (5,)) per agent
@@ -148,6 +150,7 @@ def test_callbacks(tmp_path, algorithm):
     assert loaded.predict(env.reset(), deterministic=True)[0].shape == (2, N_AGENTS * ACTION_SIZE)
 
 
+@FILLS_THE_BUFFER_ONLY
 def test_logger_keys_and_learning_starts(tmp_path):
     model = MADDPG("MlpPolicy", make_team(), **{**TRAINS_QUICKLY, "learning_starts": 100})
     model.set_logger(configure(str(tmp_path / "before"), ["csv"]))

@@ -14,7 +14,9 @@ from stable_baselines3.common.save_util import save_to_pkl
 from sb3_maddpg import MADDPG, AgentLayout
 from sb3_maddpg.common.selection import CallableSelector, FixedGraph, NearestAgents
 from sb3_maddpg.maddpg.policies import MADDPGPolicy
-from tests.settings import N_AGENTS, TRAINS_QUICKLY, make_team
+from tests.settings import N_AGENTS, RESUMES_WITHOUT_ITS_BUFFER, SELECTS_EVERY_OTHER_AGENT, TRAINS_QUICKLY, make_team
+
+pytestmark = [RESUMES_WITHOUT_ITS_BUFFER]  # a side effect of the tests' short setups (tests/settings.py)
 
 SCHEMES = ("independent", "full", "observations", "actions", "selected")
 
@@ -69,6 +71,7 @@ def assert_same_model(model: MADDPG, loaded: MADDPG, obs: np.ndarray, obs_t, act
     assert loaded.num_timesteps == model.num_timesteps and loaded._n_updates == model._n_updates
 
 
+@SELECTS_EVERY_OTHER_AGENT
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_save_load(tmp_path, scheme):
     model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=scheme, **TRAINS_QUICKLY)
@@ -92,6 +95,7 @@ def test_save_load(tmp_path, scheme):
     assert loaded_with_env._n_updates > model._n_updates
 
 
+@SELECTS_EVERY_OTHER_AGENT
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_replay_buffer_round_trip(tmp_path, scheme):
     model = MADDPG("MlpPolicy", make_vec_env(make_team, n_envs=2), critic_sharing=scheme, **TRAINS_QUICKLY)

@@ -11,6 +11,9 @@ from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.common.policies import AgentCritic
 from sb3_maddpg.envs import make_simple_spread
 from tests.loss_helpers import team_actor_terms, team_critic_losses
+from tests.settings import FILLS_THE_BUFFER_ONLY
+
+pytestmark = [FILLS_THE_BUFFER_ONLY]  # a side effect of the tests' short setups (tests/settings.py)
 
 BATCH = 8
 

@@ -27,6 +27,7 @@ from sb3_maddpg.envs import SimpleSpreadVecEnv
 from sb3_maddpg.run_group import RunGroup, RunReplayBuffers, RunStreams, SpreadTask
 from sb3_maddpg.run_group.buffer import replay_nbytes
 from sb3_maddpg.run_group.selection import select_on_device
+from tests.settings import RESUMES_WITHOUT_ITS_BUFFER
 
 N_AGENTS = 3
 SMALL = {"net_arch": [16, 16]}
@@ -347,6 +348,7 @@ def test_a_group_rebuilt_from_written_back_models_continues_exactly() -> None:
             assert th.equal(a, b)
 
 
+@RESUMES_WITHOUT_ITS_BUFFER
 def test_written_back_models_go_on_learning_with_the_groups_update_rule() -> None:
     models = three_runs()
     group = RunGroup(models).learn(300)  # 200 transitions past learning_starts: 2 steps, counted at 300

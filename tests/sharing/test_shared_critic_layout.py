@@ -17,6 +17,7 @@ from sb3_maddpg import MADDPG
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.envs import SimpleSpreadVecEnv
 from sb3_maddpg.sharing import SHARING_SCHEMES
+from tests.settings import SELECTS_EVERY_OTHER_AGENT
 
 N, OBS, ACT, BATCH = 4, 6, 5, 7
 LAYOUT = AgentLayout(tuple(f"agent_{i}" for i in range(N)), (OBS,) * N, (ACT,) * N)
@@ -90,6 +91,7 @@ def test_mpe2s_observations_relabel_with_the_agents(
         np.testing.assert_array_equal(observe(world.agents[i], world), observe_other(relabelled.agents[0], relabelled))
 
 
+@SELECTS_EVERY_OTHER_AGENT
 def test_a_shared_critic_with_a_scheme_per_agent_is_refused() -> None:
     env = SimpleSpreadVecEnv(2, n_agents=3)
     mixed = {"agent_0": "full", "agent_1": "selected", "agent_2": "full"}  # at N=3, k=2: the same input size
