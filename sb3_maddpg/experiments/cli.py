@@ -151,8 +151,9 @@ def _report_parser() -> ArgumentParser:
     report.add_argument(
         "--metric",
         action="append",
-        help="score(s) to tabulate and plot, repeat for several, e.g. min_dist_sum or a competitive task's "
-        "return_adversaries (default: the task's main metrics: simple_spread's success_rate and min_dist_sum)",
+        help="score(s) to tabulate and plot, repeat for several, e.g. min_dist_sum, a competitive task's "
+        "return_adversaries or a metric the task's env declares, e.g. pursuit's evaders_caught (default: the task's main "
+        "metrics: simple_spread's success_rate and min_dist_sum)",
     )
     report.add_argument("--no-plots", action="store_true", help="tables only")
     report.add_argument(

@@ -15,6 +15,7 @@ by the same keys, so that a reference and a run of one seed see the same seeded 
 :func:`format_references_markdown`).
 """
 
+import json
 import math
 import os
 import re
@@ -188,9 +189,12 @@ def evaluate_reference(spec: Mapping[str, Any], config: "RunConfig") -> dict[str
 
 
 def reference_protocol(experiment: "ExperimentConfig") -> dict[str, Any]:
-    """:return: The setting's fields that decide its references' scores (:data:`REFERENCE_PROTOCOL_KEYS`), as JSON."""
+    """
+    :return: The setting's fields that decide its references' scores (:data:`REFERENCE_PROTOCOL_KEYS`), as JSON reads
+        them back (lists for tuples), so that a stored protocol compares equal to the same setting's.
+    """
     stored = experiment.to_dict()
-    return {key: stored[key] for key in REFERENCE_PROTOCOL_KEYS}
+    return json.loads(json.dumps({key: stored[key] for key in REFERENCE_PROTOCOL_KEYS}))
 
 
 def write_references(
@@ -220,6 +224,7 @@ def write_references(
     runs = {config.seed: config for config in experiment.runs()}  # a run of each seed: its eval env and seed
     policies, evaluated, started = {}, [], time.perf_counter()
     for name, spec in experiment.reference_policies.items():
+        spec = json.loads(json.dumps(spec))  # as stored
         before = held.get(name) if isinstance(held.get(name), dict) and held[name].get("policy") == spec else None
         seeds = dict(before["seeds"]) if before else {}
         for seed, config in runs.items():

@@ -20,10 +20,20 @@ if TYPE_CHECKING:
     from sb3_maddpg.experiments.report import UnscoredMetricError
 
 
-def report_metric_choices() -> list[str]:
-    """:return: What ``report --metric`` takes: every score's key, and each competitive MPE task's sides' returns."""
+def report_metric_choices(results_dir: str | None = None) -> list[str]:
+    """
+    :param results_dir: A results directory whose runs' declared task metrics are choices too (those their summaries
+        record, e.g. pursuit's ``evaders_caught``); ``None``: the package's alone.
+    :return: What ``report --metric`` takes: every score's key, each competitive MPE task's sides' returns, and the
+        task metrics of the runs in ``results_dir``.
+    """
     sides = {side_return_key(side) for task_sides in MPE_TASK_SIDES.values() for side in task_sides}
-    return sorted({*METRICS, *sides})
+    declared: set[str] = set()
+    if results_dir is not None:
+        from sb3_maddpg.experiments.results import load_summaries
+
+        declared = {record["key"] for summary in load_summaries(results_dir) for record in summary.get("task_metrics", ())}
+    return sorted({*METRICS, *sides, *declared})
 
 
 def no_matplotlib_message() -> str:
@@ -46,12 +56,10 @@ def report_command(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    unknown = [metric for metric in args.metric or () if metric not in report_metric_choices()]
+    choices = report_metric_choices(args.results) if args.metric else []
+    unknown = [metric for metric in args.metric or () if metric not in choices]
     if unknown:
-        print(
-            f"sb3-maddpg report: --metric {unknown[0]!r} is no score: give one of {', '.join(report_metric_choices())}.",
-            file=sys.stderr,
-        )
+        print(f"sb3-maddpg report: --metric {unknown[0]!r} is no score: give one of {', '.join(choices)}.", file=sys.stderr)
         return 2
     plots = not args.no_plots
     if plots and importlib.util.find_spec("matplotlib") is None:  # said before any table is written
@@ -128,7 +136,7 @@ def unscored_metric_message(error: "UnscoredMetricError", directory: str) -> str
     :return: ``report``'s line: the metric(s) no run scores, those that ``--metric`` could take instead, what to do.
     """
     asked = ", ".join(error.unscored)
-    choices = set(report_metric_choices())
+    choices = set(report_metric_choices(error.results_dir))
     instead = [metric for metric in error.scored if metric in choices]
     radii = any(
         metric not in ("success_rate", "coverage") and metric.startswith(("success_rate_", "coverage_"))

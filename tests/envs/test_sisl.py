@@ -14,7 +14,7 @@ from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.envs import PettingZooToGym, RandomTeamPolicy
 from sb3_maddpg.envs.sisl import PURSUIT_NO_OP, pursuit_env, pursuit_state
 
-SETTING = dict(x_size=8, y_size=8, n_pursuers=4, n_evaders=4, max_cycles=100, surround=False, n_catch=2)
+SETTING: dict[str, Any] = dict(x_size=8, y_size=8, n_pursuers=4, n_evaders=4, max_cycles=100, surround=False, n_catch=2)
 """The Beyond MPE setting (the preset ``pursuit``'s)."""
 
 MOVES = np.array([[-1, 0], [1, 0], [0, 1], [0, -1], [0, 0]])
