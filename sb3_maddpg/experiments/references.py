@@ -1,7 +1,7 @@
 """Reference policies beside a setting's runs: teams that need no training, evaluated on the runs' own episodes.
 
 A setting declares them in ``reference_policies`` (:class:`~sb3_maddpg.experiments.setting.ExperimentConfig`), by
-name, each a kind of :data:`REFERENCE_KINDS`::
+name, each a kind of :data:`~sb3_maddpg.experiments.reference_specs.REFERENCE_KINDS`::
 
     reference_policies:
       random: {kind: random}            # uniform over each agent's actions
@@ -18,7 +18,6 @@ by the same keys, so that a reference and a run of one seed see the same seeded 
 import json
 import math
 import os
-import re
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -26,25 +25,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from sb3_maddpg.experiments.reference_specs import REFERENCE_KINDS
+
 if TYPE_CHECKING:
     from stable_baselines3.common.vec_env import VecEnv
 
     from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig
     from sb3_maddpg.experiments.stats import Metric
-
-REFERENCE_KINDS = {
-    "random": "uniformly random actions: each agent's uniform over its action space (a discrete agent's moves alike)",
-    "no_op": "doing nothing: a zero action for each continuous agent (clipped into its space), the no-op `action` "
-    "for each discrete agent",
-}
-"""The kinds of reference policy a setting may declare, and what each does."""
-
-REFERENCE_KEYS = {"random": ("kind",), "no_op": ("kind", "action")}
-"""The keys each kind takes."""
-
-
-REFERENCE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-"""What a reference policy's name may be (it names it in the results and the report)."""
 
 REFERENCE_PROTOCOL_KEYS = (
     "env",
@@ -63,41 +50,6 @@ evaluated again."""
 class ReferencePolicyError(ValueError):
     """A setting's reference policy cannot act in its task (e.g. no no-op action for discrete agents): a user's
     error, which ``sb3-maddpg run`` says in one line, before any run trains."""
-
-
-def check_reference_policies(policies: Any) -> None:
-    """
-    Refuse a setting's ``reference_policies`` that cannot be evaluated, naming the cause and what to give.
-
-    :param policies: The setting's ``reference_policies``: name -> ``{"kind": <a kind of REFERENCE_KINDS>, ...}``.
-    """
-    example = "{random: {kind: random}, nothing: {kind: no_op, action: 4}}"
-    if not isinstance(policies, Mapping):
-        raise ValueError(f"reference_policies must map names to policies, e.g. {example}, got {policies!r}.")
-    for name, spec in policies.items():
-        if not isinstance(name, str) or not REFERENCE_NAME.match(name):
-            raise ValueError(
-                f"reference_policies: name {name!r} cannot name a reference policy: use letters, digits, '_', '-' and "
-                "'.', starting with a letter or digit (e.g. 'random')."
-            )
-        kind = spec.get("kind") if isinstance(spec, Mapping) else None
-        if kind not in REFERENCE_KINDS:
-            raise ValueError(
-                f"reference_policies: {name!r} is {spec!r}, no policy: give a mapping with a kind of "
-                f"{list(REFERENCE_KINDS)}, e.g. {example}."
-            )
-        unknown = sorted(set(spec) - set(REFERENCE_KEYS[kind]))
-        if unknown:
-            raise ValueError(
-                f"reference_policies: {name!r} ({kind}) has unknown key(s) {unknown}: a {kind} policy takes "
-                f"{list(REFERENCE_KEYS[kind])}."
-            )
-        action = spec.get("action")
-        if action is not None and (not isinstance(action, int) or isinstance(action, bool) or action < 0):
-            raise ValueError(
-                f"reference_policies: {name!r} has action={action!r}: give the discrete agents' no-op action as an "
-                "index of their moves (an integer of at least 0, e.g. pursuit's 4), or leave it out for continuous ones."
-            )
 
 
 class NoOpTeamPolicy:

@@ -16,12 +16,8 @@ from sb3_maddpg.envs import PettingZooToGym, RandomTeamPolicy, TaskMetric
 from sb3_maddpg.experiments import SMOKE, make_report
 from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import EXPERIMENTS
-from sb3_maddpg.experiments.references import (
-    NoOpTeamPolicy,
-    check_reference_policies,
-    load_references,
-    write_references,
-)
+from sb3_maddpg.experiments.reference_specs import check_reference_policies
+from sb3_maddpg.experiments.references import NoOpTeamPolicy, load_references, write_references
 from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.tasks import RunTask, run_task
 from sb3_maddpg.experiments.tune import task_objectives
