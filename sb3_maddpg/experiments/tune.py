@@ -21,7 +21,7 @@ from typing import Any, Literal
 import numpy as np
 import yaml
 
-from sb3_maddpg.analysis.evaluation import TeamEvalCallback
+from sb3_maddpg.analysis.evaluation import TeamEvalCallback, scores_simple_spread
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.common.torch_threads import use_torch_threads
 from sb3_maddpg.compat import VERSION_KEY
@@ -88,14 +88,18 @@ def task_objectives(experiment: ExperimentConfig) -> dict[str, str]:
         its env declares (:func:`~sb3_maddpg.experiments.tasks.declared_metrics`: an MPE task's
         :data:`~sb3_maddpg.envs.MPE_TASK_METRICS`, a factory's env's own) in their direction, e.g. ``goal_distance``
         (minimised) or ``simple_tag``'s ``collisions`` (the catches, maximised), then, for a cooperative task (every
-        metric the whole team's), ``return_mean`` (alone for an env that declares none). A competitive task's team
-        return would add opponents' rewards: it is not offered. ``group_return`` (maximised) follows when the
-        experiment scores a group (``score_agents``), e.g. the adversaries of ``simple_tag``.
+        metric the whole team's), ``return_mean`` (alone for an env that declares none); for an env that declares
+        simple_spread's metrics under another name (``sb3_maddpg/SimpleSpread-v3``), the min-dist sum and the return.
+        A competitive task's team return would add opponents' rewards: it is not offered. ``group_return``
+        (maximised) follows when the experiment scores a group (``score_agents``), e.g. the adversaries of
+        ``simple_tag``.
     """
+    metrics = () if experiment.env == DEFAULT_ENV else declared_metrics(experiment.env, experiment.env_kwargs)
     if experiment.env == DEFAULT_ENV:
         objectives = dict(TUNE_OBJECTIVES)
+    elif scores_simple_spread(metrics):  # simple_spread under another name: its scores, no normalised references
+        objectives = {name: way for name, way in TUNE_OBJECTIVES.items() if name != "normalised"}
     else:
-        metrics = declared_metrics(experiment.env, experiment.env_kwargs)
         objectives = {
             metric.key: "minimize" if getattr(metric, "better", "higher") == "lower" else "maximize" for metric in metrics
         }
