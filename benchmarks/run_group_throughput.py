@@ -21,7 +21,6 @@ from stable_baselines3.common.logger import Logger
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.common.losses import one_member
 from sb3_maddpg.envs import SimpleSpreadVecEnv
 from sb3_maddpg.run_group import RunGroup
 
@@ -49,6 +48,11 @@ def random_batch(model: MADDPG, batch_size: int, generator: th.Generator) -> Mul
     )
 
 
+def stack(batches: list[MultiAgentReplayBufferSamples]) -> MultiAgentReplayBufferSamples:
+    """:return: The runs' batches with a run dimension in front, as a group updates on them."""
+    return MultiAgentReplayBufferSamples(*(th.stack([b[i] for b in batches]) for i in range(5)), None)  # type: ignore[misc]
+
+
 def seconds(fn: Callable[[], Any]) -> float:
     start = time.perf_counter()
     fn()
@@ -62,14 +66,14 @@ def measure(n_runs: int, n_agents: int, batch_size: int, repeats: int) -> dict[s
     batches = [random_batch(models[0], batch_size, generator) for _ in range(n_runs)]
     for model, batch in zip(models, batches):
         model.replay_buffer.sample = lambda *args, _batch=batch, **kwargs: _batch  # type: ignore[method-assign]
-    stacked = MultiAgentReplayBufferSamples(*(th.stack([b[i] for b in batches]) for i in range(5)), None)  # type: ignore[misc]
+    stacked = stack(batches)
     group = RunGroup(models)
     compiled = RunGroup(models, compile=True)
     singles = [RunGroup([model]) for model in models]
     paths: dict[str, Callable[[], Any]] = {
         "group": lambda: group.update(stacked),
         "compiled": lambda: compiled.update(stacked),
-        "singles": lambda: [single.update(one_member(batch)) for single, batch in zip(singles, batches)],
+        "singles": lambda: [single.update(stack([batch])) for single, batch in zip(singles, batches)],
         "maddpg": lambda: [model.train(gradient_steps=1, batch_size=batch_size) for model in models],
     }
     for path in paths.values():  # warm-up: vmap's first call traces, the compiled group compiles

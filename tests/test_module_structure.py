@@ -81,7 +81,7 @@ def test_a_planted_cycle_is_found() -> None:
     ("module", "names"),
     [
         ("sb3_maddpg.sharing", ["CriticFeaturesExtractor", "FullCriticFeatures", "SelectedCriticFeatures", "resolve_scheme"]),
-        ("sb3_maddpg.sharing", ["AttentionCriticFeatures", "LearnedSelectionCriticFeatures", "learned_schemes"]),
+        ("sb3_maddpg.sharing", ["AttentionCriticFeatures", "LearnedSelectionCriticFeatures", "LEARNED_SCHEMES"]),
     ],
 )
 def test_the_sharing_package_exports_its_schemes(module: str, names: list[str]) -> None:

@@ -2,12 +2,11 @@
 MADDPG's losses as functions of the networks and a batch: the critics' targets, the critics' losses and the actors'
 loss terms.
 
-They are written over any leading dimensions: ``MADDPG.train`` applies them to one team's batch, a run group to a
-member dimension ``M`` in front (the networks of ``M`` teams, each with its own batch, evaluated at once; each
-member's losses depend on its own networks and batch only; :func:`one_member` adds ``M = 1``). The networks are passed
+They take one team's batch (``[batch, ...]`` each field): ``MADDPG.train`` applies them to its replay batch, and a
+run group to each of its runs' batches under ``vmap`` (:mod:`~sb3_maddpg.common.update_step`). The networks are passed
 as functions (the model's own methods, which a run group applies to every run), so that a sibling
 algorithm changes them, not the math: MATD3's target actor adds its smoothing noise, its target critic returns the
-minimum of its twins, and its critic returns both twins stacked in front (``[2, ..., batch, n_agents]``), which
+minimum of its twins, and its critic returns both twins stacked in front (``[2, batch, n_agents]``), which
 :func:`critic_losses` broadcasts over. A batch that says which agents were still in the episode (``active``) averages
 each agent's terms over its active rows only.
 """
@@ -25,18 +24,19 @@ SATURATION_THRESHOLD = 0.99
 """An action component with ``|a| >`` this, in the policy's [-1, 1] space, counts as saturated in the logs."""
 
 Actions = Callable[[th.Tensor], th.Tensor]
-"""Observations ``[M, batch, obs_dim]`` to joint actions in [-1, 1] ``[M, batch, action_dim]``."""
+"""Observations ``[batch, obs_dim]`` to joint actions in [-1, 1] ``[batch, action_dim]``."""
 PolicyWithPreactivation = Callable[[th.Tensor], tuple[th.Tensor, th.Tensor]]
-"""Observations ``[M, batch, obs_dim]`` to the joint actions and the actors' outputs before ``tanh``, both
-``[M, batch, action_dim]``, from one forward pass."""
+"""Observations ``[batch, obs_dim]`` to the joint actions and the actors' outputs before ``tanh``, both
+``[batch, action_dim]``, from one forward pass."""
 QValues = Callable[[th.Tensor, th.Tensor, th.Tensor | None], th.Tensor]
-"""``(observations [M, batch, obs_dim], actions, selections [M, batch, n_agents, k] or None)`` to every agent's Q-value
-``[..., M, batch, n_agents]``. The actions are ``[M, batch, action_dim]``, the same for every critic, or
-``[M, n_agents, batch, action_dim]``, critic i's own joint action in ``[:, i]``."""
+"""``(observations [batch, obs_dim], actions, selections [batch, n_agents, k] or None)`` to every agent's Q-value
+``[batch, n_agents]`` (twin critics: both stacked in front, ``[2, batch, n_agents]``). The actions are
+``[batch, action_dim]``, the same for every critic, or ``[n_agents, batch, action_dim]``, critic i's own joint action
+in ``[i]``."""
 
 
 class ActorLossTerms(NamedTuple):
-    """The parts of the agents' actor losses on one batch, ``[M, n_agents]`` each."""
+    """The parts of the agents' actor losses on one batch, ``[n_agents]`` each."""
 
     policy_loss: th.Tensor
     """-Q_i: the policy-gradient part."""
@@ -47,7 +47,7 @@ class ActorLossTerms(NamedTuple):
 
     @property
     def total(self) -> th.Tensor:
-        """The loss each actor minimises: the policy-gradient part plus the regulariser, ``[M, n_agents]``."""
+        """The loss each actor minimises: the policy-gradient part plus the regulariser, ``[n_agents]``."""
         return self.policy_loss + self.reg_loss
 
 
@@ -78,7 +78,7 @@ class ActionParts(NamedTuple):
 
 
 def critic_targets(
-    target_actions: Actions, target_q: QValues, batch: MultiAgentReplayBufferSamples, gamma: float | th.Tensor
+    target_actions: Actions, target_q: QValues, batch: MultiAgentReplayBufferSamples, gamma: float
 ) -> th.Tensor:
     """
     y_i = r_i + gamma * (1 - done_i) * Q_i'(x_i'), with x_i' built from the next observations and every agent's target
@@ -86,9 +86,9 @@ def critic_targets(
 
     :param target_actions: The target actors (MADDPG: ``mu'(o')``, a discrete agent's a sample).
     :param target_q: The target critics.
-    :param batch: Replay batches, ``[M, batch, ...]`` each field.
-    :param gamma: The discount, one for all members or one each (``[M, 1, 1]``).
-    :return: ``[M, batch, n_agents]``.
+    :param batch: A replay batch, ``[batch, ...]`` each field.
+    :param gamma: The discount.
+    :return: ``[batch, n_agents]``.
     """
     with th.no_grad():
         next_actions = target_actions(batch.next_observations)
@@ -101,10 +101,10 @@ def critic_losses(critic: QValues, batch: MultiAgentReplayBufferSamples, targets
     """
     Each critic's mean squared TD error on the batch.
 
-    :param critic: The critics (twin critics: both stacked in front, ``[2, M, batch, n_agents]``).
-    :param batch: Replay batches, ``[M, batch, ...]`` each field.
-    :param targets: :func:`critic_targets`, ``[M, batch, n_agents]``.
-    :return: One loss per member and agent, ``[..., M, n_agents]``.
+    :param critic: The critics (twin critics: both stacked in front, ``[2, batch, n_agents]``).
+    :param batch: A replay batch, ``[batch, ...]`` each field.
+    :param targets: :func:`critic_targets`, ``[batch, n_agents]``.
+    :return: One loss per agent, ``[n_agents]`` (twin critics: ``[2, n_agents]``).
     """
     current_q = critic(batch.observations, batch.actions, batch.selections)
     return _mean_over_rows(F.mse_loss(current_q, targets.expand_as(current_q), reduction="none"), batch.active)
@@ -122,7 +122,7 @@ def actor_loss_terms(
     critic: QValues,
     batch: MultiAgentReplayBufferSamples,
     parts: ActionParts,
-    reg_coef: float | th.Tensor,
+    reg_coef: float,
 ) -> ActorLossTerms:
     """
     The actor losses' parts from one forward pass of the actors.
@@ -133,22 +133,22 @@ def actor_loss_terms(
 
     :param policy: The actors.
     :param critic: The critics the actors ascend (MATD3: the first twin).
-    :param batch: Replay batches, ``[M, batch, ...]`` each field.
+    :param batch: A replay batch, ``[batch, ...]`` each field.
     :param parts: Which action components are whose.
-    :param reg_coef: The regulariser's weight, one for all members or one each (``[M, 1]``); 0 skips it.
-    :return: The policy loss, the regulariser and the action saturation, ``[M, n_agents]`` each.
+    :param reg_coef: The regulariser's weight; 0 skips it.
+    :return: The policy loss, the regulariser and the action saturation, ``[n_agents]`` each.
     """
     policy_actions, preactivations = policy(batch.observations)
     per_critic_actions = th.where(parts.own, policy_actions.unsqueeze(-3), batch.actions.unsqueeze(-3))
     policy_loss = -_mean_over_rows(critic(batch.observations, per_critic_actions, batch.selections), batch.active)
     if batch.active is not None:  # each agent's terms over its active rows (its own components' mean per row first)
         reg = reg_coef * _mean_over_rows(preactivations.pow(2) @ parts.own_mean.T, batch.active)
-        reg_loss = reg if isinstance(reg_coef, th.Tensor) or reg_coef > 0 else th.zeros_like(policy_loss)
+        reg_loss = reg if reg_coef > 0 else th.zeros_like(policy_loss)
         with th.no_grad():
             saturated = ((policy_actions.abs() > SATURATION_THRESHOLD) & parts.continuous).float()
             saturation = _mean_over_rows(saturated @ parts.own_mean.T, batch.active)
         return ActorLossTerms(policy_loss, reg_loss, saturation)
-    if isinstance(reg_coef, th.Tensor) or reg_coef > 0:
+    if reg_coef > 0:
         reg_loss = reg_coef * (preactivations.pow(2).mean(dim=-2) @ parts.own_mean.T)
     else:
         reg_loss = th.zeros_like(policy_loss)
@@ -156,9 +156,3 @@ def actor_loss_terms(
         saturated = ((policy_actions.abs() > SATURATION_THRESHOLD) & parts.continuous).float().mean(dim=-2)
         saturation = saturated @ parts.own_mean.T
     return ActorLossTerms(policy_loss, reg_loss, saturation)
-
-
-def one_member(batch: MultiAgentReplayBufferSamples) -> MultiAgentReplayBufferSamples:
-    """:return: A team's replay batch with a member dimension in front (``M = 1``)."""
-    fields = [None if field is None else field.unsqueeze(0) for field in batch]
-    return MultiAgentReplayBufferSamples(*fields)  # type: ignore[arg-type]  # the first five are never None

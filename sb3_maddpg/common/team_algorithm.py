@@ -2,7 +2,7 @@
 
 The team's agent layout read from the env and checked wherever an env or a replay buffer comes in; the selection
 rule of the schemes that use one; exploration in the policy's [-1, 1] space; the per-transition update rule's hooks
-into SB3's loop; the logs; loading saves of older versions.
+into SB3's loop; the logs; the version in every save.
 """
 
 import io
@@ -30,21 +30,13 @@ from sb3_maddpg.common.buffers import (
 from sb3_maddpg.common.env_checks import check_same_layout, layout_of, refuse_env_of_another_team, refuse_reward_normalization
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.noise import add_noise, default_noise, fit_noise_to_envs
-from sb3_maddpg.common.package_warnings import SB3MADDPGDeprecationWarning, SB3MADDPGWarning
+from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
 from sb3_maddpg.common.selection import Selector, resolve_selector, warn_if_selecting_everyone
 from sb3_maddpg.common.torch_threads import package_threads
 from sb3_maddpg.common.train_logs import record_agent_returns
 from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.common.user_code import user_stacklevel
-from sb3_maddpg.compat import (
-    RENAMED_IN_0_3,
-    VERSION_KEY,
-    drop_old_attributes,
-    migrate_saved_model,
-    old_module_paths,
-    read_saved_data,
-    renamed_argument,
-)
+from sb3_maddpg.compat import VERSION_KEY, read_saved_data, written_by
 from sb3_maddpg.sharing import CriticSharing, schemes_per_agent
 from sb3_maddpg.version import __version__
 
@@ -123,7 +115,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             raise ValueError(f"{type(self).__name__} needs an env to read the agent layout from (or a saved model to load).")
         if self.env is not None:  # on load(path, env=...), SB3 compares only the spaces
             check_same_layout(layout_of(self.env), self.agent_layout)
-        drop_old_attributes(self.__dict__)  # what load() read from the save that a model must not keep
+        self.__dict__.pop(VERSION_KEY, None)  # the version load() read from the save: the next save writes its own
         # A new dict: SB3 keeps the caller's, which must not change under them.
         if self.replay_buffer_class is not None and issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
             self.replay_buffer_kwargs = {**self.replay_buffer_kwargs, "layout": self.agent_layout, "selector": self.selector}
@@ -140,16 +132,6 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
     def _team_policy_kwargs(self) -> dict[str, Any]:
         """:return: What the policy needs to know of the team, over the caller's ``policy_kwargs``."""
         return {"agent_layout": self.agent_layout}
-
-    @property
-    def selection(self) -> Selector | None:
-        """The name :attr:`selector` had before sb3-maddpg 0.3 (it warns)."""
-        warnings.warn(
-            "model.selection is renamed model.selector in sb3-maddpg 0.3: use model.selector (the old name will go).",
-            SB3MADDPGDeprecationWarning,
-            stacklevel=user_stacklevel(),
-        )
-        return self.selector
 
     @property
     def selection_size(self) -> int:
@@ -395,7 +377,8 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         **kwargs: Any,
     ) -> SelfTeamAlgorithm:
         """
-        Load a saved model (SB3's ``load``); an ``env`` must be of the model's team (the same agents, order and sizes).
+        Load a saved model (SB3's ``load``); an ``env`` must be of the model's team (the same agents, order and sizes),
+        and a model saved by a newer sb3-maddpg is refused (:func:`~sb3_maddpg.compat.written_by`).
 
         :param path: The saved model (``.zip`` optional) or an open file.
         :param env: The env to train or evaluate on, or ``None`` (``predict`` needs none).
@@ -406,17 +389,13 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param kwargs: Attributes to set on the model over the saved ones.
         :return: The model.
         """
-        with old_module_paths():  # an older save names its classes by the paths of its version
-            data = read_saved_data(path, custom_objects)  # read once: for the team check and for older saves
+        data = read_saved_data(path, custom_objects)  # None where unreadable: SB3's load says why
         if env is not None:
             refuse_env_of_another_team(data, env)
-        migrated = migrate_saved_model(data)  # what its version implies; the caller's kwargs over it, under new names too
-        for old, new in RENAMED_IN_0_3.items():
-            if old in kwargs:
-                kwargs[new] = renamed_argument(kwargs.get(new), kwargs.pop(old), old, new)
-        attributes = {**migrated, **kwargs}
-        with old_module_paths(), loading_a_saved_model():
-            return super().load(path, env, device, custom_objects, print_system_info, force_reset, **attributes)
+        if data is not None:
+            written_by(data, "The model")
+        with loading_a_saved_model():
+            return super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
 
     def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
         """
@@ -426,8 +405,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param truncate_last_traj: SB3's argument (used by ``HerReplayBuffer`` only).
         """
         current = self.replay_buffer
-        with old_module_paths():  # a buffer saved by 0.2 names its classes by 0.2's paths
-            super().load_replay_buffer(path, truncate_last_traj)
+        super().load_replay_buffer(path, truncate_last_traj)
         try:
             refuse_buffer_of_another_team(self.replay_buffer, self.agent_layout, self.selection_size, self.n_envs)
             assert self.agent_layout is not None
@@ -452,8 +430,8 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         include: Iterable[str] | None = None,
     ) -> None:
         """
-        Save the model (SB3's ``save``), with the sb3-maddpg version that wrote it, by which :meth:`load` reads it
-        (:func:`~sb3_maddpg.compat.migrate_saved_model`).
+        Save the model (SB3's ``save``), with the sb3-maddpg version that wrote it (:data:`~sb3_maddpg.compat.VERSION_KEY`),
+        by which :meth:`load` refuses a save of a newer version.
 
         :param path: Where to save (``.zip`` added if missing) or an open file.
         :param exclude: Attributes not to save, beyond the default ones.

@@ -55,11 +55,6 @@ class UpdateSchedule:
             )
         return cls(transitions_per_update, train_freq is None, train_freq is None and gradient_steps is None)
 
-    @classmethod
-    def sb3_semantics(cls, transitions_per_update: int = 100) -> "UpdateSchedule":
-        """SB3's ``train_freq`` and ``gradient_steps``, unchanged: the rule of a model saved by sb3-maddpg 0.1."""
-        return cls(transitions_per_update, derives_train_freq=False, earns_gradient_steps=False)
-
     def train_freq(self, n_envs: int) -> TrainFreq | None:
         """
         :param n_envs: The number of envs.

@@ -20,13 +20,9 @@ from torch import nn
 from torch.func import functional_call, grad, vmap
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.common.gradient_step import polyak_update_foreach as polyak_update_foreach  # its path of 0.3.0.dev
 from sb3_maddpg.common.losses import ActionParts, ActorLossTerms, actor_loss_terms, critic_losses, critic_targets
 from sb3_maddpg.common.networks import clip_coefficients
-from sb3_maddpg.common.train_logs import LOSS_NAMES as LOSS_NAMES  # its path of 0.3.0.dev
-from sb3_maddpg.common.train_logs import StepLosses as StepLosses
-from sb3_maddpg.common.train_logs import step_losses
-from sb3_maddpg.common.train_logs import summarise_steps as summarise_steps
+from sb3_maddpg.common.train_logs import StepLosses, step_losses
 
 MODULE_NAMES = ("actor", "critic", "actor_target", "critic_target")
 """The four modules of a team."""

@@ -133,7 +133,7 @@ def load_experiment(name_or_path: str) -> ExperimentConfig:
     :param name_or_path: A preset name (``exp1``, ``exp2``, ``exp1_tuned``, ``exp2_tuned``, ``n3_full``, ``n3_partial``,
         ``smoke``), the path of a preset file (``.yml`` or ``.yaml``: :mod:`~sb3_maddpg.experiments.presets`; its
         setting, not its tuned preset) or of a stored experiment (``.json``, e.g. a results directory's
-        ``experiment.json``, of any version: :func:`~sb3_maddpg.compat.migrate_stored_config`).
+        ``experiment.json``: :func:`~sb3_maddpg.compat.read_stored_config`).
     :return: The experiment config; a ``ValueError`` that names the cause and what to give instead if there is none.
     """
     if name_or_path in EXPERIMENTS:

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
-from sb3_maddpg.compat import migrate_stored_config, with_version
+from sb3_maddpg.compat import read_stored_config, with_version
 from sb3_maddpg.experiments.setting import RunConfig
 
 try:
@@ -159,7 +159,7 @@ def is_finished(results_dir: str | os.PathLike[str], config: RunConfig) -> bool:
     stored_config = read_json(directory / CONFIG_FILE)
     if read_summary(directory) is None or not isinstance(stored_config, dict):
         return False
-    stored = RunConfig.from_fields(migrate_stored_config(stored_config, str(directory / CONFIG_FILE)))
+    stored = RunConfig.from_fields(read_stored_config(stored_config, str(directory / CONFIG_FILE)))
     if not stored.same_as(config):
         raise ValueError(
             f"{directory} holds a finished run with another config; use a new results directory for a "
@@ -308,13 +308,13 @@ def write_experiment(results_dir: str | os.PathLike[str], name: str, experiment:
 def load_experiments(results_dir: str | os.PathLike[str]) -> dict[str, dict[str, Any]]:
     """
     :param results_dir: A results directory.
-    :return: The experiment configs stored in it (``<experiment>/experiment.json``), by name, as this version reads
-        them (:func:`~sb3_maddpg.compat.migrate_stored_config`).
+    :return: The experiment configs stored in it (``<experiment>/experiment.json``), by name, without the version and
+        commit that wrote them (:func:`~sb3_maddpg.compat.read_stored_config`).
     """
     experiments = {}
     for path in sorted(Path(results_dir).glob(f"*/{EXPERIMENT_FILE}")):
         with open(path) as file:
-            experiments[path.parent.name] = migrate_stored_config(json.load(file), str(path))
+            experiments[path.parent.name] = read_stored_config(json.load(file), str(path))
     return experiments
 
 

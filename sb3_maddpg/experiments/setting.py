@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar
 
 from sb3_maddpg.common.argument_ranges import TEAM_ALGORITHM_RANGES
-from sb3_maddpg.compat import migrate_stored_config
+from sb3_maddpg.compat import read_stored_config
 from sb3_maddpg.experiments.defaults import (
     ALGORITHMS,
     DEFAULT_ALGORITHM,
@@ -209,11 +209,11 @@ class Setting(TaskConfig, AlgorithmConfig, ProtocolConfig):
     @classmethod
     def from_dict(cls: type[SettingT], data: dict[str, Any]) -> SettingT:
         """
-        :param data: A dict from :meth:`to_dict` or a stored JSON file of any version, read by
-            :func:`~sb3_maddpg.compat.migrate_stored_config` (unknown keys are an error).
+        :param data: A dict from :meth:`to_dict` or a stored JSON file, read by
+            :func:`~sb3_maddpg.compat.read_stored_config` (unknown keys are an error).
         :return: The config.
         """
-        return cls.from_fields(migrate_stored_config(data))
+        return cls.from_fields(read_stored_config(data))
 
     @classmethod
     def from_fields(cls: type[SettingT], fields: dict[str, Any]) -> SettingT:

@@ -14,17 +14,13 @@ from sb3_maddpg.common.argument_ranges import TEAM_ALGORITHM_RANGES, check_argum
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.common.env_checks import refuse_unsupported_env
 from sb3_maddpg.common.gradient_step import gradient_step, polyak_update_foreach
-from sb3_maddpg.common.losses import SATURATION_THRESHOLD as SATURATION_THRESHOLD  # import paths of 0.2.0.dev
 from sb3_maddpg.common.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
-from sb3_maddpg.common.losses import ActorLossTerms as ActorLossTerms
 from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.common.selection import Selector
-from sb3_maddpg.common.team_algorithm import LOG_INTERVAL as LOG_INTERVAL  # import path of 0.2
 from sb3_maddpg.common.team_algorithm import TeamOffPolicyAlgorithm
 from sb3_maddpg.common.train_logs import StepLosses, record_critic_diagnostics, record_losses, step_losses, summarise_steps
 from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.common.update_step import StepSettings
-from sb3_maddpg.compat import renamed_argument
 from sb3_maddpg.maddpg.policies import MADDPGPolicy, MlpPolicy
 from sb3_maddpg.sharing import CriticSharing, validate_critic_sharing
 
@@ -95,7 +91,6 @@ class MADDPG(TeamOffPolicyAlgorithm):
     :param seed: Seed for the pseudo random generators.
     :param device: Device (cpu, cuda, ...) on which the code should be run; "auto" uses the GPU if possible.
     :param _init_setup_model: Whether or not to build the network at the creation of the instance.
-    :param selection: The name ``selector`` had before sb3-maddpg 0.3 (it warns).
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"MlpPolicy": MlpPolicy}
@@ -137,12 +132,10 @@ class MADDPG(TeamOffPolicyAlgorithm):
         seed: int | None = None,
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
-        selection: Selector | int | None = None,
     ) -> None:
         # Every numeric argument in its range, before SB3 takes it as given (locals(): the arguments, by name).
         check_arguments(TEAM_ALGORITHM_RANGES, locals())
         validate_critic_sharing(critic_sharing)  # fail early on an unknown name
-        selector = renamed_argument(selector, selection, "selection", "selector")
         update_rule = UpdateSchedule.from_arguments(transitions_per_update, train_freq, gradient_steps)
         if env is not None and not isinstance(env, str):
             refuse_unsupported_env(env)

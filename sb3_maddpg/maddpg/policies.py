@@ -12,7 +12,6 @@ from torch import nn
 
 from sb3_maddpg.common.layout import AgentLayout
 from sb3_maddpg.common.policies import AgentActor, AgentCritic, MultiAgentActor, MultiAgentCritic
-from sb3_maddpg.compat import renamed_argument
 from sb3_maddpg.sharing import CriticSharing, kwargs_per_agent, schemes_per_agent
 
 DEFAULT_NET_ARCH = {"pi": [64, 64], "qf": [64, 64, 64]}
@@ -154,7 +153,6 @@ class MADDPGPolicy(BasePolicy):
         obs: th.Tensor,
         actions: th.Tensor,
         selections: th.Tensor | None = None,
-        selection: th.Tensor | None = None,
     ) -> th.Tensor:
         """
         Every agent's critic on a joint batch.
@@ -163,10 +161,8 @@ class MADDPGPolicy(BasePolicy):
         :param actions: Joint actions in the policy's [-1, 1] space ``[batch, action_dim]``.
         :param selections: LongTensor ``[batch, n_agents, k]`` of the agents each agent selected (itself
             excluded); needed by schemes that use a selection.
-        :param selection: The name ``selections`` had before sb3-maddpg 0.3 (it warns).
         :return: ``[batch, n_agents]``.
         """
-        selections = renamed_argument(selections, selection, "selection", "selections")
         return self.critic(obs, actions, selections)
 
     def predict(

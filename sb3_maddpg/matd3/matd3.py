@@ -12,7 +12,6 @@ from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from sb3_maddpg.common.argument_ranges import TD3_RANGES, check_arguments
 from sb3_maddpg.common.selection import Selector
 from sb3_maddpg.common.update_step import StepSettings
-from sb3_maddpg.compat import renamed_argument
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.matd3.policies import MATD3Policy, MlpPolicy, TwinMultiAgentCritic
 from sb3_maddpg.sharing import CriticSharing
@@ -92,7 +91,6 @@ class MATD3(MADDPG):
     :param seed: Seed for the pseudo random generators.
     :param device: Device (cpu, cuda, ...) on which the code should be run; "auto" uses the GPU if possible.
     :param _init_setup_model: Whether or not to build the network at the creation of the instance.
-    :param selection: The name ``selector`` had before sb3-maddpg 0.3 (it warns).
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"MlpPolicy": MlpPolicy}
@@ -132,7 +130,6 @@ class MATD3(MADDPG):
         seed: int | None = None,
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
-        selection: Selector | int | None = None,
     ) -> None:
         check_arguments(TD3_RANGES, locals())  # MADDPG's constructor checks the others
         # Set before MADDPG's constructor, which ends with _setup_model(): the attributes exist from then on.
@@ -143,7 +140,7 @@ class MATD3(MADDPG):
             policy,
             env,
             critic_sharing=critic_sharing,
-            selector=renamed_argument(selector, selection, "selection", "selector"),
+            selector=selector,
             learning_rate=learning_rate,
             buffer_size=buffer_size,
             learning_starts=learning_starts,

@@ -10,11 +10,12 @@ each: :mod:`~sb3_maddpg.run_group.stacked` (the runs' networks stacked, evaluate
 (:class:`RunGroup`: the algorithms' own update step with ``M = R``, the data loop, the way back into models).
 """
 
+from sb3_maddpg.common.train_logs import LOSS_NAMES
 from sb3_maddpg.run_group.buffer import RunReplayBuffers
 from sb3_maddpg.run_group.stacked import StackedModule, StackedTeams
 from sb3_maddpg.run_group.stacked_adam import StackedAdam
 from sb3_maddpg.run_group.streams import RunStreams
-from sb3_maddpg.run_group.trainer import LOSS_NAMES, GroupCallback, RunGroup
+from sb3_maddpg.run_group.trainer import GroupCallback, RunGroup
 from sb3_maddpg.run_group.worlds import SpreadRuns, SpreadTask
 
 __all__ = [

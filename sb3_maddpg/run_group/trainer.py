@@ -12,9 +12,9 @@ import torch as th
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.losses import ActionParts
 from sb3_maddpg.common.noise import per_env_noise
+from sb3_maddpg.common.train_logs import StepLosses, summarise_steps
 from sb3_maddpg.common.update_schedule import UpdateSchedule
-from sb3_maddpg.common.update_step import LOSS_NAMES as LOSS_NAMES  # its import path of 0.3.0.dev
-from sb3_maddpg.common.update_step import GroupFunctions, StepLosses, summarise_steps, update_step
+from sb3_maddpg.common.update_step import GroupFunctions, update_step
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.run_group.buffer import RunReplayBuffers, buffer_capacity
 from sb3_maddpg.run_group.checks import check_models
@@ -150,7 +150,10 @@ class RunGroup:
         self.world_dtype = world_dtype
         self.worlds: SpreadRuns | None = None
         self.losses: dict[str, th.Tensor] = {}
-        """The last :meth:`train` call's means of :data:`LOSS_NAMES`, ``[R, n_agents]`` each, on the device."""
+        """
+        The last :meth:`train` call's means of :data:`~sb3_maddpg.common.train_logs.LOSS_NAMES`, ``[R, n_agents]``
+        each, on the device.
+        """
         self.compiled = bool(compile)
         # A mode by name is the user's; else CUDA graphs for the gradient step on a GPU, inductor's default elsewhere.
         update_mode = compile if isinstance(compile, str) else "reduce-overhead" if self.device.type == "cuda" else None
@@ -177,7 +180,7 @@ class RunGroup:
         actors (against the updated critics) and the targets when due.
 
         :param batch: Each run's batch, ``[R, batch, ...]`` each field, on the group's device.
-        :return: This step's :data:`~sb3_maddpg.common.update_step.LOSS_NAMES` (the actors' only when they were updated),
+        :return: This step's :data:`~sb3_maddpg.common.train_logs.LOSS_NAMES` (the actors' only when they were updated),
             ``[R, n_agents]`` each.
         """
         return summarise_steps([self._step(batch)])

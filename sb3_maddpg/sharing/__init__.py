@@ -4,7 +4,7 @@ Critic i of MADDPG sees a vector x_i built from the joint observation, the joint
 agents it selected. Each scheme is a subclass of :class:`CriticFeaturesExtractor` (:mod:`sb3_maddpg.sharing.base`); a
 new scheme is a new subclass. The paper's five (Table 1) are in :mod:`sb3_maddpg.sharing.fixed`, the two whose critics
 learn whom to listen to in :mod:`sb3_maddpg.sharing.learned`, and their names and the paper's aliases in one registry,
-:mod:`sb3_maddpg.sharing.registry`. Everything is importable from ``sb3_maddpg.sharing`` itself, as before 0.3.
+:mod:`sb3_maddpg.sharing.registry`. Everything is importable from ``sb3_maddpg.sharing`` itself.
 """
 
 from sb3_maddpg.sharing.base import CriticFeaturesExtractor
@@ -22,7 +22,6 @@ from sb3_maddpg.sharing.registry import (
     SHARING_SCHEMES,
     CriticSharing,
     kwargs_per_agent,
-    learned_schemes,
     resolve_scheme,
     schemes_per_agent,
     validate_critic_sharing,
@@ -43,7 +42,6 @@ __all__ = [
     "SelectedCriticFeatures",
     "default_selection_size",
     "kwargs_per_agent",
-    "learned_schemes",
     "resolve_scheme",
     "schemes_per_agent",
     "validate_critic_sharing",

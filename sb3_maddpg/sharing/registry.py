@@ -38,11 +38,6 @@ SCHEME_ALIASES: dict[str, str] = {
 """The paper's short names for the built-in schemes."""
 
 
-def learned_schemes() -> dict[str, type[CriticFeaturesExtractor]]:
-    """:return: A copy of :data:`LEARNED_SCHEMES` (kept for callers of 0.2)."""
-    return dict(LEARNED_SCHEMES)
-
-
 def resolve_scheme(scheme: Any) -> type[CriticFeaturesExtractor]:
     """
     The extractor class for a scheme name, a paper alias or a user's subclass.

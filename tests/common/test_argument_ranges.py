@@ -131,9 +131,7 @@ def test_every_numeric_argument_has_a_range(owner: Any, ranges: dict[str, Range]
     numeric = {
         name
         for name, parameter in inspect.signature(owner).parameters.items()
-        if not name.startswith("_")
-        and any(kind in str(parameter.annotation) for kind in ("int", "float"))
-        and name != "selection"  # the old name of selector (a rule, not a number)
+        if not name.startswith("_") and any(kind in str(parameter.annotation) for kind in ("int", "float"))
     }
     inherited = set(TEAM_ALGORITHM_RANGES) if owner is MATD3 else set()
     assert numeric - {"selector"} == set(ranges) | (inherited & numeric) - {"selector"}

@@ -1,8 +1,6 @@
-"""The losses with a member dimension: M teams evaluated at once give each team's own losses, independently."""
+"""The losses on one team's batch: the targets, the critics' and actors' losses, with values set by hand."""
 
 import math
-from collections.abc import Callable
-from typing import Any
 
 import pytest
 import torch as th
@@ -18,7 +16,6 @@ from sb3_maddpg.common.losses import (
     actor_loss_terms,
     critic_losses,
     critic_targets,
-    one_member,
 )
 from sb3_maddpg.envs import make_simple_spread
 from tests.loss_helpers import team_actor_terms, team_critic_losses
@@ -33,66 +30,25 @@ def trained(seed: int, scheme: str) -> MADDPG:
     return model
 
 
-def stack(batches: list[MultiAgentReplayBufferSamples]) -> MultiAgentReplayBufferSamples:
-    fields = zip(*batches)
-    return MultiAgentReplayBufferSamples(*(None if f[0] is None else th.stack(f) for f in fields))
-
-
-class Members:
-    """The networks of several models as member networks, each member on its own slice (a many-runs trainer's view),
-    each model's own functions applied to its slice."""
-
-    def __init__(self, models: list[MADDPG]) -> None:
-        self.models = models
-
-    def _each(self, function: Callable[[MADDPG], Callable[..., Any]], *tensors: th.Tensor | None) -> Any:
-        outs = [function(model)(*(None if t is None else t[m] for t in tensors)) for m, model in enumerate(self.models)]
-        return tuple(th.stack(parts) for parts in zip(*outs)) if isinstance(outs[0], tuple) else th.stack(outs)
-
-    def policy(self, obs: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        return self._each(lambda model: model.actor.forward_with_preactivation, obs)  # type: ignore[no-any-return]
-
-    def q(self, obs: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        return self._each(lambda model: model.critic, obs, actions, selections)  # type: ignore[no-any-return]
-
-    def target_actions(self, obs: th.Tensor) -> th.Tensor:
-        return self._each(lambda model: model._target_actions, obs)  # type: ignore[no-any-return]
-
-    def target_q(self, obs: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        return self._each(lambda model: model._target_q, obs, actions, selections)  # type: ignore[no-any-return]
-
-
 @pytest.mark.parametrize("scheme", ["full", "selected"])
-def test_members_get_their_own_losses_and_nothing_of_the_others(scheme: str) -> None:
-    models = [trained(0, scheme), trained(1, scheme)]
-    data = [model.replay_buffer.sample(32) for model in models]
-    members, batch = Members(models), stack(data)
-    gammas = th.tensor([0.95, 0.9]).view(2, 1, 1)
-    for model, gamma in zip(models, (0.95, 0.9)):
-        model.gamma = gamma
-    coefs = th.tensor([[1e-3], [0.02]])
-    models[1].actor_reg_coef = 0.02
-
-    targets = critic_targets(members.target_actions, members.target_q, batch, gammas)
-    losses = critic_losses(members.q, batch, targets)
-    terms = actor_loss_terms(members.policy, members.q, batch, models[0]._action_parts, coefs)
-    assert targets.shape == (2, 32, 3) and losses.shape == (2, 3) and terms.policy_loss.shape == (2, 3)
-    for m, (model, rows) in enumerate(zip(models, data)):
-        th.testing.assert_close(targets[m], model._critic_targets(rows), rtol=0, atol=0)
-        th.testing.assert_close(losses[m], team_critic_losses(model, rows), rtol=1e-6, atol=1e-8)  # a mean of another shape
-        for term, own in zip(terms, team_actor_terms(model, rows)):
-            th.testing.assert_close(term[m], own, rtol=1e-6, atol=1e-8)
-        assert terms.reg_loss[m].abs().sum() > 0
-
-    # Another batch for member 1: member 0's losses are bit-identical, and its gradients too.
-    other = stack([data[0], models[1].replay_buffer.sample(32)])
-    moved = critic_losses(members.q, other, critic_targets(members.target_actions, members.target_q, other, gammas))
-    assert th.equal(moved[0], losses[0]) and not th.equal(moved[1], losses[1])
-    moved_terms = actor_loss_terms(members.policy, members.q, other, models[0]._action_parts, coefs)
-    assert th.equal(moved_terms.total[0], terms.total[0]) and not th.equal(moved_terms.total[1], terms.total[1])
-    params = list(models[1].actor.parameters())
-    grads = th.autograd.grad(terms.total[0].sum(), params, allow_unused=True)
-    assert all(g is None or g.abs().sum() == 0 for g in grads)  # member 0's loss reaches no parameter of member 1
+def test_a_trained_teams_targets_and_losses_by_hand(scheme: str) -> None:
+    """y_i = r_i + gamma * (1 - done_i) * Q_i'(o', mu'(o')) at the model's gamma, each critic's loss its mean squared TD
+    error, and the actor terms as ``train`` computes them, each ``[n_agents]``."""
+    model = trained(0, scheme)
+    model.gamma, model.actor_reg_coef = 0.9, 0.02
+    rows = model.replay_buffer.sample(32)
+    with th.no_grad():
+        next_selections = rows.selections if rows.next_selections is None else rows.next_selections
+        next_q = model.critic_target(rows.next_observations, model.actor_target(rows.next_observations), next_selections)
+        expected = rows.rewards + 0.9 * (1.0 - rows.dones) * next_q
+    targets = critic_targets(model._target_actions, model._target_q, rows, model.gamma)
+    th.testing.assert_close(targets, expected)
+    losses = critic_losses(model.critic, rows, targets)
+    squared = (model.critic(rows.observations, rows.actions, rows.selections) - targets) ** 2
+    th.testing.assert_close(losses, squared.mean(dim=0))
+    assert targets.shape == (32, 3) and losses.shape == (3,) and th.equal(losses, team_critic_losses(model, rows))
+    terms = team_actor_terms(model, rows)
+    assert all(term.shape == (3,) for term in terms) and terms.reg_loss.abs().sum() > 0
 
 
 def test_twin_critics_broadcast_over_the_targets() -> None:
@@ -111,8 +67,8 @@ def test_twin_critics_broadcast_over_the_targets() -> None:
 
 
 def test_total_is_the_sum_of_the_parts() -> None:
-    terms = ActorLossTerms(th.tensor([[1.0, 2.0]]), th.tensor([[0.5, 0.25]]), th.zeros(1, 2))
-    assert th.equal(terms.total, th.tensor([[1.5, 2.25]]))
+    terms = ActorLossTerms(th.tensor([1.0, 2.0]), th.tensor([0.5, 0.25]), th.zeros(2))
+    assert th.equal(terms.total, th.tensor([1.5, 2.25]))
 
 
 @pytest.mark.parametrize("next_selected", [None, 2])
@@ -132,12 +88,12 @@ def test_the_target_reads_the_next_selection_when_the_batch_has_one(next_selecte
     def target_q(observations: th.Tensor, actions: th.Tensor, chosen: th.Tensor) -> th.Tensor:
         return chosen[..., 0].float()
 
-    targets = critic_targets(th.zeros_like, target_q, one_member(batch), gamma=0.5)
+    targets = critic_targets(th.zeros_like, target_q, batch, gamma=0.5)
     if next_selected is None:  # the stored selection: indices 1, 0, (0) and 2, 2, 1
         expected = [[1.5, 1.0, 1.0], [2.0, 2.0, 1.5]]
     else:  # the next one: 2, 2, (1) and 1, 0, 0
         expected = [[2.0, 2.0, 1.0], [1.5, 1.0, 1.0]]
-    assert targets[0].tolist() == expected
+    assert targets.tolist() == expected
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -147,17 +103,17 @@ TWO_BY_TWO = AgentLayout(("a", "b"), (2, 2), (2, 2))  # two continuous agents, t
 
 
 def fixed_batch(n_rows: int, active: th.Tensor | None, n_agents: int = 2) -> MultiAgentReplayBufferSamples:
-    """One member's batch of ``n_rows`` zero rows for a team of ``n_agents`` agents (2 observation and 2 action
-    components each): the networks below decide every value."""
-    zeros = th.zeros(1, n_rows, 2 * n_agents)
+    """A batch of ``n_rows`` zero rows for a team of ``n_agents`` agents (2 observation and 2 action components each):
+    the networks below decide every value."""
+    zeros = th.zeros(n_rows, 2 * n_agents)
     return MultiAgentReplayBufferSamples(
         observations=zeros,
         actions=zeros,
         next_observations=zeros,
-        dones=th.zeros(1, n_rows, n_agents),
-        rewards=th.zeros(1, n_rows, n_agents),
+        dones=th.zeros(n_rows, n_agents),
+        rewards=th.zeros(n_rows, n_agents),
         selections=None,
-        active=None if active is None else active.unsqueeze(0),
+        active=active,
     )
 
 
@@ -168,19 +124,19 @@ def test_a_departed_agents_terms_are_the_mean_over_its_active_rows_only() -> Non
     active = th.tensor([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
 
     def critic(observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        return q.unsqueeze(0)  # [M=1, rows, agents], whatever the actions
+        return q  # [rows, agents], whatever the actions
 
     batch = fixed_batch(4, active, n_agents=3)
     # Squared errors against targets of 0: agent 0's active rows hold 1 and 4, agent 1's 4 and 36, agent 2 has none.
-    losses = critic_losses(critic, batch, th.zeros(1, 4, 3))
-    assert losses[0].tolist() == [(1 + 4) / 2, (4 + 36) / 2, 0.0]
+    losses = critic_losses(critic, batch, th.zeros(4, 3))
+    assert losses.tolist() == [(1 + 4) / 2, (4 + 36) / 2, 0.0]
 
     def policy(observations: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        return th.zeros(1, 4, 6), th.zeros(1, 4, 6)
+        return th.zeros(4, 6), th.zeros(4, 6)
 
     parts = ActionParts.of(AgentLayout(("a", "b", "c"), (2, 2, 2), (2, 2, 2)))
     terms = actor_loss_terms(policy, critic, batch, parts, reg_coef=0.0)
-    assert terms.policy_loss[0].tolist() == [-(1 + 2) / 2, -(2 + 6) / 2, 0.0]  # -Q's mean over the same rows
+    assert terms.policy_loss.tolist() == [-(1 + 2) / 2, -(2 + 6) / 2, 0.0]  # -Q's mean over the same rows
 
 
 @pytest.mark.parametrize("active", [None, th.ones(3, 2)], ids=["whole team", "agents that may leave"])
@@ -194,13 +150,13 @@ def test_an_action_at_the_saturation_threshold_is_not_saturated_and_one_just_abo
     actions = th.stack([th.cat((row_a, th.stack((above, -above)))), th.cat((row_a, th.stack((-above, above)))), th.zeros(4)])
 
     def policy(observations: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        return actions.unsqueeze(0), th.zeros(1, 3, 4)
+        return actions, th.zeros(3, 4)
 
     def critic(observations: th.Tensor, joint: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        return th.zeros(1, 3, 2)
+        return th.zeros(3, 2)
 
     terms = actor_loss_terms(policy, critic, fixed_batch(3, active), ActionParts.of(TWO_BY_TWO), reg_coef=0.0)
-    th.testing.assert_close(terms.saturation[0], th.tensor([0.0, 2 / 3]))
+    th.testing.assert_close(terms.saturation, th.tensor([0.0, 2 / 3]))
 
 
 @pytest.mark.parametrize("active", [None, th.tensor([[1.0, 1.0], [1.0, 1.0], [0.0, 1.0]])], ids=["whole team", "a leaves"])
@@ -213,14 +169,14 @@ def test_the_regulariser_is_the_coefficient_times_the_mean_squared_preactivation
     pre = th.tensor([[1.0, 3.0, 0.0, 2.0], [2.0, 2.0, 0.0, 2.0], [5.0, 5.0, 0.0, 2.0]])
 
     def policy(observations: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        return th.tanh(pre).unsqueeze(0), pre.unsqueeze(0)
+        return th.tanh(pre), pre
 
     def critic(observations: th.Tensor, joint: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        return th.zeros(1, 3, 2)
+        return th.zeros(3, 2)
 
     terms = actor_loss_terms(policy, critic, fixed_batch(3, active), ActionParts.of(TWO_BY_TWO), reg_coef=0.5)
     mean_a = (5 + 4 + 25) / 3 if active is None else (5 + 4) / 2  # a left before row 2: rows 0 and 1 only
-    th.testing.assert_close(terms.reg_loss[0], th.tensor([0.5 * mean_a, 0.5 * 2.0]))
+    th.testing.assert_close(terms.reg_loss, th.tensor([0.5 * mean_a, 0.5 * 2.0]))
     th.testing.assert_close(terms.total, terms.policy_loss + terms.reg_loss)
 
 

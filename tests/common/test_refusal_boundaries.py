@@ -8,13 +8,11 @@ the mapping from agent ids to schemes (test_per_agent_sharing) and a FixedGraph'
 """
 
 import re
-import warnings
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import pytest
-import torch as th
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 from stable_baselines3.common.noise import ActionNoise
@@ -408,25 +406,3 @@ class ShapedNoise(ActionNoise):
 def test_noise_fits_the_joint_actions(shape: tuple[int, ...], refusal: str | None) -> None:
     """Noise over the joint action, once or once per env (2 envs, 6 action components here)."""
     check(lambda: draw_noise(ShapedNoise(shape), (2, 6)), refusal)
-
-
-# ---------------------------------------------------------------------------------------------- policies.py
-
-
-def test_q_values_takes_the_old_name_of_selections_with_a_warning() -> None:
-    """``selection=`` (0.2's name) gives the same Q-values as ``selections=``, with a FutureWarning pointing at the
-    caller; both at once are refused, as the constructor's ``selection=``."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # k = 2 of 3 selects everyone: not what is tested here
-        policy = MADDPG("MlpPolicy", make_simple_spread(n_agents=3), critic_sharing="selected", **NEVER_UPDATES).policy
-    th.manual_seed(0)
-    observations, actions = th.randn(4, 54), th.rand(4, 15) * 2 - 1
-    selections = th.tensor([[1, 2], [2, 0], [0, 1]]).expand(4, 3, 2)
-    with th.no_grad():
-        new = policy.q_values(observations, actions, selections=selections)
-        with pytest.warns(FutureWarning, match="selection= is renamed selections= in sb3-maddpg 0.3") as caught:
-            old = policy.q_values(observations, actions, selection=selections)
-        assert th.equal(old, new) and th.equal(policy.q_values(observations, actions, selections), new)
-    assert [warning.filename for warning in caught] == [__file__]
-    with pytest.raises(TypeError, match="Got both selections= and selection="):
-        policy.q_values(observations, actions, selections, selection=selections)

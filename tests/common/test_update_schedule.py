@@ -1,12 +1,9 @@
-"""The per-transition update rule on its own (no model), and the models saved before it was an object."""
-
-from pathlib import Path
+"""The per-transition update rule on its own (no model)."""
 
 import pytest
 from stable_baselines3.common.type_aliases import TrainFreq, TrainFrequencyUnit
 
 from sb3_maddpg.common.update_schedule import UpdateSchedule
-from sb3_maddpg.compat import pop_0_2_dev_schedule
 
 
 def steps(n: int) -> TrainFreq:
@@ -24,8 +21,8 @@ def test_a_given_train_freq_stands_and_nothing_is_earned() -> None:
     assert schedule.train_freq(4) is None and not schedule.earns_gradient_steps
     assert not UpdateSchedule.from_arguments(100, None, 3).earns_gradient_steps
     assert UpdateSchedule.from_arguments(100, None, None).earns_gradient_steps
-    legacy = UpdateSchedule.sb3_semantics()
-    assert legacy.train_freq(4) is None and not legacy.earns_gradient_steps
+    sb3 = UpdateSchedule.from_arguments(100, 10, 3)  # both given: SB3's meaning of both
+    assert sb3.train_freq(4) is None and not sb3.earns_gradient_steps
 
 
 def test_earned_counts_past_learning_starts_and_carries_the_remainder() -> None:
@@ -59,33 +56,3 @@ def test_describe() -> None:
 def test_bad_transitions_per_update_is_refused(value: object) -> None:
     with pytest.raises(ValueError, match=r"transitions_per_update must be a positive integer.*the paper's is 100"):
         UpdateSchedule.from_arguments(value, None, None)  # type: ignore[arg-type]
-
-
-def test_the_attributes_of_a_0_2_dev_save_become_a_schedule() -> None:
-    attributes = dict(
-        transitions_per_update=30,
-        _train_freq_from_ratio=True,
-        _earn_gradient_steps=False,
-        _update_credit=22,
-        _credited_timesteps=112,
-        other=1,
-    )
-    assert pop_0_2_dev_schedule(attributes) == UpdateSchedule(30, True, False, credit=22, counted_at=112)
-    assert attributes == {"other": 1}
-    assert pop_0_2_dev_schedule({"other": 1}) is None  # a 0.1 save, or one with an UpdateSchedule
-
-
-def test_a_model_saved_by_0_2_dev_keeps_its_credit() -> None:
-    from sb3_maddpg import MADDPG
-    from sb3_maddpg.envs import SimpleSpreadVecEnv
-
-    # tests/data/maddpg_0.2.0.dev.zip: sb3-maddpg 0.2.0.dev (commit 95b3d6b), SimpleSpreadVecEnv(4, n_agents=3),
-    # learning_starts=0, transitions_per_update=30, batch_size=16, buffer_size=200, net_arch=[8], seed=0, learn(100):
-    # 112 steps, 3 gradient steps, a credit of 22 transitions counted at step 112.
-    path = Path(__file__).parents[1] / "data" / "maddpg_0.2.0.dev.zip"
-    model = MADDPG.load(path, env=SimpleSpreadVecEnv(4, n_agents=3))
-    assert model.update_rule == UpdateSchedule(30, True, True, credit=22, counted_at=112)
-    assert model.transitions_per_update == 30 and model.train_freq == steps(7)
-    assert "_update_credit" not in model.__dict__
-    model.learn(100, reset_num_timesteps=False)  # 112 more transitions + 22 of credit: 4 steps, 14 left over
-    assert (model.num_timesteps, model._n_updates, model.update_rule.credit) == (224, 7, 14)

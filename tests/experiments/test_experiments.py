@@ -75,11 +75,6 @@ def test_overrides_and_validation() -> None:
         EXP1.replace(vec_env="gpu")
     with pytest.raises(ValueError, match="n_envs must be at least 1"):
         dataclasses.replace(run, n_envs=0)
-    # Configs written before vec_env existed describe runs on one mpe2 env.
-    legacy = {key: value for key, value in run.to_dict().items() if key not in ("vec_env", "n_envs")}
-    assert (RunConfig.from_dict(legacy).vec_env, RunConfig.from_dict(legacy).n_envs) == ("mpe2", 1)
-    legacy_experiment = {key: value for key, value in EXP1.to_dict().items() if key not in ("vec_env", "n_envs")}
-    assert ExperimentConfig.from_dict(legacy_experiment).runs()[0].vec_env == "mpe2"
     assert ExperimentConfig.from_dict(EXP1.to_dict()).runs()[0].vec_env == "batched"
 
 
@@ -697,18 +692,6 @@ def test_a_setting_that_observes_every_agent_nearest_first_is_labelled_full() ->
     # exp1_tuned observes all 4 other agents, in order of distance: that is full observability, not "4 nearest".
     assert setting_label("exp1_tuned", EXP1_TUNED.to_dict()) == "exp1_tuned (N=5, full obs. nearest first, 100,000 ep.)"
     assert setting_label("exp2", EXP2.to_dict()) == "exp2 (N=5, 2 nearest obs., 150,000 ep.)"
-
-
-def test_configs_written_before_0_3_name_the_selector_as_0_3_does() -> None:
-    # Results stored before 0.3 say "selection" in model_kwargs: the same command must still resume them.
-    experiment = SMOKE.replace(scheme_model_kwargs={"selected": {"selector": 1}})
-    stored = experiment.to_dict()
-    stored["scheme_model_kwargs"] = {"selected": {"selection": 1}}
-    assert ExperimentConfig.from_dict(stored) == experiment
-    run = next(run for run in experiment.runs() if run.scheme == "selected")
-    stored_run = run.to_dict()
-    stored_run["model_kwargs"] = {**{k: v for k, v in run.model_kwargs.items() if k != "selector"}, "selection": 1}
-    assert RunConfig.from_dict(stored_run).same_as(run)
 
 
 def test_curve_value_at_reads_the_nearest_evaluation_and_none_beyond_the_tolerance() -> None:

@@ -87,10 +87,10 @@ def test_a_bad_preset_file_is_refused_naming_it(tmp_path: Path, text: str, messa
         load_experiment(str(tmp_path / "missing.yml"))
 
 
-def test_the_stored_format_is_not_a_preset() -> None:
-    # A preset file is this version's fields: a left-out field gets today's default, never 0.1's (stored files do).
+def test_a_left_out_field_gets_todays_default() -> None:
+    # A preset file and a stored file are this version's fields: a left-out field gets today's default.
     assert ExperimentConfig.from_fields({"name": "x"}).vec_env == "batched"
-    assert ExperimentConfig.from_dict({"name": "x"}).vec_env == "mpe2"
+    assert ExperimentConfig.from_dict({"name": "x"}).vec_env == "batched"
 
 
 def test_the_docs_preset_file_reads(tmp_path: Path) -> None:

@@ -1,6 +1,6 @@
 """The configs stored in the committed results (``benchmarks/*/results``: each run's ``config.json``, each setting's
-``experiment.json``) load unchanged through the one ``from_dict``, whichever version wrote them, and a config written
-now has the keys, in the order, that report and resume read."""
+``experiment.json``) each hold the version that wrote them and load unchanged through the one ``from_dict``, and a
+config written now has the keys, in the order, that report and resume read."""
 
 import dataclasses
 import json
@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from sb3_maddpg.compat import STAMP_KEYS, VERSION_KEY, renamed_in_0_3
+from sb3_maddpg.compat import STAMP_KEYS, VERSION_KEY, written_by
 from sb3_maddpg.experiments.config import EXPERIMENTS
 from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig, Setting
 
@@ -17,24 +17,12 @@ ROOT = Path(__file__).resolve().parents[2]
 STORED = sorted(ROOT.glob("benchmarks/*/results/**/config.json")) + sorted(
     ROOT.glob("benchmarks/*/results/**/experiment.json")
 )
-WRITTEN_BEFORE_0_2 = {"vec_env": "mpe2", "n_envs": 1}  # what those runs stepped: one mpe2 env each
 
 
 def _default(config_type: type[Setting], name: str) -> Any:
-    """The value a key missing from a stored file takes: what the version that wrote the file ran with."""
-    if name in WRITTEN_BEFORE_0_2:
-        return WRITTEN_BEFORE_0_2[name]
+    """The value a key missing from a stored file takes: this version's default."""
     (found,) = [f for f in dataclasses.fields(config_type) if f.name == name]
     return found.default_factory() if found.default_factory is not dataclasses.MISSING else found.default
-
-
-def _as_stored(name: str, value: Any) -> Any:
-    """A stored value as it reads back: 0.2's names of ``model_kwargs`` as 0.3 has them."""
-    if name == "model_kwargs":
-        return renamed_in_0_3(value)
-    if name == "scheme_model_kwargs":
-        return {scheme: renamed_in_0_3(kwargs) for scheme, kwargs in value.items()}
-    return value
 
 
 def test_there_are_stored_configs_of_both_kinds() -> None:
@@ -45,12 +33,14 @@ def test_there_are_stored_configs_of_both_kinds() -> None:
 @pytest.mark.parametrize("path", STORED, ids=lambda path: str(path.relative_to(ROOT / "benchmarks")))
 def test_a_stored_config_loads_unchanged(path: Path) -> None:
     written = json.loads(path.read_text())
+    # Every committed file holds the version that wrote it (those written before versions were, once migrated).
+    assert written_by(written, str(path)) is not None
     config_type: type[Setting] = RunConfig if path.name == "config.json" else ExperimentConfig
     loaded = json.loads(json.dumps(config_type.from_dict(written).to_dict()))
     # The version and commit that wrote a file (0.3 on) are read, not kept: the config it loads is this version's.
     assert not set(STAMP_KEYS) & set(loaded)
     stored = {key: value for key, value in written.items() if key not in STAMP_KEYS}
-    assert {key: loaded[key] for key in stored} == {key: _as_stored(key, value) for key, value in stored.items()}
+    assert {key: loaded[key] for key in stored} == stored
     missing = set(loaded) - set(stored)
     assert {key: loaded[key] for key in missing} == json.loads(
         json.dumps({key: _default(config_type, key) for key in missing})
@@ -98,21 +88,17 @@ def test_a_config_written_now_holds_its_version_and_reads_back(tmp_path: Path) -
     assert stored[COMMIT_KEY] == source_commit() and stored[COMMIT_KEY] is not None
 
 
-def test_a_config_is_migrated_by_the_version_that_wrote_it() -> None:
+def test_a_config_of_a_newer_version_is_refused_and_the_stamps_are_not_fields() -> None:
     from sb3_maddpg import __version__
+    from sb3_maddpg.provenance import COMMIT_KEY
 
-    run = EXPERIMENTS["smoke"].runs()[0].to_dict()
-    fields = {key: value for key, value in run.items() if key not in ("vec_env", "n_envs")}
-    fields["model_kwargs"] = {**fields["model_kwargs"], "selection": 1}
-    # Without a version: written before 0.3.0, so it ran what those versions ran (one mpe2 env) under 0.2's names.
-    old = RunConfig.from_dict(fields)
-    assert (old.vec_env, old.n_envs, old.model_kwargs["selector"]) == ("mpe2", 1, 1)
-    assert "selection" not in old.model_kwargs
-    # With this version: this version's format, its defaults for what it leaves out, its names as they are.
-    now = RunConfig.from_dict({**fields, VERSION_KEY: __version__})
-    assert (now.vec_env, now.n_envs, now.model_kwargs["selection"]) == ("batched", 100, 1)
-    # A version before the first that wrote one (a file made by hand) is read as those versions wrote theirs.
-    assert RunConfig.from_dict({**fields, VERSION_KEY: "0.2.0"}).vec_env == "mpe2"
+    run = EXPERIMENTS["smoke"].runs()[0]
+    fields = run.to_dict()
+    # This version's file: its fields as they are, the version and commit that wrote it read and dropped.
+    assert RunConfig.from_dict({**fields, VERSION_KEY: __version__, COMMIT_KEY: "0" * 40}) == run
+    assert ExperimentConfig.from_dict({"name": "x", VERSION_KEY: __version__}) == ExperimentConfig.from_fields({"name": "x"})
+    # A file that names no version (written by hand) is this version's format: today's defaults for what it leaves out.
+    assert RunConfig.from_dict(fields) == run
     with pytest.raises(ValueError, match=r"written by sb3-maddpg 99\.1, newer than the installed .*: upgrade"):
         RunConfig.from_dict({**fields, VERSION_KEY: "99.1"})
     with pytest.raises(ValueError, match=r"'not-a-version', which is no version number"):

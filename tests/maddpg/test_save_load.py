@@ -1,7 +1,6 @@
 """Save and load in SB3's style, for every sharing scheme: parameters, optimisers, replay buffer, selectors."""
 
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -207,104 +206,44 @@ def test_load_with_same_spaces_other_layout(tmp_path):
         MADDPG.load(tmp_path / "model.zip", env=other)
 
 
-def test_a_model_saved_by_0_1_keeps_its_training_rules() -> None:
-    """0.1 had SB3's train_freq and no actor regulariser: a model it saved must not pick up 0.2's defaults on load."""
-    # tests/data/maddpg_0.1.0.zip: sb3-maddpg 0.1.0, make_simple_spread(n_agents=3), train_freq=(1, "episode"),
-    # gradient_steps=3, learning_starts=50, batch_size=16, buffer_size=500, net_arch=[8], seed=0, learn(100).
-    path = Path(__file__).parents[1] / "data" / "maddpg_0.1.0.zip"
-    model = MADDPG.load(path, env=make_team())
-    assert model.actor_reg_coef == 0.0
-    assert (model.train_freq.frequency, model.train_freq.unit.value, model.gradient_steps) == (1, "episode", 3)
-    assert "SB3's train_freq semantics" in model.update_schedule
-    updates = model._n_updates
-    model.learn(100, reset_num_timesteps=False)  # four more episodes, 3 gradient steps after each
-    assert model._n_updates == updates + 12
-    fresh = MADDPG("MlpPolicy", make_team(), **TRAINS_QUICKLY)  # a model built by 0.2 has 0.2's defaults
-    assert fresh.actor_reg_coef == 1e-3
-    # What the save lacks is filled in, never over what the caller passes to load.
-    chosen = MADDPG.load(path, env=make_team(), actor_reg_coef=1e-2)
-    assert chosen.actor_reg_coef == 1e-2 and "SB3's train_freq semantics" in chosen.update_schedule
-
-
-def test_a_model_saved_by_0_2_keeps_its_selector_under_the_new_name() -> None:
-    # tests/data/maddpg_0.2.0_selected.zip: sb3-maddpg 0.2.0 (83f1f74), make_simple_spread(n_agents=3),
-    # critic_sharing="selected", selection=NearestAgents(k=1), learning_starts=100, batch_size=32, buffer_size=500,
-    # net_arch=[16, 16], seed=0, learn(300). 0.2 kept the rule in model.selection; 0.3 calls it model.selector.
-    model = MADDPG.load(Path(__file__).parents[1] / "data" / "maddpg_0.2.0_selected.zip", env=make_team())
-    assert isinstance(model.selector, NearestAgents) and model.selector.k == 1
-    assert "selection" not in model.__dict__ and model.selection_size == 1
-    updates = model._n_updates
-    model.learn(200, reset_num_timesteps=False)
-    assert model._n_updates > updates and model.replay_buffer.selections.shape[-1] == 1  # its rows select k=1
-    # A selector the caller passes to load wins over the save's, under either name (the old one warns).
-    graph = FixedGraph([[2], [0], [1]])
-    chosen = MADDPG.load(Path(__file__).parents[1] / "data" / "maddpg_0.2.0_selected.zip", env=make_team(), selector=graph)
-    assert chosen.selector is graph and chosen.replay_buffer.selector is graph
-    with pytest.warns(FutureWarning, match=r"selection= is renamed selector="):
-        old_name = MADDPG.load(Path(__file__).parents[1] / "data" / "maddpg_0.2.0_selected.zip", selection=graph)
-    assert old_name.selector is graph and "selection" not in old_name.__dict__
-
-
-def test_the_old_name_of_selector_still_works_and_warns() -> None:
-    with pytest.warns(FutureWarning, match=r"selection= is renamed selector="):
-        model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selection=1, **TRAINS_QUICKLY)
-    assert isinstance(model.selector, NearestAgents) and model.selector.k == 1
-    with pytest.warns(FutureWarning, match=r"model.selection is renamed model.selector"):
-        assert model.selection is model.selector
-    with pytest.raises(TypeError, match=r"Got both selector= and selection="):
-        MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=1, selection=1, **TRAINS_QUICKLY)
-
-
 def test_building_without_setting_up_keeps_what_the_caller_passed() -> None:
-    # The compatibility with 0.1's saves lives in load(): the constructor never replaces a caller's arguments.
+    # SB3's load builds the model this way and sets the saved attributes over it: the constructor replaces nothing.
     kwargs = {name: value for name, value in TRAINS_QUICKLY.items() if name != "train_freq"}
     model = MADDPG("MlpPolicy", make_team(), actor_reg_coef=1e-3, transitions_per_update=50, _init_setup_model=False, **kwargs)
     assert model.actor_reg_coef == 1e-3
     assert model.update_rule.earns_gradient_steps and model.update_rule.transitions_per_update == 50
 
 
-def test_attributes_missing_from_a_save_by_version() -> None:
-    from sb3_maddpg.common.update_schedule import UpdateSchedule
-    from sb3_maddpg.compat import SAVED_BEFORE_0_2, attributes_missing_from
-
-    assert attributes_missing_from({"update_rule": UpdateSchedule.sb3_semantics(), "actor_reg_coef": 0.5}) == {}
-    before_0_2 = attributes_missing_from({"learning_rate": 0.01})
-    assert set(before_0_2) == set(SAVED_BEFORE_0_2) and before_0_2["actor_reg_coef"] == 0.0
-    assert not before_0_2["update_rule"].earns_gradient_steps
-    assert attributes_missing_from({"actor_reg_coef": 0.5}).keys() == {"update_rule"}  # only what it lacks
-    dev = {"transitions_per_update": 30, "_train_freq_from_ratio": True, "_earn_gradient_steps": True, "_update_credit": 7}
-    assert attributes_missing_from(dev) == {"update_rule": UpdateSchedule(30, True, True, credit=7, counted_at=0)}
-    assert len(dev) == 4  # the save's data is not changed
-
-
-def test_a_save_holds_the_version_that_wrote_it_and_is_read_by_it(tmp_path, monkeypatch) -> None:
+def test_a_save_holds_the_version_that_wrote_it_and_a_newer_one_is_refused(tmp_path, monkeypatch) -> None:
     from sb3_maddpg import __version__
-    from sb3_maddpg.compat import VERSION_KEY, migrate_saved_model, old_module_paths, read_saved_data
+    from sb3_maddpg.compat import VERSION_KEY, read_saved_data
 
     model = MADDPG("MlpPolicy", make_team(), **TRAINS_QUICKLY)
     model.save(tmp_path / "model.zip")
     data = read_saved_data(tmp_path / "model.zip")
     assert data is not None and data[VERSION_KEY] == __version__
     assert VERSION_KEY not in model.__dict__  # written into the save, not kept on the model
-    # A save of this version is read as it is: nothing filled in, even where a save before 0.3 would get 0.1's rules.
-    assert migrate_saved_model(data) == {}
-    assert migrate_saved_model({k: v for k, v in data.items() if k not in ("update_rule", "actor_reg_coef")}) == {}
     loaded = MADDPG.load(tmp_path / "model.zip")
     assert VERSION_KEY not in loaded.__dict__ and loaded.actor_reg_coef == model.actor_reg_coef
-    # Saves without a version are older ones: each committed one is migrated (its rules, 0.2's selector's name).
-    data_dir = Path(__file__).parents[1] / "data"
-    with old_module_paths():  # their classes are named by their version's paths
-        assert set(migrate_saved_model(read_saved_data(data_dir / "maddpg_0.1.0.zip"))) == {
-            "update_rule",
-            "actor_reg_coef",
-            "selector",
-        }
-        assert set(migrate_saved_model(read_saved_data(data_dir / "maddpg_0.2.0_selected.zip"))) == {"update_rule", "selector"}
-    # A save of a newer version is refused, saying to upgrade.
+    assert loaded.update_rule == model.update_rule
+    loaded.save(tmp_path / "again.zip")  # the next save writes the version that made it
+    again = read_saved_data(tmp_path / "again.zip")
+    assert again is not None and again[VERSION_KEY] == __version__
+    # A save of a newer version is refused, saying to upgrade, with an env or without.
     monkeypatch.setattr("sb3_maddpg.common.team_algorithm.__version__", "99.0.0")
     model.save(tmp_path / "newer.zip")
     with pytest.raises(ValueError, match=r"written by sb3-maddpg 99\.0\.0, newer than the installed .*: upgrade"):
         MADDPG.load(tmp_path / "newer.zip")
+    with pytest.raises(ValueError, match=r"written by sb3-maddpg 99\.0\.0, newer than the installed .*: upgrade"):
+        MADDPG.load(tmp_path / "newer.zip", env=make_team())
+
+
+def test_a_selector_passed_to_load_wins_over_the_saved_one(tmp_path) -> None:
+    model = MADDPG("MlpPolicy", make_team(), critic_sharing="selected", selector=1, **TRAINS_QUICKLY)
+    model.save(tmp_path / "model.zip")
+    graph = FixedGraph([[2], [0], [1]])
+    chosen = MADDPG.load(tmp_path / "model.zip", env=make_team(), selector=graph)
+    assert chosen.selector is graph and chosen.replay_buffer.selector is graph and chosen.selection_size == 1
 
 
 @pytest.mark.parametrize("scheme", ["full", "selected"])

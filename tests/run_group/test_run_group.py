@@ -20,7 +20,6 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.common.losses import one_member
 from sb3_maddpg.common.selection import FixedGraph, NearestAgents
 from sb3_maddpg.common.update_step import clip_per_agent
 from sb3_maddpg.envs import SimpleSpreadVecEnv
@@ -105,6 +104,12 @@ def model_state(model: MADDPG) -> dict[str, th.Tensor]:
 # ----- 1. a group of one is MADDPG.train -----
 
 
+def as_group_of_one(batch: MultiAgentReplayBufferSamples) -> MultiAgentReplayBufferSamples:
+    """:return: A team's replay batch with the run dimension of a group of one in front."""
+    fields = (None if field is None else field.unsqueeze(0) for field in batch)
+    return MultiAgentReplayBufferSamples(*fields)  # type: ignore[arg-type]
+
+
 def train_alike(
     reference: MADDPG, group: RunGroup, model: MADDPG, steps: int, monkeypatch: pytest.MonkeyPatch
 ) -> tuple[dict[str, th.Tensor], dict[str, th.Tensor]]:
@@ -115,7 +120,7 @@ def train_alike(
         batch = random_batch(reference, 32, generator)
         monkeypatch.setattr(reference.replay_buffer, "sample", lambda *args, _batch=batch, **kwargs: _batch)
         reference.train(gradient_steps=1, batch_size=32)
-        group.update(one_member(batch))
+        group.update(as_group_of_one(batch))
     group.write_back(0, model)
     return model_state(reference), model_state(model)
 
