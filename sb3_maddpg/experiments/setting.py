@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar
 
-from sb3_maddpg.common.argument_ranges import TEAM_ALGORITHM_RANGES
+from sb3_maddpg.common.argument_ranges import TEAM_ALGORITHM_RANGES, Range, check_arguments
 from sb3_maddpg.compat import read_stored_config
 from sb3_maddpg.experiments.defaults import (
     ALGORITHMS,
@@ -42,11 +42,40 @@ def merge_model_kwargs(base: dict[str, Any], changes: dict[str, Any]) -> dict[st
     return merged
 
 
-def _check_vec_env(vec_env: str, n_envs: int) -> None:
+def _check_vec_env(vec_env: str) -> None:
     if vec_env not in VEC_ENVS:
         raise ValueError(f"vec_env must be one of {VEC_ENVS}, got {vec_env!r}.")
-    if n_envs < 1:
-        raise ValueError(f"n_envs must be at least 1, got {n_envs}.")
+
+
+TASK_RANGES: dict[str, Range] = {
+    "n_agents": Range("agents in the team", integer=True, low=1, hint="use 5 (the paper's N=5 studies) or 3"),
+    "num_agent_neighbors": Range(
+        "the other agents each agent observes, nearest first",
+        integer=True,
+        low=0,
+        none_means="every other agent",
+        hint="use None for full observability, or 2 (the paper's Exp. 2)",
+    ),
+    "episode_length": Range("env steps per episode", integer=True, low=1, hint="use 25 (the paper's)"),
+    "n_envs": Range("envs stepped at once per run", integer=True, low=1, hint="use 100 for the batched env"),
+}
+"""The numeric fields of :class:`TaskConfig` (simple_spread's own bounds on them are checked when its env is built)."""
+
+PROTOCOL_RANGES: dict[str, Range] = {
+    "episodes": Range("the training budget in episodes", integer=True, low=1, hint="use 40_000 (1M steps of 25)"),
+    "n_checkpoints": Range("models saved over the last checkpoint_fraction of training", integer=True, low=1, hint="use 20"),
+    "checkpoint_fraction": Range(
+        "the final fraction of training over which checkpoints are saved",
+        low=0,
+        high=1,
+        low_open=True,
+        hint="use 0.2 (the paper's last 20%)",
+    ),
+    "eval_episodes": Range("episodes per checkpoint evaluation", integer=True, low=1, hint="use 100 (the paper's)"),
+    "curve_points": Range("evaluations for the learning curve; 0: none", integer=True, low=0, hint="use 50"),
+    "curve_eval_episodes": Range("episodes per learning-curve evaluation", integer=True, low=1, hint="use 20"),
+}
+"""The numeric fields of :class:`ProtocolConfig`."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -86,14 +115,8 @@ class TaskConfig:
     n_envs: int = DEFAULT_N_ENVS
 
     def __post_init__(self) -> None:
-        _check_vec_env(self.vec_env, self.n_envs)
-        if self.episode_length < 1:
-            raise ValueError(f"episode_length must be positive, got {self.episode_length}.")
-        if self.n_agents < 1 or (self.num_agent_neighbors is not None and self.num_agent_neighbors < 0):
-            raise ValueError(
-                f"n_agents must be at least 1 and num_agent_neighbors at least 0 (None: all), got {self.n_agents} and "
-                f"{self.num_agent_neighbors}."
-            )
+        check_arguments(TASK_RANGES, vars(self))
+        _check_vec_env(self.vec_env)
         check_env_name(self.env)
         object.__setattr__(self, "score_agents", tuple(self.score_agents))
 
@@ -141,14 +164,7 @@ class ProtocolConfig:
     keep_checkpoints: bool = True
 
     def __post_init__(self) -> None:
-        if self.episodes < 1:
-            raise ValueError(f"episodes must be positive, got {self.episodes}.")
-        if not 0 < self.checkpoint_fraction <= 1:
-            raise ValueError(f"checkpoint_fraction must be in (0, 1], got {self.checkpoint_fraction}.")
-        if self.n_checkpoints < 1:
-            raise ValueError(f"n_checkpoints must be at least 1, got {self.n_checkpoints}.")
-        if self.eval_episodes < 1 or self.curve_eval_episodes < 1 or self.curve_points < 0:
-            raise ValueError("eval_episodes and curve_eval_episodes must be positive and curve_points non-negative.")
+        check_arguments(PROTOCOL_RANGES, vars(self))
 
 
 CONCERNS = (TaskConfig, AlgorithmConfig, ProtocolConfig)  # Setting's bases, in this order

@@ -18,6 +18,8 @@ from sb3_maddpg.common.argument_ranges import (
     Range,
 )
 from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
+from sb3_maddpg.experiments.config import EXPERIMENTS
+from sb3_maddpg.experiments.setting import PROTOCOL_RANGES, TASK_RANGES, ExperimentConfig
 
 N_AGENTS = 3
 SMALL = dict(buffer_size=64, learning_starts=0, batch_size=8, policy_kwargs=dict(net_arch=[8]))
@@ -27,6 +29,7 @@ OWNERS: list[tuple[Any, dict[str, Range]]] = [
     (MADDPG, TEAM_ALGORITHM_RANGES),
     (MATD3, {**TEAM_ALGORITHM_RANGES, **TD3_RANGES}),
     (SimpleSpreadVecEnv, SIMPLE_SPREAD_RANGES),
+    (ExperimentConfig, {**TASK_RANGES, **PROTOCOL_RANGES}),
 ]
 CASES = [(owner, name) for owner, ranges in OWNERS for name in ranges]
 NUMERIC = (int, float, "int", "float")
@@ -67,6 +70,8 @@ def in_range(valid: Range) -> st.SearchStrategy[Any]:
 
 
 def _build(owner: Any, **kwargs: Any) -> Any:
+    if owner is ExperimentConfig:  # the config model, as a stored or a preset file's fields reach it
+        return ExperimentConfig.from_fields({**EXPERIMENTS["smoke"].to_dict(), **kwargs})
     if owner is SimpleSpreadVecEnv:
         return SimpleSpreadVecEnv(**{"n_envs": 2, "n_agents": N_AGENTS, **kwargs})
     return owner("MlpPolicy", make_simple_spread(n_agents=N_AGENTS), **{**SMALL, **kwargs})
@@ -134,4 +139,5 @@ def test_every_numeric_argument_has_a_range(owner: Any, ranges: dict[str, Range]
         if not name.startswith("_") and any(kind in str(parameter.annotation) for kind in ("int", "float"))
     }
     inherited = set(TEAM_ALGORITHM_RANGES) if owner is MATD3 else set()
-    assert numeric - {"selector"} == set(ranges) | (inherited & numeric) - {"selector"}
+    # selector is a rule (an int k among its forms, checked by the rule); an experiment's seeds are checked one by one.
+    assert numeric - {"selector", "seeds"} == set(ranges) | (inherited & numeric) - {"selector"}

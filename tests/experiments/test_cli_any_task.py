@@ -190,7 +190,7 @@ def user_errors(tmp_path: Path) -> list[tuple[list[str], str]]:
         ([*run, "--config", "smoke", "--seeds", "0,x"], "--seeds '0,x': give integers, e.g. 0,5 or [0, 5]"),
         ([*run, "--config", "smoke", "--seeds", "[]"], "smoke: no runs: give at least one scheme (--schemes) and one seed"),
         ([*run, "--config", "smoke", "--algorithm", "foo"], "smoke: --algorithm 'foo' cannot be imported"),
-        ([*run, "--config", "smoke", "--n-agents", "0"], "n_agents must be at least 1 and num_agent_neighbors at least 0"),
+        ([*run, "--config", "smoke", "--n-agents", "0"], "n_agents (agents in the team) must be an integer >= 1, got 0"),
         (["tune", "--config", "smoke", "--backend", "slurm"], "--backend: 'slurm' is not one of 'local', 'ray' (see"),
         ([*run, "--config", "smoke", "--config", "exp1", "--name", "x"], "--name renames one experiment, but 2 --config"),
         ([*run, "--config", "smoke", "--episodes", "3", "--n-checkpoints", "2"], "2 checkpoints do not fit in the last"),

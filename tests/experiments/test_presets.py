@@ -72,10 +72,10 @@ def test_a_users_preset_runs_as_a_package_preset_does(tmp_path: Path, capsys: py
         ("name: x\ntuned: {model_kwargs: [1]}\n", r", tuned: model_kwargs must be a mapping, got \[1\]"),
         ("name: x\ntuned: {env_kwargs: null}\n", r", tuned: env_kwargs must be a mapping, got None"),
         ("name: x\nschemes: full\n", r"schemes must be a list, e.g. schemes: \[full\], got 'full'"),
-        ("name: x\nn_agents: 0\n", r"n_agents must be at least 1"),
-        ("name: x\nepisode_length: 0\n", r"episode_length must be positive, got 0"),
-        ("name: x\nepisodes: 0\n", r"episodes must be positive, got 0"),
-        ("name: x\ncheckpoint_fraction: 2\n", r"checkpoint_fraction must be in \(0, 1\], got 2"),
+        ("name: x\nn_agents: 0\n", r"n_agents \(agents in the team\) must be an integer >= 1, got 0"),
+        ("name: x\nepisode_length: 0\n", r"episode_length \(.*\) must be an integer >= 1, got 0"),
+        ("name: x\nepisodes: 0\n", r"episodes \(.*\) must be an integer >= 1, got 0"),
+        ("name: x\ncheckpoint_fraction: 2\n", r"checkpoint_fraction \(.*\) must be a number in \(0, 1\], got 2"),
     ],
 )
 def test_a_bad_preset_file_is_refused_naming_it(tmp_path: Path, text: str, message: str) -> None:
