@@ -1,6 +1,7 @@
 """Who each agent selects: k nearest, fixed graph and roles, user callables, and their errors."""
 
 import warnings
+from typing import Any
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from sb3_maddpg.common.selection import (
     CallableSelector,
     FixedGraph,
     NearestAgents,
+    Selector,
     resolve_selector,
     warn_if_selecting_everyone,
 )
@@ -149,12 +151,27 @@ def test_the_stored_selection_is_made_from_the_observation_at_time_t() -> None:
     np.testing.assert_array_equal(buffer.selections[:100, 0], from_obs)
 
 
+def collected(env: Any, selector: Selector) -> MADDPG:
+    """:return: A small ``selected`` model of ``env`` after 20 steps of collecting (no update: learning_starts ahead)."""
+    model = MADDPG(
+        "MlpPolicy",
+        env,
+        critic_sharing="selected",
+        selector=selector,
+        learning_starts=1_000,
+        buffer_size=1_000,
+        policy_kwargs=dict(net_arch=[8]),
+        seed=0,
+    )
+    return model.learn(20)
+
+
 def ring_of_three(observations: np.ndarray, layout: AgentLayout) -> np.ndarray:
     """Agent i selects agent i + 1 (mod 3), whatever it observes."""
     return np.broadcast_to(np.array([[1], [2], [0]]), (observations.shape[0], 3, 1))
 
 
-@pytest.mark.filterwarnings("ignore:learn\\(\\) ended at step .* without a single gradient update")
+@FILLS_THE_BUFFER_ONLY
 @pytest.mark.parametrize(
     "selector", [FixedGraph([[1], [2], [0]]), CallableSelector(ring_of_three, k=1)], ids=["FixedGraph", "CallableSelector"]
 )
@@ -170,17 +187,7 @@ def test_rules_that_need_no_positions_select_from_the_observations_on_an_env_tha
     layout = env.agent_layout  # type: ignore[attr-defined]
     assert layout.positions_in_info
     assert not selector.needs_positions and not selector.stores_next_selection(layout)
-    model = MADDPG(
-        "MlpPolicy",
-        env,  # type: ignore[arg-type]
-        critic_sharing="selected",
-        selector=selector,
-        learning_starts=1_000,  # collect only
-        buffer_size=1_000,
-        policy_kwargs=dict(net_arch=[8]),
-        seed=0,
-    )
-    model.learn(20)
+    model = collected(env, selector)
     buffer = model.replay_buffer
     assert buffer.pos >= 20 and buffer.next_selections is None
     assert buffer.selections[: buffer.pos, 0, :, 0].tolist() == [[1, 2, 0]] * buffer.pos
@@ -217,7 +224,7 @@ def test_the_default_selector_is_the_papers_two_nearest_agents() -> None:
     assert resolve_selector(3).k == 3 and resolve_selector({"k": 1}).k == 1
 
 
-@pytest.mark.filterwarnings("ignore:learn\\(\\) ended at step .* without a single gradient update")
+@FILLS_THE_BUFFER_ONLY
 @pytest.mark.parametrize("target", ["stored", "next"])
 def test_only_a_next_target_by_positions_from_the_infos_stores_the_next_selection(target: str) -> None:
     """Positions the env reports in its infos cannot be read again at sampling: a ``target="next"`` rule by position
@@ -230,16 +237,6 @@ def test_only_a_next_target_by_positions_from_the_infos_stores_the_next_selectio
     selector = NearestAgents(k=1, target=target)  # type: ignore[arg-type]
     assert selector.stores_next_selection(env.agent_layout) is (target == "next")  # type: ignore[attr-defined]
     assert not selector.stores_next_selection(LAYOUT)
-    model = MADDPG(
-        "MlpPolicy",
-        env,  # type: ignore[arg-type]
-        critic_sharing="selected",
-        selector=selector,
-        learning_starts=1_000,  # collect only
-        buffer_size=1_000,
-        policy_kwargs=dict(net_arch=[8]),
-        seed=0,
-    )
-    model.learn(20)
+    model = collected(env, selector)
     assert (model.replay_buffer.next_selections is not None) is (target == "next")
     assert (model.replay_buffer.sample(8).next_selections is not None) is (target == "next")
