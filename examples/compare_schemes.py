@@ -10,7 +10,7 @@ step 25,600) on ``--n-envs`` worlds (100) stepped at once (:class:`~sb3_maddpg.e
 and is evaluated on the same episodes, one world each.
 
 ``SB3_MADDPG_FAST=1`` in the environment has the same effect as ``--fast``. For the paper's full
-protocol (31 seeds, checkpoints, statistics) use ``python -m sb3_maddpg.experiments`` instead.
+protocol (31 seeds, checkpoints, statistics) use ``python -m sb3_maddpg`` instead.
 """
 
 import argparse

@@ -13,7 +13,7 @@ saves checkpoints over the last 20% of training, evaluates them, and writes a re
 (mean success rate, std, Mann-Whitney U tests against MADDPG), learning curves and boxplots. An
 interrupted sweep resumes where it stopped when run again with the same command. The script only
 assembles and prints the command-line calls; you can run them yourself (``sb3-maddpg run ...`` is the
-same as ``python -m sb3_maddpg.experiments run ...``).
+same as ``python -m sb3_maddpg run ...``).
 
 ``SB3_MADDPG_FAST=1`` in the environment has the same effect as ``--fast``.
 """
@@ -24,8 +24,8 @@ import shlex
 import tempfile
 from pathlib import Path
 
+from sb3_maddpg.cli.main import main as sb3_maddpg_cli
 from sb3_maddpg.common.progress import ctrl_c_ends_quietly
-from sb3_maddpg.experiments.cli import main as sb3_maddpg_cli
 
 SCALES: dict[str, str] = {
     # The pipeline only: 3 agents, 40 episodes, tiny networks, one seed per scheme.

@@ -67,7 +67,7 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_the_package_has_no_import_cycle() -> None:
     graph = package_imports()
-    assert {"sb3_maddpg.maddpg", "sb3_maddpg.sharing.base", "sb3_maddpg.experiments.cli"} <= set(graph)
+    assert {"sb3_maddpg.maddpg", "sb3_maddpg.sharing.base", "sb3_maddpg.cli.main"} <= set(graph)
     assert "sb3_maddpg.sharing.base" in graph["sb3_maddpg.sharing.learned"]  # the walk sees imports
     assert cycles(graph) == []
 
@@ -87,3 +87,52 @@ def test_a_planted_cycle_is_found() -> None:
 def test_the_sharing_package_exports_its_schemes(module: str, names: list[str]) -> None:
     imported = __import__(module, fromlist=names)
     assert all(hasattr(imported, name) for name in names)
+
+
+LAYERS = [
+    ("sb3_maddpg.__main__", ()),  # `python -m sb3_maddpg`: the command line's entry
+    ("sb3_maddpg.cli", ("sb3_maddpg.__main__",)),
+    ("sb3_maddpg.tuning", ("sb3_maddpg.__main__", "sb3_maddpg.cli")),
+    ("sb3_maddpg.results", ("sb3_maddpg.__main__", "sb3_maddpg.cli", "sb3_maddpg.tuning")),
+    ("sb3_maddpg.experiments", ("sb3_maddpg.__main__", "sb3_maddpg.cli", "sb3_maddpg.tuning", "sb3_maddpg.results")),
+]
+"""The study's packages (and the command line's entry) from the top down, each with the packages it must not import:
+those above it. Everything else in the package (the library: algorithms, sharing schemes, envs, run groups, analysis,
+hyperparameters) must import none of them."""
+
+STUDY = tuple(package for package, _ in LAYERS)
+
+
+def in_package(module: str, package: str) -> bool:
+    return module == package or module.startswith(package + ".")
+
+
+def layering_violations(graph: dict[str, set[str]]) -> list[str]:
+    """:return: ``"importer -> imported"`` for each import that reaches up: from the library into the study, or from a
+    study package into one above it."""
+    found = []
+    for module, targets in sorted(graph.items()):
+        home = next((package for package in STUDY if in_package(module, package)), None)
+        forbidden = dict(LAYERS)[home] if home else STUDY
+        if module == "sb3_maddpg":  # the package's own __init__ re-exports the library only; it is checked as the library
+            forbidden = STUDY
+        found += [f"{module} -> {target}" for target in sorted(targets) if any(in_package(target, up) for up in forbidden)]
+    return found
+
+
+def test_the_library_imports_no_study_package_and_each_study_package_none_above_it() -> None:
+    graph = package_imports()
+    assert {"sb3_maddpg.results.report", "sb3_maddpg.tuning.search", "sb3_maddpg.cli.main"} <= set(graph)
+    assert layering_violations(graph) == []
+
+
+def test_a_planted_upward_import_is_found() -> None:
+    graph = {
+        "sb3_maddpg.hyperparams": {"sb3_maddpg.experiments.config"},
+        "sb3_maddpg.experiments.runner": {"sb3_maddpg.results.stats", "sb3_maddpg.maddpg"},
+        "sb3_maddpg.results.report": {"sb3_maddpg.experiments.config"},
+    }
+    assert layering_violations(graph) == [
+        "sb3_maddpg.experiments.runner -> sb3_maddpg.results.stats",
+        "sb3_maddpg.hyperparams -> sb3_maddpg.experiments.config",
+    ]

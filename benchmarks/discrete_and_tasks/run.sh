@@ -11,5 +11,5 @@ configs=()
 for name in spread_continuous spread_discrete speaker_listener tag; do
     configs+=(--config "benchmarks/discrete_and_tasks/$name.json")
 done
-nice -n 19 python -m sb3_maddpg.experiments run "${configs[@]}" --results "$RESULTS_ROOT/discrete_and_tasks/results" \
+nice -n 19 python -m sb3_maddpg run "${configs[@]}" --results "$RESULTS_ROOT/discrete_and_tasks/results" \
     --workers "$WORKERS" --threads 1 --quiet

@@ -7,6 +7,6 @@ cd "$(dirname "$0")/../.."
 RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-2}"
 export SDL_VIDEODRIVER=dummy
-nice -n 19 python -m sb3_maddpg.experiments run --config benchmarks/learned_selection/n3.json \
+nice -n 19 python -m sb3_maddpg run --config benchmarks/learned_selection/n3.json \
     --config benchmarks/learned_selection/n5.json --results "$RESULTS_ROOT/learned_selection/results" \
     --workers "$WORKERS" --threads 1 --quiet

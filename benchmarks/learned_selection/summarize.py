@@ -25,8 +25,8 @@ import statistics
 import sys
 from pathlib import Path
 
-from sb3_maddpg.experiments import make_report
-from sb3_maddpg.experiments.results import link_complete_seeds, load_experiments, load_summaries, read_curve
+from sb3_maddpg.experiments.results_dir import link_complete_seeds, load_experiments, load_summaries, read_curve
+from sb3_maddpg.results import make_report
 from sb3_maddpg.sharing import default_selection_size
 
 HERE = Path(__file__).resolve().parent

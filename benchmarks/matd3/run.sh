@@ -5,7 +5,7 @@
 # Resumable: run it again and finished runs are skipped (an interrupted run starts over).
 #   bash benchmarks/matd3/run.sh                       # results under benchmarks/matd3/results
 #   RESULTS_ROOT=/elsewhere WORKERS=4 bash benchmarks/matd3/run.sh
-# Then: python -m sb3_maddpg.experiments report benchmarks/matd3/results
+# Then: python -m sb3_maddpg report benchmarks/matd3/results
 set -u
 cd "$(dirname "$0")/../.."
 RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
@@ -17,5 +17,5 @@ configs=()
 for name in n3_maddpg n3_matd3 n5_maddpg n5_matd3 n5_tpu10_maddpg n5_tpu10_matd3; do
     configs+=(--config "benchmarks/matd3/$name.json")
 done
-nice -n 19 python -m sb3_maddpg.experiments run "${configs[@]}" --results "$RESULTS_ROOT/matd3/results" \
+nice -n 19 python -m sb3_maddpg run "${configs[@]}" --results "$RESULTS_ROOT/matd3/results" \
     --workers "$WORKERS" --threads 1 --quiet

@@ -24,8 +24,8 @@ from pathlib import Path
 from typing import Any
 
 from sb3_maddpg.analysis.normalised_score import normalised_scores, reference_scores
-from sb3_maddpg.experiments.results import curve_value_at, load_experiments, load_summaries, read_curve
-from sb3_maddpg.experiments.stats import mann_whitney, mean_std
+from sb3_maddpg.experiments.results_dir import curve_value_at, load_experiments, load_summaries, read_curve
+from sb3_maddpg.results.stats import mann_whitney, mean_std
 
 HERE = Path(__file__).resolve().parent
 SETTINGS = {

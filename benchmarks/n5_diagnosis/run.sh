@@ -28,5 +28,5 @@ for factor in sorted_obs_utd25_shared_params_tuned sorted_obs_utd25_shared_param
     sorted_obs_utd25_matd3 sorted_obs_utd25_layer_norm sorted_obs_batch256_utd10 sorted_obs_utd25_lr1e-3; do
     configs+=(--config "benchmarks/n5_diagnosis/$factor.json")
 done
-nice -n 19 python -m sb3_maddpg.experiments run "${configs[@]}" --results "$RESULTS_ROOT/n5_diagnosis/results" \
+nice -n 19 python -m sb3_maddpg run "${configs[@]}" --results "$RESULTS_ROOT/n5_diagnosis/results" \
     --workers "$WORKERS" --threads 1 --quiet

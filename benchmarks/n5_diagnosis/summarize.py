@@ -16,7 +16,7 @@ Only seeds the paper's configuration has finished too are compared (like with li
 read from ``benchmarks/matd3/results`` (``BORROWED``): MATD3's comparison ran the same configuration, same code; the
 paper's configuration to its full 2.5M steps (24,744 gradient steps) from ``benchmarks/paper_n5_outlook/results``
 (its `full` runs; its 25,000-gradient-step cell is its curve's last point, 24,744 steps, within
-:func:`~sb3_maddpg.experiments.results.curve_value_at`'s 5%). Usage::
+:func:`~sb3_maddpg.experiments.results_dir.curve_value_at`'s 5%). Usage::
 
     python benchmarks/n5_diagnosis/summarize.py [results] [summary.md]
 """
@@ -29,7 +29,7 @@ from typing import Any
 
 from sb3_maddpg.analysis.normalised_score import normalised_scores, reference_scores
 from sb3_maddpg.experiments.config import algorithm_argument
-from sb3_maddpg.experiments.results import curve_value_at, load_experiments, load_summaries, read_curve
+from sb3_maddpg.experiments.results_dir import curve_value_at, load_experiments, load_summaries, read_curve
 
 HERE = Path(__file__).resolve().parent
 BASELINE = "n5_paper"

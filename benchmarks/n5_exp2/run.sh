@@ -11,6 +11,6 @@ cd "$(dirname "$0")/../.."
 RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-1}"
 export SDL_VIDEODRIVER=dummy
-nice -n 19 python -m sb3_maddpg.experiments run --config benchmarks/n5_exp2/exp2_paper.json \
+nice -n 19 python -m sb3_maddpg run --config benchmarks/n5_exp2/exp2_paper.json \
     --config benchmarks/n5_exp2/exp2_tuned.json \
     --results "$RESULTS_ROOT/n5_exp2/results" --workers "$WORKERS" --threads 1 --quiet

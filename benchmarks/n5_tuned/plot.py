@@ -12,8 +12,8 @@ from pathlib import Path
 
 from sb3_maddpg.analysis.normalised_score import reference_scores
 from sb3_maddpg.experiments.config import algorithm_argument
-from sb3_maddpg.experiments.plots import plot_experiment_curves
-from sb3_maddpg.experiments.results import load_experiments, load_summaries
+from sb3_maddpg.experiments.results_dir import load_experiments, load_summaries
+from sb3_maddpg.results.plots import plot_experiment_curves
 
 HERE = Path(__file__).resolve().parent
 RESULTS = (HERE / "results", HERE.parent / "n5_diagnosis" / "results", HERE.parent / "matd3" / "results")

@@ -12,6 +12,6 @@ cd "$(dirname "$0")/../.."
 RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-3}"
 export SDL_VIDEODRIVER=dummy
-nice -n 19 python -m sb3_maddpg.experiments run --config benchmarks/n5_tuned/exp1_shared.json \
+nice -n 19 python -m sb3_maddpg run --config benchmarks/n5_tuned/exp1_shared.json \
     --config benchmarks/n5_tuned/exp1_shared_tpu100.json --config benchmarks/n5_tuned/exp1_shared_best.json \
     --results "$RESULTS_ROOT/n5_tuned/results" --workers "$WORKERS" --threads 1 --quiet

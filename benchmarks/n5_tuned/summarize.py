@@ -17,7 +17,7 @@ from typing import Any
 
 from sb3_maddpg.analysis.normalised_score import normalised_scores, reference_scores
 from sb3_maddpg.experiments.config import algorithm_argument
-from sb3_maddpg.experiments.results import curve_value_at, load_summaries, read_curve
+from sb3_maddpg.experiments.results_dir import curve_value_at, load_summaries, read_curve
 
 HERE = Path(__file__).resolve().parent
 CURVE_STEPS = (200_000, 400_000, 600_000, 800_000, 1_000_000, 1_500_000, 2_000_000, 2_500_000)

@@ -9,7 +9,7 @@ import sys
 
 import optuna
 
-from sb3_maddpg.experiments.tune import default_study_name
+from sb3_maddpg.tuning.search import default_study_name
 
 FIXED = {"transitions_per_update": 25, "batch_size": 1024, "width": 64}
 """The parameters ``run.sh`` fixes (its ``--fixed-params``)."""

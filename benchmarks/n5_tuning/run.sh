@@ -21,7 +21,7 @@ export SDL_VIDEODRIVER=dummy
 mkdir -p benchmarks/n5_tuning/results
 python benchmarks/n5_tuning/enqueue_baseline.py sqlite:///benchmarks/n5_tuning/results/tune.db
 python benchmarks/n5_tuning/requeue_early_pruned.py sqlite:///benchmarks/n5_tuning/results/tune.db
-nice -n 19 python -m sb3_maddpg.experiments tune --config benchmarks/n5_diagnosis/sorted_obs_utd25_shared_params.json \
+nice -n 19 python -m sb3_maddpg tune --config benchmarks/n5_diagnosis/sorted_obs_utd25_shared_params.json \
     --fixed-params '{"transitions_per_update": 25, "batch_size": 1024, "width": 64}' \
     --budget 400000 --n-evaluations 8 --last-evaluations 2 --warmup-evaluations 3 --eval-episodes 50 \
     --objective min_dist_sum --n-trials "$TRIALS" --workers "$WORKERS" --threads 1 --seed 0 \

@@ -8,7 +8,7 @@ cd "$(dirname "$0")/../.."
 RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
 WORKERS="${WORKERS:-2}"
 export SDL_VIDEODRIVER=dummy
-nice -n 19 python -m sb3_maddpg.experiments run --config n3_full --config n3_partial \
+nice -n 19 python -m sb3_maddpg run --config n3_full --config n3_partial \
     --results "$RESULTS_ROOT/paper_n3/results" --workers "$WORKERS" --threads 1 --quiet
-nice -n 19 python -m sb3_maddpg.experiments run --config exp1 --name n5_outlook --schemes full,selected --seeds 3 \
+nice -n 19 python -m sb3_maddpg run --config exp1 --name n5_outlook --schemes full,selected --seeds 3 \
     --no-keep-checkpoints --results "$RESULTS_ROOT/paper_n5_outlook/results" --workers "$WORKERS" --threads 1 --quiet

@@ -17,7 +17,7 @@ import json
 import re
 from pathlib import Path
 
-from sb3_maddpg.experiments.results import write_json_atomic
+from sb3_maddpg.experiments.results_dir import write_json_atomic
 
 START = re.compile(r"sweep of \d+ runs \(.*\) on (\w+) with \d+ worker\(s\) x (\d+) thread\(s\)")
 """A start of the sweep on the local backend; any other start (run groups, say) fails the check."""

@@ -6,6 +6,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 export SDL_VIDEODRIVER=dummy
-python -m sb3_maddpg.experiments report benchmarks/paper_n5/results --complete-seeds --out docs/_static/paper_n5 \
+python -m sb3_maddpg report benchmarks/paper_n5/results --complete-seeds --out docs/_static/paper_n5 \
     --metric success_rate_r0.3 --metric success_rate --metric min_dist_sum --metric return_mean
 rm -f docs/_static/paper_n5/marl_eval.json  # marl-eval's input, not shown in the docs

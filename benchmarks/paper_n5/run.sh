@@ -24,6 +24,6 @@ RESULTS="$RESULTS_ROOT/paper_n5/results"
 mkdir -p "$RESULTS"
 echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) seeds $SEEDS workers $WORKERS" >>"$RESULTS/commits.log"
 export SDL_VIDEODRIVER=dummy
-nice -n 19 python -m sb3_maddpg.experiments run --config benchmarks/paper_n5/exp1.json \
+nice -n 19 python -m sb3_maddpg run --config benchmarks/paper_n5/exp1.json \
     --config benchmarks/paper_n5/exp2.json --seeds "$SEEDS" \
     --results "$RESULTS" --workers "$WORKERS" --threads 1 --quiet

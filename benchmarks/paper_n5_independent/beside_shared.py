@@ -66,8 +66,11 @@ from typing import Any
 import numpy as np
 
 from sb3_maddpg.analysis.normalised_score import reference_scores
-from sb3_maddpg.experiments.aggregates import IntervalEstimate, mean_difference_interval
-from sb3_maddpg.experiments.paper_claims import (
+from sb3_maddpg.experiments.metrics import METRICS
+from sb3_maddpg.experiments.results_dir import PROGRESS_FILE, link_complete_seeds, load_experiments, load_summaries, read_curve
+from sb3_maddpg.experiments.run_snapshot import read_progress_rows
+from sb3_maddpg.results.aggregates import IntervalEstimate, mean_difference_interval
+from sb3_maddpg.results.claims import (
     ClaimCheck,
     check_claims,
     format_beside_paper,
@@ -75,9 +78,7 @@ from sb3_maddpg.experiments.paper_claims import (
     observability,
     smallest_p_value,
 )
-from sb3_maddpg.experiments.results import PROGRESS_FILE, link_complete_seeds, load_experiments, load_summaries, read_curve
-from sb3_maddpg.experiments.run_snapshot import read_progress_rows
-from sb3_maddpg.experiments.stats import METRICS, aggregate, declare_families, holm, mann_whitney
+from sb3_maddpg.results.stats import aggregate, declare_families, holm, mann_whitney
 
 REPO = Path(__file__).resolve().parents[2]
 STUDIES = {"shared": REPO / "benchmarks/paper_n5/results", "independent": REPO / "benchmarks/paper_n5_independent/results"}

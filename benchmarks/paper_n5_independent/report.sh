@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 export SDL_VIDEODRIVER=dummy
 OUT=docs/_static/paper_n5_independent
-python -m sb3_maddpg.experiments report benchmarks/paper_n5_independent/results --complete-seeds --out "$OUT" \
+python -m sb3_maddpg report benchmarks/paper_n5_independent/results --complete-seeds --out "$OUT" \
     --experiment paper_n5i_exp1 --experiment paper_n5i_exp2 \
     --metric success_rate_r0.3 --metric success_rate --metric min_dist_sum --metric return_mean
 rm -f "$OUT/marl_eval.json"  # marl-eval's input, not shown in the docs

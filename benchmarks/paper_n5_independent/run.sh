@@ -29,5 +29,5 @@ done
 mkdir -p "$RESULTS"
 echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) study $SETTINGS seeds $SEEDS workers $WORKERS" >>"$RESULTS/commits.log"
 export SDL_VIDEODRIVER=dummy
-nice -n 19 python -m sb3_maddpg.experiments run "${configs[@]}" --seeds "$SEEDS" \
+nice -n 19 python -m sb3_maddpg run "${configs[@]}" --seeds "$SEEDS" \
     --results "$RESULTS" --workers "$WORKERS" --threads 1 --quiet

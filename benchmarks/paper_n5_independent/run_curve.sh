@@ -15,5 +15,5 @@ RESULTS="$RESULTS_ROOT/paper_n5_independent/results"
 mkdir -p "$RESULTS"
 echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) curve $CONFIG workers $WORKERS" >>"$RESULTS/commits.log"
 export SDL_VIDEODRIVER=dummy
-nice -n 19 python -m sb3_maddpg.experiments run --config "$CONFIG" \
+nice -n 19 python -m sb3_maddpg run --config "$CONFIG" \
     --results "$RESULTS" --workers "$WORKERS" --threads 1 --quiet

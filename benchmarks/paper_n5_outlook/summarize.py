@@ -22,9 +22,9 @@ import statistics
 import sys
 from pathlib import Path
 
-from sb3_maddpg.experiments import make_report
-from sb3_maddpg.experiments.plots import iqm_curves
-from sb3_maddpg.experiments.results import load_summaries
+from sb3_maddpg.experiments.results_dir import load_summaries
+from sb3_maddpg.results import make_report
+from sb3_maddpg.results.plots import iqm_curves
 
 HERE = Path(__file__).resolve().parent
 PROTOCOL_STEPS = 155 * 2_500_000 + 155 * 3_750_000

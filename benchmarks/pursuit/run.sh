@@ -21,5 +21,5 @@ python -c "import pettingzoo.sisl.pursuit_v5" 2>/dev/null || {
 }
 mkdir -p "$RESULTS"
 echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) study pursuit seeds $SEEDS workers $WORKERS" >>"$RESULTS/commits.log"
-nice -n 19 python -m sb3_maddpg.experiments run --config pursuit --seeds "[$SEEDS]" \
+nice -n 19 python -m sb3_maddpg run --config pursuit --seeds "[$SEEDS]" \
     --results "$RESULTS" --workers "$WORKERS" --threads 1 --quiet

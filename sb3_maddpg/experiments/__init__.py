@@ -1,7 +1,6 @@
-"""The paper's protocol as code: experiment configs, runs, sweeps (local or Ray), statistics, tables and plots.
-
-Command line: ``sb3-maddpg run --config exp1 ...`` then ``sb3-maddpg report <results>``
-(or ``python -m sb3_maddpg.experiments ...``).
+"""The paper's protocol as code: experiment configs and presets, and running them (one run, or sweeps on local
+processes, Ray or run groups) into a results directory. Reading a results directory (statistics, the paper's claims,
+tables, plots) is :mod:`sb3_maddpg.results`; the command line, :mod:`sb3_maddpg.cli`; tuning, :mod:`sb3_maddpg.tuning`.
 """
 
 import importlib
@@ -21,11 +20,9 @@ if TYPE_CHECKING:  # what the names below are, for type checkers and editors; im
     )
     from sb3_maddpg.experiments.defaults import SCHEMES
     from sb3_maddpg.experiments.presets import read_preset_file
-    from sb3_maddpg.experiments.report import make_report
-    from sb3_maddpg.experiments.results import ResultsDirectoryLocked
+    from sb3_maddpg.experiments.results_dir import ResultsDirectoryLocked
     from sb3_maddpg.experiments.runner import execute_run
     from sb3_maddpg.experiments.setting import AlgorithmConfig, ExperimentConfig, ProtocolConfig, RunConfig, TaskConfig
-    from sb3_maddpg.experiments.stats import aggregate, mann_whitney, significance_stars
     from sb3_maddpg.experiments.sweep import SweepInterrupted, SweepResult, run_sweep
 
 _HOMES = {
@@ -36,14 +33,11 @@ _HOMES = {
     "SCHEMES": "defaults",
     **dict.fromkeys(["AlgorithmConfig", "ExperimentConfig", "ProtocolConfig", "RunConfig", "TaskConfig"], "setting"),
     "read_preset_file": "presets",
-    "make_report": "report",
-    "ResultsDirectoryLocked": "results",
+    "ResultsDirectoryLocked": "results_dir",
     "execute_run": "runner",
-    **dict.fromkeys(["aggregate", "mann_whitney", "significance_stars"], "stats"),
     **dict.fromkeys(["SweepInterrupted", "SweepResult", "run_sweep"], "sweep"),
 }
-"""Each public name's module: imported on first use (PEP 562), so that a run imports neither the report nor run
-groups, and the report imports no training code."""
+"""Each public name's module: imported on first use (PEP 562), so that a run imports no run group code."""
 
 
 def __getattr__(name: str) -> Any:
@@ -76,12 +70,8 @@ __all__ = [
     "SweepInterrupted",
     "SweepResult",
     "TaskConfig",
-    "aggregate",
     "execute_run",
     "load_experiment",
-    "make_report",
-    "mann_whitney",
     "read_preset_file",
     "run_sweep",
-    "significance_stars",
 ]

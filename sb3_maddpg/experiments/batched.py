@@ -56,10 +56,10 @@ from sb3_maddpg.experiments.ray_tasks import (
     ray_task_options,
     submit_ray_tasks,
 )
-from sb3_maddpg.experiments.results import CHECKPOINT_DIR, LOG_FILE, PROGRESS_FILE, run_directory
-from sb3_maddpg.experiments.run_cost import TrainingResources
+from sb3_maddpg.experiments.results_dir import CHECKPOINT_DIR, LOG_FILE, PROGRESS_FILE, run_directory
 from sb3_maddpg.experiments.runner import build_model, finish_run, start_run_directory, training_line
 from sb3_maddpg.experiments.setting import RunConfig
+from sb3_maddpg.experiments.training_resources import TrainingResources
 
 # ----- a group, and a sweep of groups -----
 

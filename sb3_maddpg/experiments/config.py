@@ -94,7 +94,7 @@ TUNE_OBJECTIVES = {"min_dist_sum": "minimize", "normalised": "maximize", "return
 """What ``sb3-maddpg tune`` optimises on simple_spread, and in which direction: the min-dist sum at the last step
 (lower is better; the default), the normalised score (the mean of the min-dist sum's and the team return's, 0 = random,
 1 = the scripted controller; higher is better) or the team return (higher is better). Other tasks':
-:func:`~sb3_maddpg.experiments.tune.task_objectives`."""
+:func:`~sb3_maddpg.tuning.search.task_objectives`."""
 
 BASELINE_SCHEME = "full"
 """The scheme every other one is tested against (MADDPG)."""

@@ -12,7 +12,7 @@ import torch as th
 from sb3_maddpg.common.progress import ProgressLogCallback, log_line
 from sb3_maddpg.common.train_logs import record_losses
 from sb3_maddpg.experiments.group_state import save_state, seed_ranges
-from sb3_maddpg.experiments.results import CHECKPOINT_DIR, LOG_FILE, run_directory
+from sb3_maddpg.experiments.results_dir import CHECKPOINT_DIR, LOG_FILE, run_directory
 from sb3_maddpg.experiments.runner import CheckpointAtSteps, curve_callback, log_interval
 from sb3_maddpg.experiments.setting import RunConfig
 from sb3_maddpg.experiments.tasks import run_task

@@ -12,9 +12,9 @@ import torch as th
 
 from sb3_maddpg.common.progress import log_line
 from sb3_maddpg.compat import with_version
-from sb3_maddpg.experiments.results import CONFIG_FILE, LOG_FILE, read_json, run_directory, write_json_atomic
-from sb3_maddpg.experiments.run_cost import TrainingResources
+from sb3_maddpg.experiments.results_dir import CONFIG_FILE, LOG_FILE, read_json, run_directory, write_json_atomic
 from sb3_maddpg.experiments.setting import RunConfig
+from sb3_maddpg.experiments.training_resources import TrainingResources
 
 STATE_PREFIX = "group_seeds_"
 """A group's state file: ``<results>/<experiment>/<scheme>/group_seeds_<seeds>.pt`` (e.g. ``group_seeds_0-30.pt``)."""

@@ -13,7 +13,7 @@ import torch as th
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.experiments.group_plan import BatchedRunRefused
 from sb3_maddpg.experiments.local_pool import LOST_RUN, OnResult, set_worker_threads
-from sb3_maddpg.experiments.results import write_result_files
+from sb3_maddpg.experiments.results_dir import write_result_files
 from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.setting import RunConfig
 

@@ -25,7 +25,7 @@ from sb3_maddpg.analysis.evaluation import (
 from sb3_maddpg.common.progress import ProgressLogCallback, format_seconds
 from sb3_maddpg.compat import with_version
 from sb3_maddpg.experiments.config import PAPER_NAMES, load_algorithm
-from sb3_maddpg.experiments.results import (
+from sb3_maddpg.experiments.results_dir import (
     CHECKPOINT_DIR,
     CHECKPOINT_EVALS_FILE,
     CONFIG_FILE,
@@ -39,7 +39,6 @@ from sb3_maddpg.experiments.results import (
     run_directory,
     write_json_atomic,
 )
-from sb3_maddpg.experiments.run_cost import TrainingResources
 from sb3_maddpg.experiments.run_snapshot import (
     NO_SNAPSHOT,
     RunProgress,
@@ -53,6 +52,7 @@ from sb3_maddpg.experiments.run_snapshot import (
 )
 from sb3_maddpg.experiments.setting import RunConfig
 from sb3_maddpg.experiments.tasks import metric_record, run_task
+from sb3_maddpg.experiments.training_resources import TrainingResources
 from sb3_maddpg.sharing.registry import resolve_scheme
 
 

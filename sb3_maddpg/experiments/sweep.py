@@ -11,7 +11,7 @@ from sb3_maddpg.common.progress import format_seconds, log_line
 from sb3_maddpg.experiments.backends import Backend, Execution, SweepPlan, make_backend
 from sb3_maddpg.experiments.local_pool import LOST_RUN, OnResult
 from sb3_maddpg.experiments.references import write_references
-from sb3_maddpg.experiments.results import SWEEP_LOG, is_finished, lock_results, write_experiment
+from sb3_maddpg.experiments.results_dir import SWEEP_LOG, is_finished, lock_results, write_experiment
 from sb3_maddpg.experiments.runner import never_updated_line, score_line
 from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig
 
@@ -143,7 +143,7 @@ def run_sweep(
     interrupted sweep by running the same command again). An experiment's reference policies are evaluated first, on
     each seed it does not hold yet (:func:`~sb3_maddpg.experiments.references.write_references`).
 
-    One sweep at a time holds a results directory (:func:`~sb3_maddpg.experiments.results.lock_results`). A run
+    One sweep at a time holds a results directory (:func:`~sb3_maddpg.experiments.results_dir.lock_results`). A run
     that fails, or is lost with a worker process that dies, is reported in the result and the sweep goes on;
     Ctrl-C stops the sweep, logs how far it got and raises :class:`SweepInterrupted` (a ``KeyboardInterrupt``).
     Either way the unfinished runs are left for the next sweep. The sweep plans once (which runs are left, then the

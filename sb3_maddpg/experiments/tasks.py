@@ -19,7 +19,7 @@ from sb3_maddpg.analysis.evaluation import (
     side_return_label,
 )
 from sb3_maddpg.experiments.defaults import DEFAULT_ENV, EPISODE_LENGTH
-from sb3_maddpg.experiments.stats import METRICS, Metric
+from sb3_maddpg.experiments.metrics import METRICS, Metric
 from sb3_maddpg.experiments.task_envs import task_env_factory
 
 if TYPE_CHECKING:
@@ -251,9 +251,9 @@ def metric_info(metric: str, env: str = DEFAULT_ENV, declared: Sequence[Declared
 
     A task's own metric takes the direction and the side its env declares (``collisions`` of ``simple_tag`` counts
     catches: higher is better, for the adversaries; pursuit's ``evaders_caught``: higher is better); simple_spread's
-    keep :data:`~sb3_maddpg.experiments.stats.METRICS`'s (in simple_spread fewer collisions are better); a side's
+    keep :data:`~sb3_maddpg.experiments.metrics.METRICS`'s (in simple_spread fewer collisions are better); a side's
     return (``return_adversaries``) is higher-is-better for that side; any other metric is
-    :data:`~sb3_maddpg.experiments.stats.METRICS`'s.
+    :data:`~sb3_maddpg.experiments.metrics.METRICS`'s.
 
     :param metric: The score's key.
     :param env: The task (an experiment's ``env``).

@@ -1,7 +1,6 @@
 """
-Tuned hyperparameters, in the spirit of rl-zoo3's hyperparams files, kept beside the preset they tune: the ``tuned``
-section of a setting's preset file (``sb3_maddpg/experiments/presets/exp1.yml``, ``exp2.yml``), each with the
-measurement that put it there in the file's comments; here as the env's and the model's keyword arguments apart.
+Tuned hyperparameters, as rl-zoo3 keeps SB3's: one YAML file per algorithm beside this module (``maddpg.yml``), one
+entry per setting, each with the measurement that put it there in the file's comments.
 
 MADDPG's own defaults stay the paper's, for reproduction; an entry says what to change, in a setting, to learn
 better than that. For example, the paper's experiment 1 at its best measured configuration::
@@ -14,22 +13,29 @@ better than that. For example, the paper's experiment 1 at its best measured con
     env = SimpleSpreadVecEnv(n_envs=100, n_agents=tuned.n_agents, **tuned.env_kwargs)
     model = MADDPG("MlpPolicy", env, **tuned.model_kwargs)
 
-The experiments runner's presets ``exp1_tuned`` and ``exp2_tuned`` are the same sections applied to ``exp1`` and
-``exp2``.
+The experiments' presets ``exp1_tuned`` and ``exp2_tuned`` are the settings ``exp1`` and ``exp2`` at these entries
+(their preset files say ``tuned: hyperparams``). This module reads its files only: it imports nothing of the study.
 """
 
 import copy
+import functools
 from dataclasses import dataclass, field
+from importlib import resources
 from typing import Any
 
+import yaml
+
 TUNED_ALGORITHMS = ("maddpg",)
-"""The algorithms with tuned hyperparameters (the presets' ``algorithm``: MADDPG)."""
+"""The algorithms with tuned hyperparameters (a ``<algo>.yml`` beside this module each)."""
+
+ENTRY_KEYS = ("n_agents", "n_timesteps", "note", "env_kwargs", "model_kwargs")
+"""The keys of an entry, all required."""
 
 
 @dataclass(frozen=True)
 class TunedHyperparams:
     """
-    One setting's tuned values (its preset file's ``tuned`` section).
+    One setting's tuned values (an entry of ``<algo>.yml``).
 
     :param setting: The setting the entry tunes (a preset name, e.g. ``"exp1"``).
     :param n_agents: The setting's agents (and landmarks).
@@ -48,16 +54,24 @@ class TunedHyperparams:
     description: str = ""
 
 
+@functools.cache
+def _entries(algo: str) -> dict[str, dict[str, Any]]:
+    """:return: ``<algo>.yml``'s entries by setting, checked (read once; callers copy)."""
+    text = resources.files(__name__).joinpath(f"{algo}.yml").read_text(encoding="utf-8")
+    entries = yaml.safe_load(text)
+    for setting, entry in entries.items():
+        if not isinstance(entry, dict) or sorted(entry) != sorted(ENTRY_KEYS):
+            raise ValueError(f"{algo}.yml, entry {setting!r}: an entry has exactly the keys {list(ENTRY_KEYS)}.")
+    return entries  # type: ignore[no-any-return]
+
+
 def tuned_settings(algo: str = "maddpg") -> list[str]:
     """
     :param algo: The algorithm (one of :data:`TUNED_ALGORITHMS`).
-    :return: The settings the algorithm has tuned hyperparameters for, in the presets' order.
+    :return: The settings the algorithm has tuned hyperparameters for, in the file's order.
     """
-    from sb3_maddpg.experiments.config import EXPERIMENTS
-    from sb3_maddpg.experiments.presets import TUNED_SUFFIX
-
     _check_algorithm(algo)
-    return [name for name in EXPERIMENTS if name + TUNED_SUFFIX in EXPERIMENTS]
+    return list(_entries(algo))
 
 
 def load_hyperparams(setting: str, algo: str = "maddpg") -> TunedHyperparams:
@@ -66,23 +80,20 @@ def load_hyperparams(setting: str, algo: str = "maddpg") -> TunedHyperparams:
     :param algo: The algorithm (one of :data:`TUNED_ALGORITHMS`).
     :return: That setting's tuned values (a copy: changing it changes nothing else).
     """
-    from sb3_maddpg.experiments.config import EXPERIMENTS
-    from sb3_maddpg.experiments.presets import TUNED_SUFFIX
-
     _check_algorithm(algo)
     if setting not in tuned_settings(algo):
         raise ValueError(
-            f"No tuned {algo} hyperparameters for setting {setting!r}: the presets tune {tuned_settings(algo)}. Tune one "
-            "with sb3_maddpg.experiments.tune and write its values in the preset's tuned section."
+            f"No tuned {algo} hyperparameters for setting {setting!r}: {algo}.yml tunes {tuned_settings(algo)}. Tune one "
+            f"with `sb3-maddpg tune` and add its values to sb3_maddpg/hyperparams/{algo}.yml."
         )
-    tuned = EXPERIMENTS[setting + TUNED_SUFFIX]
+    entry = copy.deepcopy(_entries(algo)[setting])
     return TunedHyperparams(
         setting=setting,
-        n_agents=tuned.n_agents,
-        n_timesteps=tuned.episodes * tuned.episode_length,
-        env_kwargs={"num_agent_neighbors": tuned.num_agent_neighbors, **copy.deepcopy(tuned.env_kwargs)},
-        model_kwargs=copy.deepcopy(tuned.model_kwargs),
-        description=tuned.note or "",
+        n_agents=int(entry["n_agents"]),
+        n_timesteps=int(entry["n_timesteps"]),
+        env_kwargs=entry["env_kwargs"],
+        model_kwargs=entry["model_kwargs"],
+        description=str(entry["note"]),
     )
 
 

@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu
 
-from sb3_maddpg.experiments.aggregates import (
+from sb3_maddpg.results.aggregates import (
     CONFIDENCE_LEVEL,
     improvement_interval,
     iqm,
     iqm_interval,
     probability_of_improvement,
 )
-from sb3_maddpg.experiments.report import aggregate_estimates, format_aggregates_markdown
-from sb3_maddpg.experiments.stats import aggregate
+from sb3_maddpg.results.report import aggregate_estimates, format_aggregates_markdown
+from sb3_maddpg.results.stats import aggregate
 
 X = [0.62, 0.71, 0.05, 0.58, 0.66, 0.93, 0.60, 0.69]
 Y = [0.41, 0.38, 0.52, 0.45, 0.49, 0.60, 0.44, 0.10]

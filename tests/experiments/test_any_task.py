@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 
 from sb3_maddpg.analysis.evaluation import evaluate_team
+from sb3_maddpg.cli.main import main
 from sb3_maddpg.envs import MPE_TASK_METRICS, make_simple_spread
-from sb3_maddpg.experiments import SMOKE, make_report, run_sweep
-from sb3_maddpg.experiments.cli import main
-from sb3_maddpg.experiments.results import load_summaries
+from sb3_maddpg.experiments import SMOKE, run_sweep
+from sb3_maddpg.experiments.results_dir import load_summaries
 from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.tasks import run_task
+from sb3_maddpg.results import make_report
 
 ADVERSARIES = ("adversary_0", "adversary_1", "adversary_2")
 

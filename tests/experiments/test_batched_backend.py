@@ -13,13 +13,14 @@ import torch
 
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.analysis.evaluation import evaluate_team
-from sb3_maddpg.experiments import SMOKE, ExperimentConfig, group_recorder, group_state, make_report, run_sweep, runner
+from sb3_maddpg.cli.main import main
+from sb3_maddpg.experiments import SMOKE, ExperimentConfig, group_recorder, group_state, run_sweep, runner
 from sb3_maddpg.experiments.batched import train_group
-from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.group_plan import BatchedRunRefused, check_batched, plan_groups
 from sb3_maddpg.experiments.group_state import group_state_path, parse_seed_ranges, remove_stale_states, seed_ranges
-from sb3_maddpg.experiments.results import DONE_FILE, load_summaries
+from sb3_maddpg.experiments.results_dir import DONE_FILE, load_summaries
 from sb3_maddpg.experiments.tasks import run_task
+from sb3_maddpg.results import make_report
 from sb3_maddpg.run_group import RunGroup
 from sb3_maddpg.run_group.trainer import STATE_VERSION
 from tests.settings import NEVER_UPDATED_RUNS

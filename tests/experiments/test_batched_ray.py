@@ -10,13 +10,13 @@ from typing import Any
 
 import pytest
 
+from sb3_maddpg.cli.main import main
 from sb3_maddpg.experiments import SMOKE, ray_tasks, run_sweep
 from sb3_maddpg.experiments.batched import run_batched_ray
-from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.group_plan import BatchedRunRefused
 from sb3_maddpg.experiments.local_pool import LOST_RUN
 from sb3_maddpg.experiments.ray_tasks import RAY_MAX_RETRIES, ray_task_options, run_ray
-from sb3_maddpg.experiments.results import SWEEP_LOG, load_summaries
+from sb3_maddpg.experiments.results_dir import SWEEP_LOG, load_summaries
 from sb3_maddpg.experiments.setting import RunConfig
 from tests.experiments.test_batched_backend import files, keys, read_rows
 

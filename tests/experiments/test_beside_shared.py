@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu, ttest_ind
 
-from sb3_maddpg.experiments.stats import holm, mann_whitney
+from sb3_maddpg.results.stats import holm, mann_whitney
 from tests.script_module import load_script
 
 REPO = Path(__file__).resolve().parents[2]

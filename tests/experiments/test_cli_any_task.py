@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from sb3_maddpg.cli.main import main
 from sb3_maddpg.experiments import EXP1, EXP2, SMOKE, ExperimentConfig
-from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.setting import describe_setting, scaled_schedule
 
 REPO = Path(__file__).resolve().parents[2]
@@ -223,7 +223,7 @@ def test_every_user_error_is_one_line_and_exit_status_2(tmp_path: Path, capsys: 
 
 
 def test_the_command_itself_prints_no_traceback(tmp_path: Path) -> None:
-    argv = [sys.executable, "-m", "sb3_maddpg.experiments", "run", "--config", "exp3", "--results", str(tmp_path)]
+    argv = [sys.executable, "-m", "sb3_maddpg", "run", "--config", "exp3", "--results", str(tmp_path)]
     done = subprocess.run(argv, capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert done.stderr.startswith("sb3-maddpg run: Unknown experiment 'exp3'") and done.stderr.count("\n") == 1
@@ -247,7 +247,7 @@ def test_the_small_scale_command_is_the_committed_comparisons_setting(
 def test_every_field_of_the_config_model_is_an_option(capsys: pytest.CaptureFixture[str]) -> None:
     from sb3_maddpg.experiments.backends import Execution
     from sb3_maddpg.experiments.setting import AlgorithmConfig, TaskConfig
-    from sb3_maddpg.experiments.tune import TuneSettings
+    from sb3_maddpg.tuning.search import TuneSettings
 
     def options(command: str) -> set[str]:
         assert main([command, "--help"]) == 0

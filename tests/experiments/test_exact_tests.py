@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu, permutation_test, rankdata, t, ttest_1samp, ttest_ind
 
-from sb3_maddpg.experiments.aggregates import mean_difference_interval
-from sb3_maddpg.experiments.stats import (
+from sb3_maddpg.results.aggregates import mean_difference_interval
+from sb3_maddpg.results.stats import (
     Family,
     aggregate,
     declare_families,

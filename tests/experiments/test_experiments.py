@@ -16,13 +16,11 @@ import pytest
 from scipy.stats import mannwhitneyu
 
 from sb3_maddpg.analysis.normalised_score import reference_scores
-from sb3_maddpg.experiments import EXP1, EXP1_TUNED, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, make_report, run_sweep
+from sb3_maddpg.cli.main import main
+from sb3_maddpg.experiments import EXP1, EXP1_TUNED, EXP2, SCHEMES, SMOKE, ExperimentConfig, RunConfig, run_sweep
 from sb3_maddpg.experiments.backends import BACKENDS, Execution, make_backend
-from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import EXPERIMENTS, PAPER_NAMES, algorithm_argument, setting_label
-from sb3_maddpg.experiments.marl_eval import MARL_EVAL_FILE
-from sb3_maddpg.experiments.report import format_markdown
-from sb3_maddpg.experiments.results import (
+from sb3_maddpg.experiments.results_dir import (
     DONE_FILE,
     RESULT_FILES,
     curve_value_at,
@@ -34,7 +32,10 @@ from sb3_maddpg.experiments.results import (
     write_result_files,
 )
 from sb3_maddpg.experiments.runner import execute_run
-from sb3_maddpg.experiments.stats import aggregate, mann_whitney, mean_std, significance_stars
+from sb3_maddpg.results import make_report
+from sb3_maddpg.results.marl_eval import MARL_EVAL_FILE
+from sb3_maddpg.results.report import format_markdown
+from sb3_maddpg.results.stats import aggregate, mann_whitney, mean_std, significance_stars
 
 # ---------------------------------------------------------------------------------------------------------------
 # Configs
@@ -332,7 +333,7 @@ def test_one_registry_names_the_backends_that_run_takes(tmp_path: Path, capsys: 
 
 
 def test_report_writes_table_and_plots(local_results: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from sb3_maddpg.experiments import plots
+    from sb3_maddpg.results import plots
 
     y_limits: dict[str, tuple[float, float]] = {}
     save = plots._save
@@ -624,7 +625,7 @@ def test_a_report_s_user_errors_are_one_line_naming_the_cause_and_the_fix_with_e
     assert capsys.readouterr().err.startswith(f"sb3-maddpg report: no results directory {tmp_path / 'missing'}: give ")
     # The command itself, as a shell runs it: the status and the line, no traceback.
     done = subprocess.run(
-        [sys.executable, "-m", "sb3_maddpg.experiments", "report", str(results), "--no-plots", "--metric", "bob_correct"],
+        [sys.executable, "-m", "sb3_maddpg", "report", str(results), "--no-plots", "--metric", "bob_correct"],
         capture_output=True,
         text=True,
         check=False,
@@ -651,13 +652,13 @@ def test_scheme_order_is_defined_once_and_plots_do_not_import_the_report() -> No
     assert ordered_schemes(["selected", "zeta", "full", "alpha", "full"]) == ["full", "selected", "alpha", "zeta"]
     assert ordered_schemes(reversed(SCHEMES)) == list(SCHEMES)
     # report imports plots (lazily) for its figures; plots must not import report back, at any level.
-    import sb3_maddpg.experiments.plots as plots
+    import sb3_maddpg.results.plots as plots
 
     tree = ast.parse(Path(plots.__file__).read_text())
     imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
-    assert "sb3_maddpg.experiments.report" not in imported
-    assert "sb3_maddpg.experiments.results" in imported  # sanity: the walk sees plots' imports
+    assert "sb3_maddpg.results.report" not in imported
+    assert "sb3_maddpg.experiments.results_dir" in imported  # sanity: the walk sees plots' imports
 
 
 def test_a_setting_of_another_algorithm_is_labelled_with_its_name() -> None:
@@ -714,7 +715,7 @@ def _curve_run(directory: Path, experiment: str, scheme: str, values: list[float
 def test_experiment_curves_draw_each_factor_against_env_and_gradient_steps(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from sb3_maddpg.experiments import plots
+    from sb3_maddpg.results import plots
 
     summaries = [
         _curve_run(tmp_path / "a0", "paper", "full", [2.0, 1.8, 1.6]),

@@ -10,7 +10,7 @@ import pytest
 
 LISTED = """
 import json, sys
-from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.cli.main import main
 try:
     main(sys.argv[1:])
 except SystemExit:
@@ -28,12 +28,12 @@ def modules_imported(*args: str) -> list[str]:
 def test_a_dry_run_imports_no_run_group_report_or_ray_code(tmp_path: Path) -> None:
     imported = modules_imported("run", "--config", "exp1", "--seeds", "[0]", "--dry-run", "--results", str(tmp_path))
     assert "sb3_maddpg.experiments.runner" in imported  # the run's own code is there
-    heavy_modules = ("run_group", "experiments.report", "experiments.ray_tasks", "experiments.tune")
+    heavy_modules = ("run_group", "results", "experiments.ray_tasks", "tuning")
     for heavy in (f"sb3_maddpg.{name}" for name in heavy_modules):
         assert heavy not in imported, heavy
 
 
-@pytest.mark.parametrize("name", ["make_report", "run_sweep", "EXP1", "RunConfig", "TaskConfig", "read_preset_file"])
+@pytest.mark.parametrize("name", ["run_sweep", "EXP1", "RunConfig", "TaskConfig", "read_preset_file"])
 def test_the_packages_names_import_when_first_used(name: str) -> None:
     import sb3_maddpg.experiments as experiments
 

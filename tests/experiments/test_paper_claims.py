@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu
 
-from sb3_maddpg.experiments.paper_claims import (
+from sb3_maddpg.experiments.tasks import metric_info
+from sb3_maddpg.results.claims import (
     PAPER_CLAIMS,
     PAPER_TABLE2,
     PaperClaim,
@@ -22,8 +23,7 @@ from sb3_maddpg.experiments.paper_claims import (
     smallest_p_value,
     write_claims_report,
 )
-from sb3_maddpg.experiments.stats import aggregate, declare_families, holm, seeds_to_separate
-from sb3_maddpg.experiments.tasks import metric_info
+from sb3_maddpg.results.stats import aggregate, declare_families, holm, seeds_to_separate
 
 FULL = {"env": "simple_spread", "n_agents": 5, "num_agent_neighbors": 4, "episodes": 100}
 PARTIAL = {"env": "simple_spread", "n_agents": 5, "num_agent_neighbors": 2, "episodes": 100}

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.cli.main import main
 from sb3_maddpg.experiments.config import EXPERIMENTS, load_experiment
 from sb3_maddpg.experiments.presets import PACKAGE_PRESETS, package_presets, read_preset_file
 from sb3_maddpg.experiments.setting import ExperimentConfig

@@ -12,15 +12,17 @@ import pytest
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from sb3_maddpg.analysis.evaluation import evaluate_team
+from sb3_maddpg.cli.main import main
 from sb3_maddpg.envs import PettingZooToGym, RandomTeamPolicy, TaskMetric
-from sb3_maddpg.experiments import SMOKE, make_report
-from sb3_maddpg.experiments.cli import main
+from sb3_maddpg.experiments import SMOKE
 from sb3_maddpg.experiments.config import EXPERIMENTS
 from sb3_maddpg.experiments.reference_specs import check_reference_policies
-from sb3_maddpg.experiments.references import NoOpTeamPolicy, load_references, write_references
+from sb3_maddpg.experiments.references import NoOpTeamPolicy, write_references
 from sb3_maddpg.experiments.runner import execute_run
 from sb3_maddpg.experiments.tasks import RunTask, run_task
-from sb3_maddpg.experiments.tune import task_objectives
+from sb3_maddpg.results import make_report
+from sb3_maddpg.results.reference_table import load_references
+from sb3_maddpg.tuning.search import task_objectives
 
 BEYOND_MPE = Path(__file__).resolve().parents[2] / "benchmarks" / "beyond_mpe" / "results" / "pursuit_seed0.json"
 """What the Beyond MPE study ran with (its seed 0's record)."""

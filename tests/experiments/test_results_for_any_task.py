@@ -22,17 +22,18 @@ from sb3_maddpg.analysis.evaluation import (
     resolve_sides,
     side_return_label,
 )
+from sb3_maddpg.cli.main import main
 from sb3_maddpg.envs import MPE_TASK_METRICS, MPE_TASK_SIDES, MPE_TASKS, make_mpe_env
-from sb3_maddpg.experiments import SMOKE, make_report, run_sweep
-from sb3_maddpg.experiments.cli import main
-from sb3_maddpg.experiments.marl_eval import ABSOLUTE_METRICS, MARL_EVAL_FILE, marl_eval_data, write_marl_eval
-from sb3_maddpg.experiments.results import (
+from sb3_maddpg.experiments import SMOKE, run_sweep
+from sb3_maddpg.experiments.results_dir import (
     SUMMARY_FILE,
     load_summaries,
     read_summary,
     run_updates,
     write_json_atomic,
 )
+from sb3_maddpg.results import make_report
+from sb3_maddpg.results.marl_eval import ABSOLUTE_METRICS, MARL_EVAL_FILE, marl_eval_data, write_marl_eval
 
 REPO = Path(__file__).resolve().parents[2]
 OLD_TAG_RESULTS = REPO / "benchmarks" / "discrete_and_tasks" / "results" / "tag"
@@ -365,9 +366,9 @@ def test_old_runs_updates_come_from_their_progress_log(tmp_path: Path) -> None:
 
 
 def test_each_setting_compares_methods_in_its_tasks_direction() -> None:
-    from sb3_maddpg.experiments.report import aggregate_estimates, format_markdown
-    from sb3_maddpg.experiments.stats import aggregate
     from sb3_maddpg.experiments.tasks import metric_info
+    from sb3_maddpg.results.report import aggregate_estimates, format_markdown
+    from sb3_maddpg.results.stats import aggregate
 
     collisions = {"full": (3.0, 4.0, 5.0), "independent": (1.0, 1.5, 2.0)}  # IDDPG's teams touch less often
     summaries = [

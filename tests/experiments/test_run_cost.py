@@ -7,8 +7,8 @@ from typing import Any
 
 import pytest
 
-from sb3_maddpg.experiments.run_cost import (
-    TrainingResources,
+from sb3_maddpg.experiments.training_resources import TrainingResources
+from sb3_maddpg.results.cost import (
     format_cost_markdown,
     scheme_costs,
     training_core_hours,

@@ -15,9 +15,9 @@ import pytest
 import torch as th
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.cli.main import main
 from sb3_maddpg.experiments import SMOKE, RunConfig, run_snapshot, runner
-from sb3_maddpg.experiments.cli import main
-from sb3_maddpg.experiments.results import (
+from sb3_maddpg.experiments.results_dir import (
     CHECKPOINT_DIR,
     CHECKPOINT_EVALS_FILE,
     CURVE_FILE,

@@ -10,9 +10,9 @@ from typing import Any
 
 import pytest
 
+from sb3_maddpg.cli.main import main
 from sb3_maddpg.common.selection import NearestAgents
 from sb3_maddpg.envs.simple_spread import SIMPLE_SPREAD_TASK_METRICS
-from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.config import SMOKE, load_experiment
 from sb3_maddpg.experiments.runner import build_model, execute_run
 from sb3_maddpg.experiments.tasks import RunTask, run_task

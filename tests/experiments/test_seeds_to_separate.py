@@ -1,10 +1,10 @@
-"""How many seeds would separate two methods (sb3_maddpg.experiments.stats.seeds_to_separate): exact where the
+"""How many seeds would separate two methods (sb3_maddpg.results.stats.seeds_to_separate): exact where the
 answer is forced, close to the textbook power analysis where it is not, and None where nothing separates them."""
 
 import numpy as np
 import pytest
 
-from sb3_maddpg.experiments.stats import seeds_to_separate
+from sb3_maddpg.results.stats import seeds_to_separate
 
 
 def test_fully_separated_scores_need_the_fewest_seeds_a_two_sided_test_allows() -> None:
@@ -48,7 +48,7 @@ def test_the_default_power_is_reached_by_a_share_of_exactly_80_percent(monkeypat
         significant = 320 if n >= 7 else 319
         return np.where(np.arange(n_simulations) < significant, 0.0, 1.0)
 
-    monkeypatch.setattr("sb3_maddpg.experiments.stats.simulated_p_values", simulated_p_values)
+    monkeypatch.setattr("sb3_maddpg.results.stats.simulated_p_values", simulated_p_values)
     assert 320 / 400 == 0.8  # the share is the power exactly, not a float near it
     # Doubling reaches it at 8; bisecting finds 7 (6 falls short).
     assert seeds_to_separate([0.1, 0.2], [0.3, 0.4], n_simulations=400) == 7
@@ -57,7 +57,7 @@ def test_the_default_power_is_reached_by_a_share_of_exactly_80_percent(monkeypat
 def test_simulated_experiments_take_the_exact_test_up_to_its_limit_and_the_approximation_beyond() -> None:
     from scipy.stats import mannwhitneyu
 
-    from sb3_maddpg.experiments.stats import POWER_EXACT_MAX_RUNS, mann_whitney, simulated_p_values
+    from sb3_maddpg.results.stats import POWER_EXACT_MAX_RUNS, mann_whitney, simulated_p_values
 
     rng = np.random.default_rng(1)
     for n in (3, POWER_EXACT_MAX_RUNS):  # resampled from few values: ties in most experiments

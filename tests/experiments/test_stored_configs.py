@@ -71,7 +71,7 @@ def test_every_field_is_stored(config_type: type[Setting]) -> None:
 
 def test_a_config_written_now_holds_its_version_and_reads_back(tmp_path: Path) -> None:
     from sb3_maddpg import __version__
-    from sb3_maddpg.experiments.results import EXPERIMENT_FILE, load_experiments, write_experiment
+    from sb3_maddpg.experiments.results_dir import EXPERIMENT_FILE, load_experiments, write_experiment
     from sb3_maddpg.experiments.runner import start_run_directory
     from sb3_maddpg.provenance import COMMIT_KEY, source_commit
 

@@ -20,12 +20,12 @@ from pathlib import Path
 
 import pytest
 
+from sb3_maddpg.cli.main import main
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.experiments import SMOKE, ExperimentConfig, run_sweep
-from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.local_pool import LOST_RUN
 from sb3_maddpg.experiments.ray_tasks import ray_parallel_runs
-from sb3_maddpg.experiments.results import (
+from sb3_maddpg.experiments.results_dir import (
     CONFIG_FILE,
     DONE_FILE,
     SUMMARY_FILE,
@@ -86,10 +86,10 @@ def done_lines(log: str, run_id: str) -> int:
 
 
 def start_cli_sweep(exp: ExperimentConfig, results: Path, *options: str) -> subprocess.Popen[str]:
-    """``python -m sb3_maddpg.experiments run`` in its own session (a terminal's process group), from the repository."""
+    """``python -m sb3_maddpg run`` in its own session (a terminal's process group), from the repository."""
     config_path = results.parent / f"{results.name}.json"
     config_path.write_text(json.dumps(exp.to_dict()))
-    command = [sys.executable, "-m", "sb3_maddpg.experiments", "run", "--config", str(config_path), "--results", str(results)]
+    command = [sys.executable, "-m", "sb3_maddpg", "run", "--config", str(config_path), "--results", str(results)]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
     return subprocess.Popen(
         [*command, *options],

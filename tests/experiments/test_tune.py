@@ -19,11 +19,11 @@ import pytest
 from sqlalchemy.exc import IntegrityError, OperationalError
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.cli.main import main
 from sb3_maddpg.envs import make_simple_spread
 from sb3_maddpg.experiments import SMOKE
-from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.presets import read_preset_file
-from sb3_maddpg.experiments.tune import (
+from sb3_maddpg.tuning.search import (
     TrialEvalCallback,
     TuneSettings,
     finished_trials,
@@ -120,7 +120,7 @@ def test_the_callback_stops_training_when_the_pruner_says_so() -> None:
 @pytest.mark.slow
 def test_a_killed_study_resumes_and_retries_the_killed_trial(tmp_path: Path) -> None:
     db = tmp_path / "tune.db"
-    argv = [sys.executable, "-m", "sb3_maddpg.experiments", "tune", "--config", "smoke", "--scheme", "full"]
+    argv = [sys.executable, "-m", "sb3_maddpg", "tune", "--config", "smoke", "--scheme", "full"]
     argv += ["--n-trials", "2", "--budget", "3000", "--n-evaluations", "3", "--eval-episodes", "2", "--last-evaluations", "1"]
     argv += ["--storage", f"sqlite:///{db}", "--heartbeat-seconds", "1", "--study-name", "killed"]
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy"}
@@ -196,7 +196,7 @@ def test_a_stopped_study_takes_its_workers_with_it(tmp_path: Path, stop: str) ->
     # on training (a core each) on trials that the resumed study retries anyway. Ctrl-C in a terminal reaches the
     # whole process group: the study stops its workers and says how to resume, without a traceback.
     db, log = tmp_path / "tune.db", tmp_path / "tune.log"
-    argv = [sys.executable, "-m", "sb3_maddpg.experiments", "tune", "--config", "smoke", "--scheme", "full"]
+    argv = [sys.executable, "-m", "sb3_maddpg", "tune", "--config", "smoke", "--scheme", "full"]
     argv += ["--n-trials", "4", "--budget", "10000000", "--n-evaluations", "2", "--eval-episodes", "1"]
     # Heartbeats far apart: a loaded machine must not see one worker fail the other's trial as stale meanwhile.
     argv += ["--last-evaluations", "1", "--storage", f"sqlite:///{db}", "--heartbeat-seconds", "60", "--workers", "2"]
@@ -362,7 +362,7 @@ def test_opening_a_storage_retries_only_the_race_of_creating_its_tables() -> Non
 
 def test_the_objectives_are_the_tasks_metrics_in_their_directions() -> None:
     from sb3_maddpg.experiments.config import TUNE_OBJECTIVES
-    from sb3_maddpg.experiments.tune import task_objectives
+    from sb3_maddpg.tuning.search import task_objectives
 
     assert task_objectives(TINY) == TUNE_OBJECTIVES and next(iter(TUNE_OBJECTIVES)) == "min_dist_sum"
     # simple_tag's catches, for the predators; no team return, which would add the prey's to the predators'.
@@ -429,7 +429,7 @@ def test_an_objective_the_evaluations_do_not_score_stops_the_study_clearly() -> 
 def test_a_study_on_ray_reaches_ray_as_a_sweep_does(monkeypatch: pytest.MonkeyPatch) -> None:
     """``--backend ray`` goes through the sweeps' ``ray_session``: a local instance's workers at normal priority (not
     Ray's niceness 15), shut down after the study; one task per worker, ``threads`` CPUs each."""
-    from sb3_maddpg.experiments import tune
+    from sb3_maddpg.tuning import search as tune
 
     calls: dict[str, Any] = {"tasks": []}
 

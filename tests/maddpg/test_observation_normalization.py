@@ -13,8 +13,8 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.analysis.evaluation import evaluate_team
+from sb3_maddpg.cli.main import main
 from sb3_maddpg.experiments import SMOKE, run_sweep
-from sb3_maddpg.experiments.cli import main
 from sb3_maddpg.experiments.group_plan import BatchedRunRefused, check_batched
 from sb3_maddpg.experiments.runner import (
     NormalizedObservationPolicy,

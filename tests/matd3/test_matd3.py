@@ -363,7 +363,7 @@ def test_a_team_of_continuous_and_discrete_agents_trains(tmp_path: Path) -> None
 
 
 def test_the_experiments_runner_trains_matd3_with_algo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from sb3_maddpg.experiments.cli import main
+    from sb3_maddpg.cli.main import main
 
     argv = ["run", "--config", "smoke", "--name", "smoke_matd3", "--results", str(tmp_path), "--schemes", "full"]
     assert main([*argv, "--seeds", "1", "--algorithm", "matd3", "--dry-run"]) == 0

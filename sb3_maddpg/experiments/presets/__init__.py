@@ -8,8 +8,9 @@ those left out keep their defaults; ``sb3_maddpg_version`` where a tuning study 
 ``note``, the few words before the setting's values in its description (a ``description`` written out is kept as it
 is instead), and ``tuned``, optional: the fields that tune the setting (``env_kwargs`` and ``model_kwargs`` merged
 over the setting's, any other field replaced) and their own ``note``, with the measurement that put them there in the
-file's comments. A file with ``tuned`` gives two presets: ``<name>`` and ``<name>_tuned`` (the setting, its protocol
-and its budget at the tuned values).
+file's comments; or ``tuned: hyperparams``, the algorithm's tuned entry for the setting
+(:mod:`sb3_maddpg.hyperparams`, as ``exp1.yml`` and ``exp2.yml`` say). A file with ``tuned`` gives two presets:
+``<name>`` and ``<name>_tuned`` (the setting, its protocol and its budget at the tuned values).
 """
 
 from importlib import resources
@@ -21,6 +22,7 @@ import yaml
 
 from sb3_maddpg.compat import STAMP_KEYS, written_by
 from sb3_maddpg.experiments.setting import ExperimentConfig, merge_model_kwargs
+from sb3_maddpg.hyperparams import load_hyperparams
 
 PACKAGE_PRESETS = ("exp1", "exp2", "n3_full", "n3_partial", "pursuit", "smoke")
 """The package's preset files (``<name>.yml`` beside this module), in the order the command line lists them."""
@@ -30,6 +32,9 @@ PRESET_KEYS = ("note", "tuned")
 
 TUNED_SUFFIX = "_tuned"
 """What a setting's name gets in the preset of its ``tuned`` values."""
+
+FROM_HYPERPARAMS = "hyperparams"
+"""``tuned: hyperparams``: the tuned values are the algorithm's entry for the setting in :mod:`sb3_maddpg.hyperparams`."""
 
 
 def read_preset_file(path: str | Path | Traversable) -> list[ExperimentConfig]:
@@ -75,7 +80,28 @@ def presets_of(data: Any, source: str) -> list[ExperimentConfig]:
         raise ValueError(f"Preset file {source!r}: {error}") from None
     if "tuned" not in data:
         return [setting]
-    return [setting, _tuned(setting, data["tuned"], source)]
+    tuned = _from_hyperparams(setting, source) if data["tuned"] == FROM_HYPERPARAMS else data["tuned"]
+    return [setting, _tuned(setting, tuned, source)]
+
+
+def _from_hyperparams(setting: ExperimentConfig, source: str) -> dict[str, Any]:
+    """
+    :param setting: A preset file's setting, whose file says ``tuned: hyperparams``.
+    :param source: Where it was read, for errors.
+    :return: Its ``tuned`` mapping from the algorithm's tuned entry for it (:mod:`sb3_maddpg.hyperparams`); a
+        ``ValueError`` where the entry is for other agents or another budget.
+    """
+    algo = setting.algorithm.rpartition(":")[2].lower()
+    entry = load_hyperparams(setting.name, algo)
+    budget = setting.episodes * setting.episode_length
+    if (entry.n_agents, entry.n_timesteps) != (setting.n_agents, budget):
+        raise ValueError(
+            f"Preset file {source!r}: the tuned {algo} entry {setting.name!r} is for {entry.n_agents} agents and "
+            f"{entry.n_timesteps} steps, the setting has {setting.n_agents} and {budget}: make them agree."
+        )
+    env_kwargs = dict(entry.env_kwargs)
+    neighbours = {"num_agent_neighbors": env_kwargs.pop("num_agent_neighbors")} if "num_agent_neighbors" in env_kwargs else {}
+    return {"note": entry.description, **neighbours, "env_kwargs": env_kwargs, "model_kwargs": entry.model_kwargs}
 
 
 def _tuned(setting: ExperimentConfig, tuned: Any, source: str) -> ExperimentConfig:

@@ -7,7 +7,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from sb3_maddpg.experiments.cli_options import execution_options, given_fields, override, setting_options
+from sb3_maddpg.cli.options import execution_options, given_fields, override, setting_options
 from sb3_maddpg.experiments.config import EXPERIMENTS, algorithm_argument, load_algorithm, load_experiment
 from sb3_maddpg.experiments.defaults import ALGORITHMS
 from sb3_maddpg.experiments.setting import CONCERNS, ExperimentConfig
@@ -108,7 +108,7 @@ def run_command(args: argparse.Namespace) -> int:
     """
     from sb3_maddpg.experiments.group_plan import BatchedRunRefused
     from sb3_maddpg.experiments.references import ReferencePolicyError
-    from sb3_maddpg.experiments.results import ResultsDirectoryLocked
+    from sb3_maddpg.experiments.results_dir import ResultsDirectoryLocked
     from sb3_maddpg.experiments.sweep import SweepInterrupted, plan_sweep, run_sweep  # torch: imported for runs only
 
     try:

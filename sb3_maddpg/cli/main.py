@@ -1,6 +1,6 @@
-"""Command line: ``sb3-maddpg run ...`` (or ``python -m sb3_maddpg.experiments run ...``), ``... tune ...`` and
+"""Command line: ``sb3-maddpg run ...`` (or ``python -m sb3_maddpg run ...``), ``... tune ...`` and
 ``... report ...`` (each command's code in its module: ``run_command``, ``tune_command``, ``report_command``), derived
-from the config model (:mod:`~sb3_maddpg.experiments.cli_options`): ``run``'s options are the fields of an experiment
+from the config model (:mod:`~sb3_maddpg.cli.options`): ``run``'s options are the fields of an experiment
 (:class:`~sb3_maddpg.experiments.setting.ExperimentConfig`), each over every ``--config``'s, and of its execution
 (:class:`~sb3_maddpg.experiments.backends.Execution`); ``tune``'s the task's, ``TuneSettings``' and ``run_study``'s. A
 user's error (a bad name, value or file) ends a command with one line on stderr, its cause then what to do, exit 2."""
@@ -12,7 +12,7 @@ from typing import Any
 
 from jsonargparse import ArgumentParser
 
-from sb3_maddpg.experiments.cli_options import (
+from sb3_maddpg.cli.options import (
     EXPERIMENT_OWN,
     add_options,
     execution_options,
@@ -116,7 +116,7 @@ def _run_parser() -> ArgumentParser:
 
 def _tune_parser() -> ArgumentParser:
     """:return: ``tune``'s parser: the setting, the study's settings and its workers."""
-    from sb3_maddpg.experiments.tune import TuneSettings, run_study
+    from sb3_maddpg.tuning.search import TuneSettings, run_study
 
     tune = _Parser(
         description="Train trials of one setting with sampled hyperparameters, prune the poor ones, print the best as a "
@@ -189,7 +189,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exit.code if isinstance(exit.code, int) else 2
     args = getattr(parsed, parsed.command)
     if parsed.command == "run":  # each command's code imported for it alone: a run imports no tuning code
-        from sb3_maddpg.experiments.run_command import no_config_message, run_command
+        from sb3_maddpg.cli.run import no_config_message, run_command
 
         if not args.config:
             print(no_config_message(), file=sys.stderr)
@@ -200,14 +200,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             print("sb3-maddpg run: interrupted before the sweep started; nothing was run.", file=sys.stderr)
             return 130
     if parsed.command == "tune":
-        from sb3_maddpg.experiments.tune_command import tune_command
+        from sb3_maddpg.cli.tune import tune_command
 
         try:
             return tune_command(args)
         except KeyboardInterrupt:
             print("sb3-maddpg tune: interrupted; the same command resumes the study.", file=sys.stderr)
             return 130
-    from sb3_maddpg.experiments.report_command import report_command
+    from sb3_maddpg.cli.report import report_command
 
     return report_command(args)
 

@@ -1,4 +1,4 @@
-"""``sb3-maddpg report``: the report of a results directory (:func:`~sb3_maddpg.experiments.report.make_report`),
+"""``sb3-maddpg report``: the report of a results directory (:func:`~sb3_maddpg.results.report.make_report`),
 of some of its experiments, or of the seeds every scheme has finished, with each user's error said in one line."""
 
 import argparse
@@ -13,11 +13,11 @@ from sb3_maddpg.analysis.evaluation import side_return_key
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
 from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS, LEFT_OUT_SHOWN
-from sb3_maddpg.experiments.results import link_complete_seeds, link_experiments, unknown_experiments_message
-from sb3_maddpg.experiments.stats import METRICS
+from sb3_maddpg.experiments.metrics import METRICS
+from sb3_maddpg.experiments.results_dir import link_complete_seeds, link_experiments, unknown_experiments_message
 
 if TYPE_CHECKING:
-    from sb3_maddpg.experiments.report import UnscoredMetricError
+    from sb3_maddpg.results.report import UnscoredMetricError
 
 
 def report_metric_choices(results_dir: str | None = None) -> list[str]:
@@ -30,7 +30,7 @@ def report_metric_choices(results_dir: str | None = None) -> list[str]:
     sides = {side_return_key(side) for task_sides in MPE_TASK_SIDES.values() for side in task_sides}
     declared: set[str] = set()
     if results_dir is not None:
-        from sb3_maddpg.experiments.results import load_summaries
+        from sb3_maddpg.experiments.results_dir import load_summaries
 
         declared = {record["key"] for summary in load_summaries(results_dir) for record in summary.get("task_metrics", ())}
     return sorted({*METRICS, *sides, *declared})
@@ -131,7 +131,7 @@ def unwritable_out_message(out: str) -> str | None:
 
 def unscored_metric_message(error: "UnscoredMetricError", directory: str) -> str:
     """
-    :param error: :func:`~sb3_maddpg.experiments.report.make_report`'s refusal of a metric no run scores.
+    :param error: :func:`~sb3_maddpg.results.report.make_report`'s refusal of a metric no run scores.
     :param directory: The results directory, as the user named it.
     :return: ``report``'s line: the metric(s) no run scores, those that ``--metric`` could take instead, what to do.
     """
@@ -162,7 +162,7 @@ def _write_report(results: str, out: str, metrics: list[str] | None, plots: bool
         (``--complete-seeds``, ``--experiment``); ``None``: ``results``.
     :return: The exit status.
     """
-    from sb3_maddpg.experiments.report import UnscoredMetricError, make_report
+    from sb3_maddpg.results.report import UnscoredMetricError, make_report
 
     try:
         for path in make_report(results, out, metrics=metrics, plots=plots):

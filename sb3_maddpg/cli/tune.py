@@ -1,5 +1,5 @@
 """``sb3-maddpg tune``: a study of the ``--config`` setting, with the task's given fields over it, on Optuna
-(:func:`~sb3_maddpg.experiments.tune.run_study`); the best trial printed, and written as a preset."""
+(:func:`~sb3_maddpg.tuning.search.run_study`); the best trial printed, and written as a preset."""
 
 import argparse
 import re
@@ -9,19 +9,19 @@ from typing import Any
 
 import yaml
 
-from sb3_maddpg.experiments.cli_options import given_fields, options_of, override, setting_options
+from sb3_maddpg.cli.options import given_fields, options_of, override, setting_options
+from sb3_maddpg.cli.run import check_experiments, untrained_warning
 from sb3_maddpg.experiments.config import load_experiment
-from sb3_maddpg.experiments.run_command import check_experiments, untrained_warning
 from sb3_maddpg.experiments.setting import AlgorithmConfig, TaskConfig
 
 
 def _tune_settings(args: argparse.Namespace) -> Any:
     """
     :param args: Parsed ``tune`` arguments.
-    :return: The study's :class:`~sb3_maddpg.experiments.tune.TuneSettings`: ``--config`` with the task's fields and
+    :return: The study's :class:`~sb3_maddpg.tuning.search.TuneSettings`: ``--config`` with the task's fields and
         the scheme over it; a ``ValueError`` for a user's error.
     """
-    from sb3_maddpg.experiments.tune import TuneSettings, default_study_name, task_objectives
+    from sb3_maddpg.tuning.search import TuneSettings, default_study_name, task_objectives
 
     names = [option.name for concern in (TaskConfig, AlgorithmConfig) for option in setting_options(concern)]
     given = given_fields(args, names) | ({"schemes": (args.scheme,)} if args.scheme else {})
@@ -42,7 +42,7 @@ def tune_command(args: argparse.Namespace) -> int:
     :param args: Parsed ``tune`` arguments.
     :return: The exit status.
     """
-    from sb3_maddpg.experiments.tune import best_preset, describe_best, finished_trials, run_study
+    from sb3_maddpg.tuning.search import best_preset, describe_best, finished_trials, run_study
 
     try:
         if args.preset_out and not args.preset_out.endswith((".yml", ".yaml")):

@@ -11,10 +11,11 @@ from typing import Any
 
 import numpy as np
 
-from sb3_maddpg.experiments.aggregates import iqm_interval
 from sb3_maddpg.experiments.config import PAPER_NAMES, ordered_schemes, setting_label
-from sb3_maddpg.experiments.results import read_curve
-from sb3_maddpg.experiments.stats import METRICS, Cell, Metric
+from sb3_maddpg.experiments.metrics import METRICS, Metric
+from sb3_maddpg.experiments.results_dir import read_curve
+from sb3_maddpg.results.aggregates import iqm_interval
+from sb3_maddpg.results.stats import Cell
 
 COLORS = {
     "full": "tab:blue",
@@ -67,9 +68,9 @@ Curve = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 def iqm_curves(summaries: Sequence[dict[str, Any]], metric: str) -> dict[str, dict[str, Curve]]:
     """
     The runs' learning curves per setting and scheme, as the interquartile mean over runs at each evaluation step
-    (the steps every run has) with a 95% bootstrap interval (:func:`~sb3_maddpg.experiments.aggregates.iqm_interval`).
+    (the steps every run has) with a 95% bootstrap interval (:func:`~sb3_maddpg.results.aggregates.iqm_interval`).
 
-    :param summaries: Run summaries with ``"directory"`` (from :func:`~sb3_maddpg.experiments.results.load_summaries`).
+    :param summaries: Run summaries with ``"directory"`` (from :func:`~sb3_maddpg.experiments.results_dir.load_summaries`).
     :param metric: The curve's column (e.g. ``success_rate``).
     :return: ``{setting: {scheme: (steps, iqm, low, high)}}`` in displayed units (the interval is ``nan`` for one run).
     """
@@ -227,7 +228,7 @@ def plot_boxplots(
     One panel per setting: a box of the per-run scores of each method, the runs drawn as points, and
     the Mann-Whitney marks against MADDPG above the boxes (the paper's Figure 8).
 
-    :param cells: From :func:`~sb3_maddpg.experiments.stats.aggregate`.
+    :param cells: From :func:`~sb3_maddpg.results.stats.aggregate`.
     :param metric: The score's key.
     :param path: The PNG file.
     :param experiments: The stored experiment configs (for titles).

@@ -43,7 +43,7 @@ from typing import Any
 
 from sb3_maddpg.experiments.config import PAPER_NAMES
 from sb3_maddpg.experiments.defaults import DEFAULT_ALGORITHM, DEFAULT_ENV
-from sb3_maddpg.experiments.results import (
+from sb3_maddpg.experiments.results_dir import (
     CHECKPOINT_EVALS_FILE,
     CURVE_FILE,
     load_experiments,
@@ -52,7 +52,7 @@ from sb3_maddpg.experiments.results import (
 )
 
 MARL_EVAL_FILE = "marl_eval.json"
-"""The marl-eval file that :func:`~sb3_maddpg.experiments.report.make_report` writes beside the tables."""
+"""The marl-eval file that :func:`~sb3_maddpg.results.report.make_report` writes beside the tables."""
 
 ABSOLUTE_METRICS = "absolute_metrics"
 """A run's last entry in marl-eval's JSON: its final scores."""

@@ -12,22 +12,23 @@ import numpy as np
 
 from sb3_maddpg.analysis.evaluation import side_return_key, side_returns
 from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
-from sb3_maddpg.experiments.aggregates import improvement_interval, iqm_interval
 from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, ordered_schemes, setting_label
 from sb3_maddpg.experiments.defaults import DEFAULT_ENV
-from sb3_maddpg.experiments.marl_eval import MARL_EVAL_FILE, write_marl_eval
-from sb3_maddpg.experiments.normalised_table import format_normalised_markdown
-from sb3_maddpg.experiments.paper_claims import write_claims_report
-from sb3_maddpg.experiments.references import (
+from sb3_maddpg.experiments.metrics import METRICS, Metric
+from sb3_maddpg.experiments.results_dir import load_experiments, load_summaries, never_updated_warning, run_updates
+from sb3_maddpg.experiments.tasks import declared_sides, metric_info, named_metrics, recorded_metrics
+from sb3_maddpg.results.aggregates import improvement_interval, iqm_interval
+from sb3_maddpg.results.claims import write_claims_report
+from sb3_maddpg.results.cost import write_cost_report
+from sb3_maddpg.results.marl_eval import MARL_EVAL_FILE, write_marl_eval
+from sb3_maddpg.results.normalised_table import format_normalised_markdown
+from sb3_maddpg.results.reference_table import (
     format_references_markdown,
     load_references,
     reference_rows,
     write_references_csv,
 )
-from sb3_maddpg.experiments.results import load_experiments, load_summaries, never_updated_warning, run_updates
-from sb3_maddpg.experiments.run_cost import write_cost_report
-from sb3_maddpg.experiments.stats import FAMILY_TEXT, METRICS, Cell, Metric, aggregate, declare_families, floor_text
-from sb3_maddpg.experiments.tasks import declared_sides, metric_info, named_metrics, recorded_metrics
+from sb3_maddpg.results.stats import FAMILY_TEXT, Cell, aggregate, declare_families, floor_text
 
 
 def _number(value: float, digits: int = 2) -> str:
@@ -68,14 +69,14 @@ def format_markdown(
     Table 2's layout: a row per setting, a column per method, ``mean (std)`` of the per-run scores with
     the significance marks of the exact Mann-Whitney U test against the baseline (its raw p, as the paper marks its
     table); then the raw and the Holm-adjusted p-values (each setting's family, see
-    :class:`~sb3_maddpg.experiments.stats.Family`).
+    :class:`~sb3_maddpg.results.stats.Family`).
 
-    :param cells: From :func:`~sb3_maddpg.experiments.stats.aggregate`.
+    :param cells: From :func:`~sb3_maddpg.results.stats.aggregate`.
     :param metric: The score's key.
     :param experiments: The stored experiment configs (for row labels).
     :param baseline: The scheme tested against.
     :param infos: The metric as each setting's task shows it, by setting (label and direction, see
-        :func:`~sb3_maddpg.experiments.tasks.metric_info`); ``None``: :data:`~sb3_maddpg.experiments.stats.METRICS`'s.
+        :func:`~sb3_maddpg.experiments.tasks.metric_info`); ``None``: :data:`~sb3_maddpg.experiments.metrics.METRICS`'s.
     :return: Markdown text.
     """
     by_setting = _setting_infos((cell.setting for cell in cells), metric, infos)
@@ -137,7 +138,7 @@ def write_csv(cells: Sequence[Cell], metric: str, path: str | os.PathLike[str]) 
     p_value, p_holm, family_size, stars, scores`` (scores in displayed units, ``;``-separated in seed order; ``p_holm``
     the p Holm-adjusted within the setting's family of ``family_size`` tests).
 
-    :param cells: From :func:`~sb3_maddpg.experiments.stats.aggregate`.
+    :param cells: From :func:`~sb3_maddpg.results.stats.aggregate`.
     :param metric: The score's key.
     :param path: The CSV file.
     """
@@ -172,15 +173,15 @@ def aggregate_estimates(
     """
     Per setting and method, and over all settings together (stratified by setting) when there are several: the IQM
     of the per-run scores and the probability that a run of the method beats a run of the baseline, each with a 95%
-    stratified bootstrap interval (see :mod:`~sb3_maddpg.experiments.aggregates`). "Beats" follows the metric's
+    stratified bootstrap interval (see :mod:`~sb3_maddpg.results.aggregates`). "Beats" follows the metric's
     direction in each setting's task (a lower ``min_dist_sum`` is better; more catches, ``collisions`` of ``simple_tag``).
 
-    :param cells: From :func:`~sb3_maddpg.experiments.stats.aggregate`.
+    :param cells: From :func:`~sb3_maddpg.results.stats.aggregate`.
     :param metric: The score's key (for its direction).
     :param baseline: The scheme compared against.
     :param infos: The metric as each setting's task shows it, by setting (see :func:`format_markdown`).
     :return: Rows with ``setting`` (``"all"`` for the stratified aggregate), ``scheme``, ``method``, ``n``, ``mean``,
-        ``iqm`` and ``improvement`` (:class:`~sb3_maddpg.experiments.aggregates.IntervalEstimate`; ``None`` for the
+        ``iqm`` and ``improvement`` (:class:`~sb3_maddpg.results.aggregates.IntervalEstimate`; ``None`` for the
         baseline).
     """
     sign = {
@@ -365,7 +366,7 @@ def format_terminal_table(
     row per method and a column per metric, each ``mean (std)`` over runs with the significance marks of the
     Mann-Whitney U test against the baseline, and each column's direction in the setting's task.
 
-    :param tables: Each metric's cells (:func:`~sb3_maddpg.experiments.stats.aggregate`), by metric.
+    :param tables: Each metric's cells (:func:`~sb3_maddpg.results.stats.aggregate`), by metric.
     :param infos: Each metric as each setting's task shows it: metric -> setting -> :class:`Metric`.
     :param experiments: The stored experiment configs (for setting labels).
     :param baseline: The scheme tested against.
@@ -417,15 +418,15 @@ def make_report(
     """
     Write, for each metric, ``table_<metric>.md`` and ``table_<metric>.csv`` (Table 2: mean (std), the exact
     Mann-Whitney U test, its p raw and Holm-adjusted within each setting's family, declared from the stored configs: see
-    :class:`~sb3_maddpg.experiments.stats.Family`), ``aggregates_<metric>.md`` and ``aggregates_<metric>.csv`` (IQM and
+    :class:`~sb3_maddpg.results.stats.Family`), ``aggregates_<metric>.md`` and ``aggregates_<metric>.csv`` (IQM and
     probability of improvement with 95% bootstrap intervals), ``claims_<metric>.md`` and ``claims_<metric>.csv`` for the
     paper's settings (its Table 2 beside these runs' and its findings asked of them, see
-    :mod:`~sb3_maddpg.experiments.paper_claims`), ``normalised.md`` for simple_spread settings (min-dist sum and team
+    :mod:`~sb3_maddpg.results.claims`), ``normalised.md`` for simple_spread settings (min-dist sum and team
     return between the random team, 0, and the scripted controller, 1), ``references.md`` and ``references.csv`` for
     settings with reference policies (each scheme's and each reference's mean over seeds with its 95% interval, the
     references on the runs' own evaluation episodes: :mod:`~sb3_maddpg.experiments.references`), ``cost.md`` and
-    ``cost.csv`` (training time per run by setting and scheme, see :mod:`~sb3_maddpg.experiments.run_cost`),
-    ``marl_eval.json`` (every run in marl-eval's JSON, see :mod:`~sb3_maddpg.experiments.marl_eval`) and, with
+    ``cost.csv`` (training time per run by setting and scheme, see :mod:`~sb3_maddpg.results.cost`),
+    ``marl_eval.json`` (every run in marl-eval's JSON, see :mod:`~sb3_maddpg.results.marl_eval`) and, with
     ``plots``, ``learning_curves_<metric>.png`` (IQM over runs with a 95% bootstrap band, vs env steps) and
     ``boxplot_<metric>.png`` (per-run scores, like the paper's Figures 7 and 8).
 
@@ -437,7 +438,7 @@ def make_report(
 
     :param results_dir: The results directory of a sweep.
     :param out_dir: Where to write the report.
-    :param metrics: The scores to report (see :data:`~sb3_maddpg.experiments.stats.METRICS`); ``None``: each task's
+    :param metrics: The scores to report (see :data:`~sb3_maddpg.experiments.metrics.METRICS`); ``None``: each task's
         main ones (:func:`default_metrics`).
     :param plots: Also draw the figures (needs matplotlib).
     :param baseline: The scheme the others are tested against.
@@ -498,7 +499,7 @@ def make_report(
         written += [markdown_path, csv_path, aggregates_md, aggregates_csv]
         written += write_claims_report(out, cells, metric, experiments, by_setting, heading, baseline)
         if plots:
-            from sb3_maddpg.experiments.plots import plot_boxplots, plot_learning_curves
+            from sb3_maddpg.results.plots import plot_boxplots, plot_learning_curves
 
             curve_path, box_path = out / f"learning_curves_{metric}.png", out / f"boxplot_{metric}.png"
             plot_learning_curves(scored[metric], metric, curve_path, experiments)

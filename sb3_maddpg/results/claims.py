@@ -5,12 +5,12 @@ MADDPG > IDDPG > MADDPG-fo and MADDPG-soa > MADDPG; under partial observability 
 MADDPG-fo > MADDPG-fa ~ IDDPG (ranked, but nearly equal: 51.88% and 51.02%), and MADDPG-soa > MADDPG-fo.
 :data:`PAPER_CLAIMS` holds each ordering as a pair of schemes with the paper's own evidence (a Mann-Whitney U test
 against MADDPG, or only the means). :func:`check_claims` asks each claim of a setting with the same observability, on
-one metric: the same two-sided Mann-Whitney U test (exact, :func:`~sb3_maddpg.experiments.stats.mann_whitney`), its
+one metric: the same two-sided Mann-Whitney U test (exact, :func:`~sb3_maddpg.results.stats.mann_whitney`), its
 p Holm-adjusted within its family, the probability that a run of the scheme claimed better beats a run of the other
 (95% bootstrap interval), a verdict that follows the adjusted p, and, where the runs do not separate the two, how many
-seeds per scheme would at the measured spread (:func:`~sb3_maddpg.experiments.stats.seeds_to_separate`).
+seeds per scheme would at the measured spread (:func:`~sb3_maddpg.results.stats.seeds_to_separate`).
 
-The families are declared before any score is read (:class:`~sb3_maddpg.experiments.stats.Family`): a claim of a
+The families are declared before any score is read (:class:`~sb3_maddpg.results.stats.Family`): a claim of a
 scheme against the baseline (MADDPG, ``full``) is a test of its setting's family, each scheme against the baseline, and
 takes that family's adjustment, as the report's Table 2 does; the claims between two other schemes (e.g. IDDPG >
 MADDPG-fo) form a family of their own per setting and metric.
@@ -26,10 +26,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-from sb3_maddpg.experiments.aggregates import IntervalEstimate, improvement_interval
 from sb3_maddpg.experiments.config import BASELINE_SCHEME, PAPER_NAMES, setting_label
 from sb3_maddpg.experiments.defaults import DEFAULT_ENV
-from sb3_maddpg.experiments.stats import (
+from sb3_maddpg.results.aggregates import IntervalEstimate, improvement_interval
+from sb3_maddpg.results.stats import (
     FAMILY_TEXT,
     METRICS,
     Cell,
@@ -253,14 +253,14 @@ def check_claims(
     Ask each claim of every setting with its observability that has runs of both its schemes, and again with a
     variant of a scheme in its place (:func:`paper_scheme_variants`: e.g. ``selected_next`` for ``selected``). A claim
     against ``baseline`` takes the adjusted p of the cells' family (each scheme against it, see
-    :func:`~sb3_maddpg.experiments.stats.aggregate`); the claims between two other schemes are a family per setting:
+    :func:`~sb3_maddpg.results.stats.aggregate`); the claims between two other schemes are a family per setting:
     each pair of schemes the setting runs (its stored ``schemes``) that a claim asks, Holm-adjusted together.
 
-    :param cells: One metric's Table 2 (:func:`~sb3_maddpg.experiments.stats.aggregate`).
+    :param cells: One metric's Table 2 (:func:`~sb3_maddpg.results.stats.aggregate`).
     :param metric: Its key (for its direction when ``infos`` does not give it).
     :param experiments: The stored experiment configs, by name (a setting without one is not asked).
     :param infos: The metric as each setting's task shows it (its direction), by setting; for a setting not in it,
-        :data:`~sb3_maddpg.experiments.stats.METRICS`'s view (higher is better for a metric not there).
+        :data:`~sb3_maddpg.experiments.metrics.METRICS`'s view (higher is better for a metric not there).
     :param claims: The claims to ask.
     :param baseline: The scheme ``cells`` test against.
     :return: A check per claim and setting, in the order of ``claims`` then of the settings.
@@ -454,7 +454,7 @@ def format_beside_paper(
     """
     The paper's Table 2 beside these runs': for each observability, the paper's row, then each setting's with it.
 
-    :param cells: One metric's Table 2 (:func:`~sb3_maddpg.experiments.stats.aggregate`).
+    :param cells: One metric's Table 2 (:func:`~sb3_maddpg.results.stats.aggregate`).
     :param metric_label: The metric's label.
     :param experiments: The stored experiment configs (a setting without one is left out).
     :param baseline: The scheme the cells' marks test against (the paper's marks are against MADDPG).
@@ -555,7 +555,7 @@ def write_claims_report(
     observability) and has runs of both schemes of a claim.
 
     :param out_dir: The report's directory.
-    :param cells: One metric's Table 2 (:func:`~sb3_maddpg.experiments.stats.aggregate`).
+    :param cells: One metric's Table 2 (:func:`~sb3_maddpg.results.stats.aggregate`).
     :param metric: Its key.
     :param experiments: The stored experiment configs, by name.
     :param infos: The metric as each setting's task shows it, by setting (label and direction).

@@ -308,7 +308,7 @@ class TrialEvalCallback(TeamEvalCallback):
             raise ValueError(
                 f"trial {self.trial.number}'s {self.objective} is {value} at step {self.num_timesteps}: the task's "
                 "evaluations do not score it; choose another objective of the task "
-                "(sb3_maddpg.experiments.tune.task_objectives)."
+                "(sb3_maddpg.tuning.search.task_objectives)."
             )
         self.values.append(value)
         self.trial.report(value, step=self.num_timesteps)
@@ -338,7 +338,7 @@ def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | N
     trial.set_user_attr("model_kwargs", json.loads(json.dumps(model_kwargs)))
     references = None
     if settings.objective == "normalised":
-        from sb3_maddpg.experiments.normalised_table import setting_references
+        from sb3_maddpg.results.normalised_table import setting_references
 
         references = setting_references(settings.experiment.to_dict())
     model = build_model(config)  # as a sweep's run builds it
