@@ -209,15 +209,6 @@ RAY_RESOURCES = {"num_cpus": "CPU", "num_gpus": "GPU"}
 """The options of :func:`ray_task_options` and the cluster resources they ask for."""
 
 
-def ray_parallel_runs(resources: dict[str, float], threads: int) -> int:
-    """
-    :param resources: A Ray cluster's resources (``ray.cluster_resources()``).
-    :param threads: CPUs per run.
-    :return: The runs that execute at once: the cluster's CPUs // ``threads`` (at least 1).
-    """
-    return ray_parallel_tasks(resources, ray_task_options(threads))
-
-
 def execute_runs(
     configs: Sequence[RunConfig], results_dir: str, device: str, threads: int, verbose: int
 ) -> list[dict[str, Any]]:

@@ -16,7 +16,7 @@ A snapshot is read without pickle, which runs whatever code a file names: a resu
 (a Ray cluster's storage) must not be able to run code in the processes that resume from it. The tensors (networks,
 optimisers, PyTorch's random stream) are ``torch.save``'d and read with ``torch.load(..., weights_only=True)``, the
 arrays (replay buffer, worlds, observations) ``np.savez``'d and read with ``np.load(..., allow_pickle=False)``, and the
-rest is JSON (:mod:`~sb3_maddpg.experiments.plain_state`). The model is not read with SB3's ``load`` (which
+rest is JSON (:mod:`~sb3_maddpg.common.plain_state`). The model is not read with SB3's ``load`` (which
 unpickles): the run builds its model from its config, and the snapshot's state goes back onto it. A snapshot of the
 pickled format of before (``state.pkl``) is refused by name, and the run starts afresh.
 """
@@ -42,8 +42,8 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
+from sb3_maddpg.common.plain_state import NotPlainData, decode, encode, object_state, restore_object_state
 from sb3_maddpg.envs.simple_spread_vec_env import SimpleSpreadVecEnv
-from sb3_maddpg.experiments.plain_state import NotPlainData, decode, encode, object_state, restore_object_state
 from sb3_maddpg.experiments.training_state import (
     MADE_BY_CONSTRUCTION,
     MODEL_ATTRIBUTES,
@@ -140,7 +140,7 @@ def snapshot_steps(total_timesteps: int) -> list[int]:
 def env_layers(env: VecEnv) -> list[dict[str, Any]]:
     """
     :param env: A training env: a ``VecEnv``, possibly wrapped (``VecMonitor``, ``VecNormalize``).
-    :return: Each layer's class name and state (:func:`~sb3_maddpg.experiments.plain_state.object_state`: the
+    :return: Each layer's class name and state (:func:`~sb3_maddpg.common.plain_state.object_state`: the
         worlds' arrays and the generators of the simple_spread env, a monitor's episode counts, ...), outermost first:
         what a new env of the same construction takes back with :func:`restore_env_layers`.
     """
@@ -188,7 +188,7 @@ def set_random_state(state: dict[str, Any]) -> None:
 def capture_training_state(model: BaseAlgorithm) -> tuple[dict[str, Any], dict[str, Any]]:
     """
     :param model: A model between two rollouts, with a replay buffer.
-    :return: Its training state as plain data (for :func:`~sb3_maddpg.experiments.plain_state.encode`), and as
+    :return: Its training state as plain data (for :func:`~sb3_maddpg.common.plain_state.encode`), and as
         tensors (for ``torch.save``): the state dicts and PyTorch's random streams.
     """
     streams = random_state()

@@ -14,6 +14,7 @@ from typing import Any, ClassVar, TypeVar
 
 from sb3_maddpg.common.argument_ranges import TEAM_ALGORITHM_RANGES, Range, check_arguments
 from sb3_maddpg.compat import read_stored_config
+from sb3_maddpg.envs.task_by_name import check_env_name, task_team_size
 from sb3_maddpg.experiments.defaults import (
     ALGORITHMS,
     DEFAULT_ALGORITHM,
@@ -24,7 +25,6 @@ from sb3_maddpg.experiments.defaults import (
     VEC_ENVS,
 )
 from sb3_maddpg.experiments.reference_specs import check_reference_policies
-from sb3_maddpg.experiments.task_envs import check_env_name, task_team_size
 
 SettingT = TypeVar("SettingT", bound="Setting")
 

@@ -18,9 +18,9 @@ from sb3_maddpg.analysis.evaluation import (
     eval_keys,
     side_return_label,
 )
+from sb3_maddpg.envs.task_by_name import task_env_factory
 from sb3_maddpg.experiments.defaults import DEFAULT_ENV, EPISODE_LENGTH
 from sb3_maddpg.experiments.metrics import METRICS, Metric
-from sb3_maddpg.experiments.task_envs import task_env_factory
 
 if TYPE_CHECKING:
     from sb3_maddpg.experiments.setting import RunConfig
@@ -166,7 +166,7 @@ class RunTask:
     def env_factory(self) -> Callable[[], gym.Env]:
         """
         :return: A function that builds one env of a task other than simple_spread
-            (:func:`~sb3_maddpg.experiments.task_envs.task_env_factory`).
+            (:func:`~sb3_maddpg.envs.task_by_name.task_env_factory`).
         """
         return task_env_factory(self.config.env, self.config.env_kwargs, self.config.episode_length)
 

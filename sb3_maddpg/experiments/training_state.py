@@ -2,7 +2,7 @@
 
 A new model of the run's config, built on a new env, has everything else (spaces, layout, classes, schedules) as the
 saved one had, so a snapshot (:mod:`~sb3_maddpg.experiments.run_snapshot`) holds only plain data
-(:mod:`~sb3_maddpg.experiments.plain_state`) and tensors: the networks' and optimisers' state dicts (as SB3's ``save``
+(:mod:`~sb3_maddpg.common.plain_state`) and tensors: the networks' and optimisers' state dicts (as SB3's ``save``
 names them, :func:`model_tensors`), the attributes that change in training (:data:`MODEL_ATTRIBUTES`), and the replay
 buffer's and each env layer's attributes but those of the construction (:data:`MADE_BY_CONSTRUCTION`), objects of
 state (:data:`STATE_HOLDERS`) taken attribute by attribute.

@@ -162,7 +162,7 @@ def test_a_replay_buffer_without_the_next_selections_a_model_needs_is_refused(tm
 
 
 def test_a_cli_factory_may_return_the_adapter_with_its_positions_declared() -> None:
-    from sb3_maddpg.experiments.task_envs import task_env_factory
+    from sb3_maddpg.envs.task_by_name import task_env_factory
 
     declared = task_env_factory("tests.envs.walkers:walkers_with_positions", {"max_cycles": 5}, 25)()
     assert isinstance(declared, PettingZooToGym) and declared.agent_layout.positions_in_info

@@ -24,7 +24,7 @@ from sb3_maddpg.cli.main import main
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.experiments import SMOKE, ExperimentConfig, run_sweep
 from sb3_maddpg.experiments.local_pool import LOST_RUN
-from sb3_maddpg.experiments.ray_tasks import ray_parallel_runs
+from sb3_maddpg.experiments.ray_tasks import ray_parallel_tasks, ray_task_options
 from sb3_maddpg.experiments.results_dir import (
     CONFIG_FILE,
     DONE_FILE,
@@ -385,6 +385,10 @@ def test_the_time_left_counts_the_runs_executing_at_once() -> None:
     progress.update("i", "FAILED")
     progress.update("j", "done", duration=90)
     assert lines[-1].endswith("left ~0m00s")
+
+    def ray_parallel_runs(resources: dict[str, float], threads: int) -> int:
+        return ray_parallel_tasks(resources, ray_task_options(threads))
+
     assert ray_parallel_runs({"CPU": 16.0}, threads=3) == 5
     assert ray_parallel_runs({"CPU": 2.0}, threads=4) == 1 and ray_parallel_runs({}, threads=1) == 1
 

@@ -1,13 +1,11 @@
-"""One env of any task the experiments run, by name: an MPE task, a PettingZoo factory or a gymnasium id (no config
-needed, so that the config module can read a task's team without importing the modules that import it)."""
+"""One env of any task, by name: an MPE task, a PettingZoo factory or a gymnasium id, as the experiments' configs name
+their tasks (``env="mpe2.simple_push_v3:parallel_env"``), and the team size such an env declares."""
 
 import importlib
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium as gym
-
-from sb3_maddpg.experiments.defaults import EPISODE_LENGTH
 
 
 def task_env_factory(name: str, env_kwargs: Mapping[str, Any], episode_length: int) -> Callable[[], gym.Env]:
@@ -69,7 +67,7 @@ def task_team_size(env: str, env_kwargs: dict[str, Any] | None = None) -> int:
     """
     check_env_name(env)
     try:
-        task = task_env_factory(env, dict(env_kwargs or {}), EPISODE_LENGTH)()
+        task = task_env_factory(env, dict(env_kwargs or {}), episode_length=25)()  # any length: only its team is read
     except TypeError as error:  # an argument the task does not take (make_mpe_env names it and the task's own)
         raise ValueError(f"env_kwargs {env_kwargs} do not fit {env!r}: {error}") from None
     try:

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sb3_maddpg.experiments.plain_state import NotPlainData, decode, encode, object_state, restore_object_state
+from sb3_maddpg.common.plain_state import NotPlainData, decode, encode, object_state, restore_object_state
 
 
 def through_files(value: Any) -> Any:
