@@ -10,7 +10,7 @@ from sb3_maddpg.common.losses import ActorLossTerms, actor_loss_terms, critic_lo
 def critic_losses_by_critic(model: MADDPG, data: MultiAgentReplayBufferSamples) -> th.Tensor:
     """:return: Each critic's loss, ``[critics per agent, n_agents]`` (1 for MADDPG, 2 for MATD3), as ``train()``
     computes it (its hooks)."""
-    losses = critic_losses(model._trained_q, data, model._critic_targets(data))
+    losses = critic_losses(model.critic.trained_q, data, model._critic_targets(data))
     return losses.reshape(-1, losses.shape[-1])
 
 

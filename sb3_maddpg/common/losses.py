@@ -1,24 +1,29 @@
 """
-MADDPG's losses as functions of the networks and a batch: the critics' targets, the critics' losses and the actors'
-loss terms.
+MADDPG's losses as plain functions of one team's networks, settings and noise, and a batch: the target actions
+(:func:`target_actions`), the critics' targets (:func:`team_critic_targets`), the critics' losses and the actors' loss
+terms.
 
-They take one team's batch (``[batch, ...]`` each field): ``MADDPG.train`` applies them to its replay batch, and a
-run group to each of its runs' batches under ``vmap`` (:mod:`~sb3_maddpg.common.update_step`). The networks are passed
-as functions (the model's own methods, which a run group applies to every run), so that a sibling
-algorithm changes them, not the math: MATD3's target actor adds its smoothing noise, its target critic returns the
-minimum of its twins, and its critic returns both twins stacked in front (``[2, batch, n_agents]``), which
+They take one team's batch (``[batch, ...]`` each field): ``MADDPG.train`` and ``MATD3.train`` apply them to their
+replay batch, and a run group to each of its runs' batches under ``vmap`` (:mod:`~sb3_maddpg.common.update_step`),
+the same functions. What MATD3 changes is said by its modules and settings, not by other code: its target actions
+add TD3's smoothing noise (:class:`TargetSmoothing`), and its twin critics give the minimum of both as the target
+(``target_q``) and both stacked in front as the trained values (``trained_q``, ``[2, batch, n_agents]``), which
 :func:`critic_losses` broadcasts over. A batch that says which agents were still in the episode (``active``) averages
 each agent's terms over its active rows only.
 """
 
+import functools
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import torch as th
 from torch.nn import functional as F
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.layout import AgentLayout
+
+if TYPE_CHECKING:
+    from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
 
 SATURATION_THRESHOLD = 0.99
 """An action component with ``|a| >`` this, in the policy's [-1, 1] space, counts as saturated in the logs."""
@@ -75,6 +80,86 @@ class ActionParts(NamedTuple):
             continuous[action_slice] = not layout.is_discrete(i)
         sizes = th.tensor(layout.action_sizes, dtype=th.float32).unsqueeze(1)
         return cls(own.to(device), (own[:, 0].float() / sizes).to(device), continuous.to(device))
+
+
+class TargetSmoothing(NamedTuple):
+    """TD3's target policy smoothing (MATD3's; MADDPG has none), in the policy's [-1, 1] space."""
+
+    noise_std: float
+    """The noise's standard deviation (TD3's ``target_policy_noise``)."""
+    noise_clip: float
+    """The largest noise magnitude (TD3's ``target_noise_clip``)."""
+
+
+def smooth_target_actions(
+    actions: th.Tensor, noise_std: float, noise_clip: float, continuous: th.Tensor, noise: th.Tensor | None = None
+) -> th.Tensor:
+    """
+    TD3's target policy smoothing, in the policy's [-1, 1] space: Gaussian noise of ``noise_std``, clipped to
+    ``[-noise_clip, noise_clip]``, added to the continuous agents' components, the sum clipped to [-1, 1]. A discrete
+    agent's one-hot stays the target actor's Gumbel-max sample (noise on a one-hot is not an action).
+
+    :param actions: The target actors' joint actions in [-1, 1], ``[..., action_dim]``.
+    :param noise_std: The noise's standard deviation (TD3's ``target_policy_noise``).
+    :param noise_clip: The largest noise magnitude (TD3's ``target_noise_clip``).
+    :param continuous: The continuous agents' components, ``[action_dim]`` (bool).
+    :param noise: Standard normal noise shaped as ``actions``, each member's from its own stream;
+        None: drawn from torch's global generator (which SB3's seeding seeds).
+    :return: The smoothed actions, the shape of ``actions``.
+    """
+    # Out of place: under a run group's vmap an in-place clamp has no batching rule (a slow per-run fallback).
+    noise = ((th.randn_like(actions) if noise is None else noise) * noise_std).clamp(-noise_clip, noise_clip)
+    return th.where(continuous, (actions + noise).clamp(-1.0, 1.0), actions)
+
+
+def target_actions(
+    actor_target: "MultiAgentActor",
+    observations: th.Tensor,
+    continuous: th.Tensor,
+    smoothing: TargetSmoothing | None,
+    noise: th.Tensor | None = None,
+) -> th.Tensor:
+    """
+    Every target actor on its agent's observation (a discrete agent's: a Gumbel-max sample), smoothed where the
+    algorithm smooths (MATD3).
+
+    :param actor_target: The target actors.
+    :param observations: ``[batch, obs_dim]``.
+    :param continuous: The continuous agents' components (``ActionParts.continuous``).
+    :param smoothing: TD3's smoothing, or None (MADDPG).
+    :param noise: The smoothing's standard normal noise (a run group's member's); None: drawn after the sample.
+    :return: The joint target actions, ``[batch, action_dim]``.
+    """
+    actions = actor_target.sample(observations)
+    if smoothing is None:
+        return actions
+    return smooth_target_actions(actions, smoothing.noise_std, smoothing.noise_clip, continuous, noise)
+
+
+def team_critic_targets(
+    actor_target: "MultiAgentActor",
+    critic_target: "MultiAgentCritic",
+    batch: MultiAgentReplayBufferSamples,
+    gamma: float,
+    continuous: th.Tensor,
+    smoothing: TargetSmoothing | None,
+    noise: th.Tensor | None = None,
+) -> th.Tensor:
+    """
+    One team's critic targets (:func:`critic_targets`) from its target networks: :func:`target_actions` and the target
+    critics' ``target_q`` (MATD3's: the minimum of its twins).
+
+    :param actor_target: The target actors.
+    :param critic_target: The target critics.
+    :param batch: A replay batch, ``[batch, ...]`` each field.
+    :param gamma: The discount.
+    :param continuous: The continuous agents' components.
+    :param smoothing: TD3's smoothing, or None.
+    :param noise: The smoothing's noise (see :func:`target_actions`).
+    :return: ``[batch, n_agents]``.
+    """
+    actions = functools.partial(target_actions, actor_target, continuous=continuous, smoothing=smoothing, noise=noise)
+    return critic_targets(actions, critic_target.target_q, batch, gamma)
 
 
 def critic_targets(

@@ -208,6 +208,18 @@ class MultiAgentCritic(nn.Module):
         """:return: Each critic's extractor's :meth:`~sb3_maddpg.sharing.CriticFeaturesExtractor.diagnostics`."""
         return [extractor.diagnostics() for extractor in self.extractors]  # type: ignore[operator]
 
+    def trained_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
+        """Every critic a gradient step trains (arguments as :meth:`forward`): one per agent, ``[batch, n_agents]``."""
+        return self(observations, actions, selections)  # type: ignore[no-any-return]
+
+    def target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
+        """What a target critic gives the critic targets (arguments as :meth:`forward`), ``[batch, n_agents]``."""
+        return self(observations, actions, selections)  # type: ignore[no-any-return]
+
+    def clip_groups(self) -> list[list[str]]:
+        """:return: The names of this module's parameters, one list per network whose gradient is clipped on its own."""
+        return [[name for name, _ in self.named_parameters()]]
+
     def clip_grad_norm_per_agent(self, max_norm: float) -> None:
         """Clip each agent's gradient norm (its network slice and its extractor) separately, like N optimisers."""
         squared = self.mlp.squared_grad_norms()

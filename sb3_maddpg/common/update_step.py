@@ -1,17 +1,17 @@
 """
-One gradient step of a run group's ``M`` teams at once (:mod:`sb3_maddpg.run_group`), with the losses and the
-algorithm's own functions that ``MADDPG.train`` and ``MATD3.train`` run for one team.
+One gradient step of a run group's ``M`` teams at once (:mod:`sb3_maddpg.run_group`), with the functions that
+``MADDPG.train`` and ``MATD3.train`` run for one team.
 
-The one team's functions (the model's ``_target_actions``, ``_target_q`` and ``_trained_q``, its actors' and critics'
-forward passes, and the losses of :mod:`sb3_maddpg.common.losses`) are evaluated for every member at once:
-:class:`TeamFunctions` binds them to one team's networks, and :class:`GroupFunctions` applies them to each member's
-parameters with ``torch.func.functional_call``, ``vmap``-ed over the members. No second copy of the math: what a
-subclass of MADDPG changes in its functions (MATD3's twins, minimum and smoothed targets) reaches the group as it is.
-A step is: every critic's loss and its optimiser step (gradients clipped per member and agent), then, when the actors
-are due, the actors' losses and step and the Polyak updates of every target.
+The one team's functions are the plain functions of :mod:`sb3_maddpg.common.losses` (target actions, critic targets,
+critic losses, actor loss terms) over its four networks and the step's settings (:class:`StepSettings`, MATD3's
+smoothing included): :class:`TeamFunctions` holds one team's networks for them, and :class:`GroupFunctions` applies
+them to each member's parameters with ``torch.func.functional_call``, ``vmap``-ed over the members. No second copy
+of the math: what MATD3 changes (its twins' ``trained_q`` and ``target_q``, its smoothing) is said by its modules and
+settings, which reach the group as they are. A step is: every critic's loss and its optimiser step (gradients clipped
+per member and agent), then, when the actors are due, the actors' losses and step and the Polyak updates of every
+target.
 """
 
-import functools
 from collections.abc import Callable
 from typing import Any, NamedTuple, Protocol
 
@@ -20,7 +20,14 @@ from torch import nn
 from torch.func import functional_call, grad, vmap
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.common.losses import ActionParts, ActorLossTerms, actor_loss_terms, critic_losses, critic_targets
+from sb3_maddpg.common.losses import (
+    ActionParts,
+    ActorLossTerms,
+    TargetSmoothing,
+    actor_loss_terms,
+    critic_losses,
+    team_critic_targets,
+)
 from sb3_maddpg.common.networks import clip_coefficients
 from sb3_maddpg.common.train_logs import StepLosses, step_losses
 
@@ -33,6 +40,10 @@ class MemberModules(Protocol):
 
     def stacked_parameters(self) -> dict[str, th.Tensor]:
         """:return: Every parameter of the four modules, ``[M, ...]`` each, by ``<module>.<parameter name>``."""
+        ...
+
+    def module_parameters(self, module: str) -> dict[str, th.Tensor]:
+        """:return: One of :data:`MODULE_NAMES`' parameters, ``[M, ...]`` each, named as in :meth:`stacked_parameters`."""
         ...
 
     def clip_groups(self, module: str) -> list[list[str]]:
@@ -53,43 +64,31 @@ class MemberModules(Protocol):
 
 class TeamFunctions(nn.Module):
     """
-    One team's four networks (templates, whose parameters :class:`GroupFunctions` replaces by one member's) and the
-    algorithm's own functions over them: ``algorithm._target_actions(self, ...)`` and the others run here as they run
-    on a model, reading the same attributes (the networks, ``_action_parts``, MATD3's noise settings), except that the
-    smoothing noise is the member's own, drawn before and passed in (:meth:`_smoothing_noise`).
+    One team's four networks (templates, whose parameters :class:`GroupFunctions` replaces by one member's) with the
+    step's functions over them, as ``train`` calls them: :func:`~sb3_maddpg.common.losses.team_critic_targets`,
+    :func:`~sb3_maddpg.common.losses.critic_losses` and :func:`~sb3_maddpg.common.losses.actor_loss_terms`. The smoothing
+    noise (MATD3) is the member's own, drawn before and passed in.
 
-    :param algorithm: The model's class (MADDPG, MATD3 or a subclass).
     :param modules: The four networks, by :data:`MODULE_NAMES`.
     :param parts: The layout's action parts, on the networks' device.
-    :param settings: The model's attributes its functions read beyond the networks (e.g. ``target_policy_noise``).
+    :param smoothing: The target actions' smoothing (MATD3's), or None.
     """
 
-    def __init__(self, algorithm: type, modules: dict[str, nn.Module], parts: ActionParts, settings: dict[str, Any]) -> None:
+    def __init__(self, modules: dict[str, nn.Module], parts: ActionParts, smoothing: TargetSmoothing | None) -> None:
         super().__init__()
-        for name in MODULE_NAMES:
-            self.add_module(name, modules[name])
-        self.algorithm = algorithm
+        self.actor: Any = modules["actor"]
+        self.critic: Any = modules["critic"]
+        self.actor_target: Any = modules["actor_target"]
+        self.critic_target: Any = modules["critic_target"]
         self._action_parts = parts
-        for name, value in settings.items():
-            setattr(self, name, value)
-        self._noise: th.Tensor | None = None
-
-    def _smoothing_noise(self, actions: th.Tensor) -> th.Tensor:
-        """The member's own smoothing noise (MATD3), set by :meth:`critic_losses` for its call."""
-        assert self._noise is not None, "the smoothing noise is drawn per member and passed in"
-        return self._noise
+        self._smoothing = smoothing
 
     def critic_losses(self, batch: MultiAgentReplayBufferSamples, gamma: float, noise: th.Tensor | None) -> th.Tensor:
         """One member's critic losses on its batch, as ``train`` computes them (``[n_agents]``; MATD3 ``[2, n_agents]``)."""
-        self._noise = noise
-        algorithm: Any = self.algorithm
-        try:
-            targets = critic_targets(
-                functools.partial(algorithm._target_actions, self), functools.partial(algorithm._target_q, self), batch, gamma
-            )
-        finally:
-            self._noise = None  # a member's (vmapped) tensor must not outlive its call
-        return critic_losses(functools.partial(algorithm._trained_q, self), batch, targets)
+        targets = team_critic_targets(
+            self.actor_target, self.critic_target, batch, gamma, self._action_parts.continuous, self._smoothing, noise
+        )
+        return critic_losses(self.critic.trained_q, batch, targets)
 
     def act(self, observations: th.Tensor) -> th.Tensor:
         """One member's actors on its observations ``[batch, obs_dim]``: its actions ``[batch, action_dim]``."""
@@ -97,9 +96,7 @@ class TeamFunctions(nn.Module):
 
     def actor_loss_terms(self, batch: MultiAgentReplayBufferSamples, reg_coef: float) -> ActorLossTerms:
         """One member's actor loss terms on its batch, as ``train`` computes them (``[n_agents]`` each)."""
-        actor: Any = self.actor
-        critic: Any = self.critic
-        return actor_loss_terms(actor.forward_with_preactivation, critic, batch, self._action_parts, reg_coef)
+        return actor_loss_terms(self.actor.forward_with_preactivation, self.critic, batch, self._action_parts, reg_coef)
 
 
 class _Bound(nn.Module):
@@ -121,18 +118,14 @@ class GroupFunctions:
     members; the smoothing noise drawn from each member's own stream. Nothing here holds state: the parameters come in
     as tensors and the gradients go out, so a whole step traces as one graph.
 
-    :param model: The group's first model (its class and settings are every member's: checked by the group).
+    :param settings: The members' step settings (every member's the same: checked by the group), on the group's device.
     :param members: The members' stacked modules.
     :param templates: One team's four networks on the group's device, by :data:`MODULE_NAMES`.
-    :param parts: The layout's action parts on that device.
     """
 
-    def __init__(self, model: Any, members: MemberModules, templates: dict[str, nn.Module], parts: ActionParts) -> None:
-        algorithm = type(model)
-        # MATD3's functions draw smoothing noise; MADDPG's draw none.
-        self.smooths = getattr(algorithm, "_smoothing_noise", None) is not None
-        settings = {name: getattr(model, name) for name in ("target_policy_noise", "target_noise_clip") if self.smooths}
-        self.team = TeamFunctions(algorithm, templates, parts, settings)
+    def __init__(self, settings: "StepSettings", members: MemberModules, templates: dict[str, nn.Module]) -> None:
+        self.smooths = settings.smoothing is not None  # MATD3's target actions draw smoothing noise; MADDPG's none
+        self.team = TeamFunctions(templates, settings.parts, settings.smoothing)
         self.members = members
         self._critic = _member_call(_Bound(self.team, TeamFunctions.critic_losses))
         self._actor = _member_call(_Bound(self.team, TeamFunctions.actor_loss_terms))
@@ -167,7 +160,7 @@ class GroupFunctions:
         noise = self.members.normal_like(batch.actions) if self.smooths else None
         step = _clipped_gradients(self._critic, max_norm, self.members.clip_groups("critic"))
         calls = vmap(step, in_dims=(0, 0, _batch_dims(batch), None, None if noise is None else 0))
-        trained, others = _split(self.members.stacked_parameters(), "critic")
+        trained, others = _split(self.members.stacked_parameters(), self.members.module_parameters("critic"))
         return calls(trained, others, batch, gamma, noise)  # type: ignore[no-any-return]
 
     def actor_gradients(
@@ -181,7 +174,7 @@ class GroupFunctions:
         """
         step = _clipped_gradients(self._actor, max_norm, self.members.clip_groups("actor"))
         calls = vmap(step, in_dims=(0, 0, _batch_dims(batch), None))
-        trained, others = _split(self.members.stacked_parameters(), "actor")
+        trained, others = _split(self.members.stacked_parameters(), self.members.module_parameters("actor"))
         return calls(trained, others, batch, reg_coef)  # type: ignore[no-any-return]
 
 
@@ -194,11 +187,9 @@ def _member_call(bound: nn.Module) -> Callable[..., Any]:
     return call
 
 
-def _split(params: dict[str, th.Tensor], module: str) -> tuple[dict[str, th.Tensor], dict[str, th.Tensor]]:
-    """:return: ``module``'s parameters and the others."""
-    prefix = f"{module}."
-    trained = {name: value for name, value in params.items() if name.startswith(prefix)}
-    return trained, {name: value for name, value in params.items() if not name.startswith(prefix)}
+def _split(params: dict[str, th.Tensor], trained: dict[str, th.Tensor]) -> tuple[dict[str, th.Tensor], dict[str, th.Tensor]]:
+    """:return: ``trained`` (one module's parameters, named as in ``params``) and the other parameters."""
+    return trained, {name: value for name, value in params.items() if name not in trained}
 
 
 def _clipped_gradients(
@@ -268,6 +259,8 @@ class StepSettings(NamedTuple):
     parts: ActionParts
     policy_delay: int = 1
     """Critic updates per actor and target update (MATD3's; MADDPG's is 1)."""
+    smoothing: TargetSmoothing | None = None
+    """The target actions' smoothing (MATD3's; MADDPG has none)."""
 
     def actor_due(self, n_updates: int) -> bool:
         """:return: Whether the critic update numbered ``n_updates`` (from 1) is followed by the actors' and targets'."""

@@ -17,8 +17,8 @@ A snapshot is read without pickle, which runs whatever code a file names: a resu
 optimisers, PyTorch's random stream) are ``torch.save``'d and read with ``torch.load(..., weights_only=True)``, the
 arrays (replay buffer, worlds, observations) ``np.savez``'d and read with ``np.load(..., allow_pickle=False)``, and the
 rest is JSON (:mod:`~sb3_maddpg.common.plain_state`). The model is not read with SB3's ``load`` (which
-unpickles): the run builds its model from its config, and the snapshot's state goes back onto it. A snapshot of the
-pickled format of before (``state.pkl``) is refused by name, and the run starts afresh.
+unpickles): the run builds its model from its config, and the snapshot's state goes back onto it. A directory without
+a ``snapshot.json`` of this format is no snapshot: the run starts afresh.
 """
 
 import csv
@@ -61,13 +61,10 @@ SNAPSHOTS_PER_RUN = 10
 """A snapshot at each ``1 / SNAPSHOTS_PER_RUN`` of the budget (the last one at 90%)."""
 
 SNAPSHOT_FORMAT = 2
-"""The format of a snapshot's files, in its ``snapshot.json``: 2 is read without pickle (1 was ``state.pkl``)."""
+"""The format of a snapshot's files, in its ``snapshot.json``; another format is not read."""
 
 STATE_FILE, ARRAYS_FILE, TENSORS_FILE = "snapshot.json", "arrays.npz", "tensors.pt"
 """A snapshot's files: the JSON state (written last, the snapshot's mark), its arrays, and its torch tensors."""
-
-PICKLED_STATE_FILE = "state.pkl"
-"""The mark of a snapshot of format 1, which was read with pickle: refused by name, never read."""
 
 NO_SNAPSHOT = "no snapshot"
 """What :func:`load_snapshot` says when a run has none (a first attempt, or one killed before its first)."""
@@ -294,9 +291,8 @@ def load_snapshot(
     :param make_model: Builds the run's untrained model on a new training env, as the saved one was built (on the
         device the run trains on).
     :return: The model and the rest of the state (``"progress"``: :class:`RunProgress`, ``"logger"``: the logger's
-        pending values), or why no snapshot is used (:data:`NO_SNAPSHOT`; of the pickled format of before, of another
-        config, of other versions, not whole: :data:`UNREADABLE`); any other error (e.g. out of memory) is raised, the
-        snapshot kept.
+        pending values), or why no snapshot is used (:data:`NO_SNAPSHOT`; of another format or config, of other
+        versions, not whole: :data:`UNREADABLE`); any other error (e.g. out of memory) is raised, the snapshot kept.
     """
     directory = Path(run_dir) / SNAPSHOT_DIR
     old = directory.with_name(f"{SNAPSHOT_DIR}.old")
@@ -305,11 +301,6 @@ def load_snapshot(
     for leftover in (directory.with_name(f"{SNAPSHOT_DIR}.tmp"), old):
         shutil.rmtree(leftover, ignore_errors=True)  # a save killed half-way
     if not (directory / STATE_FILE).is_file():
-        if (directory / PICKLED_STATE_FILE).is_file():
-            return (
-                f"its snapshot is of the pickled format 1 ({PICKLED_STATE_FILE}), which could run code when read: not "
-                f"read (this version reads format {SNAPSHOT_FORMAT})"
-            )
         return NO_SNAPSHOT
     try:
         document = json.loads((directory / STATE_FILE).read_text())

@@ -14,7 +14,7 @@ from sb3_maddpg.common.argument_ranges import TEAM_ALGORITHM_RANGES, check_argum
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.common.env_checks import refuse_unsupported_env
 from sb3_maddpg.common.gradient_step import gradient_step, polyak_update_foreach
-from sb3_maddpg.common.losses import ActionParts, actor_loss_terms, critic_losses, critic_targets
+from sb3_maddpg.common.losses import ActionParts, actor_loss_terms, critic_losses, team_critic_targets
 from sb3_maddpg.common.policies import MultiAgentActor, MultiAgentCritic
 from sb3_maddpg.common.selection import Selector
 from sb3_maddpg.common.team_algorithm import TeamOffPolicyAlgorithm
@@ -206,7 +206,7 @@ class MADDPG(TeamOffPolicyAlgorithm):
             target_q_values = self._critic_targets(replay_data)
             # Each critic's loss on the batch, its extractor recording its diagnostics (e.g. attention weights)
             with self.critic.recording_diagnostics():
-                critic_loss = critic_losses(self._trained_q, replay_data, target_q_values)
+                critic_loss = critic_losses(self.critic.trained_q, replay_data, target_q_values)
             gradient_step(self.critic, critic_loss.sum(), self.max_grad_norm)
             critic_log = critic_loss.detach().reshape(-1, critic_loss.shape[-1]).mean(0)  # mean over an agent's critics
 
@@ -228,20 +228,12 @@ class MADDPG(TeamOffPolicyAlgorithm):
         self._log_losses(**summarise_steps(losses))
 
     def _critic_targets(self, data: MultiAgentReplayBufferSamples) -> th.Tensor:
-        """The team's critic targets on a replay batch (no gradient), ``[batch, n_agents]``."""
-        return critic_targets(self._target_actions, self._target_q, data, self.gamma)
-
-    def _target_actions(self, observations: th.Tensor) -> th.Tensor:
-        """Every target actor on its agent's observation (a discrete agent's: a Gumbel-max sample)."""
-        return self.actor_target.sample(observations)
-
-    def _target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """The target critics, ``[batch, n_agents]``."""
-        return self.critic_target(observations, actions, selections)
-
-    def _trained_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """Every critic a step trains (MADDPG: one per agent), ``[..., batch, n_agents]``."""
-        return self.critic(observations, actions, selections)
+        """The team's critic targets on a replay batch (no gradient), ``[batch, n_agents]``: the functions a run group
+        applies to each of its runs (:func:`~sb3_maddpg.common.losses.team_critic_targets`)."""
+        settings = self._step_settings()
+        return team_critic_targets(
+            self.actor_target, self.critic_target, data, self.gamma, self._action_parts.continuous, settings.smoothing
+        )
 
     def _step_settings(self) -> StepSettings:
         """:return: A run group's update step's hyperparameters, as they are now."""

@@ -10,32 +10,12 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_maddpg.common.argument_ranges import TD3_RANGES, check_arguments
+from sb3_maddpg.common.losses import TargetSmoothing
 from sb3_maddpg.common.selection import Selector
 from sb3_maddpg.common.update_step import StepSettings
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.matd3.policies import MATD3Policy, MlpPolicy, TwinMultiAgentCritic
 from sb3_maddpg.sharing import CriticSharing
-
-
-def smooth_target_actions(
-    actions: th.Tensor, noise_std: float, noise_clip: float, continuous: th.Tensor, noise: th.Tensor | None = None
-) -> th.Tensor:
-    """
-    TD3's target policy smoothing, in the policy's [-1, 1] space: Gaussian noise of ``noise_std``, clipped to
-    ``[-noise_clip, noise_clip]``, added to the continuous agents' components, the sum clipped to [-1, 1]. A discrete
-    agent's one-hot stays the target actor's Gumbel-max sample (noise on a one-hot is not an action).
-
-    :param actions: The target actors' joint actions in [-1, 1], ``[..., action_dim]``.
-    :param noise_std: The noise's standard deviation (TD3's ``target_policy_noise``).
-    :param noise_clip: The largest noise magnitude (TD3's ``target_noise_clip``).
-    :param continuous: The continuous agents' components, ``[action_dim]`` (bool).
-    :param noise: Standard normal noise shaped as ``actions``, each member's from its own stream;
-        None: drawn from torch's global generator.
-    :return: The smoothed actions, the shape of ``actions``.
-    """
-    # Out of place: under a run group's vmap an in-place clamp has no batching rule (a slow per-run fallback).
-    noise = ((th.randn_like(actions) if noise is None else noise) * noise_std).clamp(-noise_clip, noise_clip)
-    return th.where(continuous, (actions + noise).clamp(-1.0, 1.0), actions)
 
 
 class MATD3(MADDPG):
@@ -166,26 +146,8 @@ class MATD3(MADDPG):
             _init_setup_model=_init_setup_model,
         )
 
-    def _target_actions(self, observations: th.Tensor) -> th.Tensor:
-        """Every target actor on its next observation, plus the clipped smoothing noise (continuous agents only)."""
-        actions = self.actor_target.sample(observations)
-        noise = self._smoothing_noise(actions)
-        return smooth_target_actions(
-            actions, self.target_policy_noise, self.target_noise_clip, self._action_parts.continuous, noise
-        )
-
-    def _smoothing_noise(self, actions: th.Tensor) -> th.Tensor:
-        """Standard normal noise shaped as ``actions``, from torch's global generator (which SB3's seeding seeds)."""
-        return th.randn_like(actions)
-
-    def _target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """The minimum of the two target critics, agent by agent, ``[batch, n_agents]``."""
-        return self.critic_target.twins(observations, actions, selections).amin(dim=0)
-
-    def _trained_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None) -> th.Tensor:
-        """Both twin critics stacked in front, ``[2, batch, n_agents]`` (what :func:`critic_losses` broadcasts over)."""
-        return self.critic.twins(observations, actions, selections)
-
     def _step_settings(self) -> StepSettings:
-        """:return: MADDPG's settings with the actors delayed by ``policy_delay`` critic updates."""
-        return super()._step_settings()._replace(policy_delay=self.policy_delay)
+        """:return: MADDPG's settings with the actors delayed by ``policy_delay`` critic updates and the target actions
+        smoothed (read now: a changed ``target_policy_noise`` takes effect at the next step)."""
+        smoothing = TargetSmoothing(self.target_policy_noise, self.target_noise_clip)
+        return super()._step_settings()._replace(policy_delay=self.policy_delay, smoothing=smoothing)

@@ -56,6 +56,20 @@ class TwinMultiAgentCritic(MultiAgentCritic):
         """
         return th.stack((self(observations, actions, selections), self.twin(observations, actions, selections)))
 
+    def trained_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
+        """Both twins, trained together: :meth:`twins`, ``[2, batch, n_agents]`` (what ``critic_losses`` broadcasts over)."""
+        return self.twins(observations, actions, selections)
+
+    def target_q(self, observations: th.Tensor, actions: th.Tensor, selections: th.Tensor | None = None) -> th.Tensor:
+        """The minimum of the two twins, agent by agent (TD3's clipped double Q), ``[batch, n_agents]``."""
+        return self.twins(observations, actions, selections).amin(dim=0)
+
+    def clip_groups(self) -> list[list[str]]:
+        """:return: The first twin's parameter names, then the second's (:attr:`twin`): each clipped on its own."""
+        second = {id(parameter) for parameter in self.twin.parameters()}
+        named = list(self.named_parameters())
+        return [[name for name, p in named if id(p) not in second], [name for name, p in named if id(p) in second]]
+
     def clip_grad_norm_per_agent(self, max_norm: float) -> None:
         """
         Clip each agent's gradient norm separately for each twin, like one optimiser per critic network: the twins are

@@ -124,8 +124,9 @@ def settings(model: MADDPG) -> dict[str, Any]:
         "actor_reg_coef": model.actor_reg_coef,
         "n_envs": model.n_envs,
         "algorithm": type(model).__name__,
-        # MATD3's own (none for MADDPG)
-        **{name: getattr(model, name) for name in MATD3_SETTINGS if hasattr(model, name)},
+        # The step's own beyond those above, as the algorithm states them (MATD3's delay and smoothing)
+        "policy_delay": model._step_settings().policy_delay,
+        "smoothing": model._step_settings().smoothing,
         "policy_class": type(policy).__name__,
         # The policy's whole configuration (net_arch, activation_fn, share_parameters, layer_norm, ...) but what is
         # compared above, the schedule (a function object; learning_rate is compared) and the spaces (the layout).
@@ -141,9 +142,6 @@ def settings(model: MADDPG) -> dict[str, Any]:
         "update_credit": (model.update_rule.credit, model.update_rule.counted_at),
     }
 
-
-MATD3_SETTINGS = ("policy_delay", "target_policy_noise", "target_noise_clip")
-"""MATD3's own settings, compared between the models that have them."""
 
 _MODEL_SETTINGS = ("critic_sharing", "critic_sharing_kwargs")
 """The policy's constructor parameters :func:`settings` reads from the model instead."""

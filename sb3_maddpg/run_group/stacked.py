@@ -88,12 +88,16 @@ class StackedTeams:
         self.actor_target = StackedModule(actor_targets, device)
         self.critic_target = StackedModule(critic_targets, device)
         self.streams = streams
-        # Each network whose gradient is clipped on its own: the actors; each of MATD3's twin critics.
-        first = [f"critic.{name}" for name in self.critic.names if not name.startswith("twin.")]
-        twin = [f"critic.{name}" for name in self.critic.names if name.startswith("twin.")]
+        self._modules = {
+            "actor": self.actor,
+            "critic": self.critic,
+            "actor_target": self.actor_target,
+            "critic_target": self.critic_target,
+        }
+        # Each network whose gradient is clipped on its own, as the modules group them (MATD3's twins apart).
         self._clip_groups = {
             "actor": [[f"actor.{name}" for name in self.actor.names]],
-            "critic": [group for group in (first, twin) if group],
+            "critic": [[f"critic.{name}" for name in group] for group in critics[0].clip_groups()],
         }
         self._target_pairs = (
             [*self.critic.parameters(), *self.actor.parameters()],
@@ -101,15 +105,14 @@ class StackedTeams:
         )
 
     def stacked_parameters(self) -> dict[str, th.Tensor]:
-        return {
-            f"{module}.{name}": value
-            for module in ("actor", "critic", "actor_target", "critic_target")
-            for name, value in getattr(self, module).params.items()
-        }
+        return {name: value for module in self._modules for name, value in self.module_parameters(module).items()}
+
+    def module_parameters(self, module: str) -> dict[str, th.Tensor]:
+        return {f"{module}.{name}": value for name, value in self._modules[module].params.items()}
 
     def templates(self) -> dict[str, nn.Module]:
         """:return: One team's four networks on the device (each stacked module's template), by module name."""
-        return {module: getattr(self, module).template for module in ("actor", "critic", "actor_target", "critic_target")}
+        return {module: stacked.template for module, stacked in self._modules.items()}
 
     def clip_groups(self, module: str) -> list[list[str]]:
         return self._clip_groups[module]

@@ -115,9 +115,8 @@ class RunGroup:
         self.actor_optimizer = StackedAdam.of_models(self.teams.actor.parameters(), [m.actor.optimizer for m in models])
         self.critic_optimizer = StackedAdam.of_models(self.teams.critic.parameters(), [m.critic.optimizer for m in models])
         # The algorithm's own networks and step settings (checked: the same in every model), over the stacked runs.
-        parts = ActionParts.of(self.layout, self.device)
-        self.networks = GroupFunctions(first, self.teams, self.teams.templates(), parts)
-        self.settings = first._step_settings()._replace(parts=parts)
+        self.settings = first._step_settings()._replace(parts=ActionParts.of(self.layout, self.device))
+        self.networks = GroupFunctions(self.settings, self.teams, self.teams.templates())
         self.batch_size = first.batch_size
         self.learning_starts = first.learning_starts
         self.lr_schedule = first.lr_schedule

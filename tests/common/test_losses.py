@@ -16,6 +16,7 @@ from sb3_maddpg.common.losses import (
     actor_loss_terms,
     critic_losses,
     critic_targets,
+    team_critic_targets,
 )
 from sb3_maddpg.envs import make_simple_spread
 from tests.loss_helpers import team_actor_terms, team_critic_losses
@@ -41,7 +42,9 @@ def test_a_trained_teams_targets_and_losses_by_hand(scheme: str) -> None:
         next_selections = rows.selections if rows.next_selections is None else rows.next_selections
         next_q = model.critic_target(rows.next_observations, model.actor_target(rows.next_observations), next_selections)
         expected = rows.rewards + 0.9 * (1.0 - rows.dones) * next_q
-    targets = critic_targets(model._target_actions, model._target_q, rows, model.gamma)
+    targets = team_critic_targets(
+        model.actor_target, model.critic_target, rows, model.gamma, model._action_parts.continuous, None
+    )
     th.testing.assert_close(targets, expected)
     losses = critic_losses(model.critic, rows, targets)
     squared = (model.critic(rows.observations, rows.actions, rows.selections) - targets) ** 2

@@ -29,7 +29,6 @@ from sb3_maddpg.experiments.results_dir import (
 )
 from sb3_maddpg.experiments.run_snapshot import (
     ARRAYS_FILE,
-    PICKLED_STATE_FILE,
     SNAPSHOT_DIR,
     STATE_FILE,
     TENSORS_FILE,
@@ -238,16 +237,15 @@ def test_a_snapshot_resumes_without_unpickling(killed_run: Path, tmp_path: Path,
     assert why_not == "" and model.num_timesteps == 300 and model._n_updates > 0 and model.replay_buffer.pos > 0
 
 
-def test_a_snapshot_of_the_pickled_format_is_refused_by_name(killed_run: Path, tmp_path: Path) -> None:
+def test_a_snapshot_directory_of_pickles_is_never_unpickled(killed_run: Path, tmp_path: Path) -> None:
     directory = copy_of(killed_run, tmp_path)
     snapshot, ran = directory / SNAPSHOT_DIR, tmp_path / "code_ran"
     shutil.rmtree(snapshot)
-    snapshot.mkdir()  # format 1: state.pkl beside the model's .zip and the buffer's pickle
-    (snapshot / PICKLED_STATE_FILE).write_bytes(pickle.dumps(Tripwire(ran)))
+    snapshot.mkdir()  # pickles where a snapshot's files would be, and no snapshot.json
+    (snapshot / "state.pkl").write_bytes(pickle.dumps(Tripwire(ran)))
     (snapshot / "model.zip").write_bytes(b"")
     summary = runner.execute_run(config(), tmp_path / "results", verbose=0)
     log = (directory / LOG_FILE).read_text()
-    assert "starting afresh: its snapshot is of the pickled format 1 (state.pkl), which could run code when read" in log
     assert not ran.exists() and summary["total_timesteps"] == 1_000 and "resumed" not in log
 
 

@@ -12,10 +12,9 @@ import torch as th
 
 from sb3_maddpg import MADDPG, MATD3
 from sb3_maddpg.analysis.evaluation import evaluate_team
-from sb3_maddpg.common.losses import critic_losses
+from sb3_maddpg.common.losses import critic_losses, smooth_target_actions, target_actions
 from sb3_maddpg.common.policies import AgentCritic
 from sb3_maddpg.envs import PettingZooToGym, make_simple_spread
-from sb3_maddpg.matd3 import smooth_target_actions
 from sb3_maddpg.matd3.policies import MATD3Policy, TwinMultiAgentCritic
 from tests.mixed_team import MixedTeam
 from tests.settings import UPDATES_PER_10_TRANSITIONS
@@ -98,7 +97,7 @@ def test_the_critic_update_descends_both_twins_losses_at_that_target(scheme: str
     data = model.replay_buffer.sample(BATCH)
     th.manual_seed(7)
     targets = model._critic_targets(data)
-    losses = critic_losses(model._trained_q, data, targets)
+    losses = critic_losses(model.critic.trained_q, data, targets)
     params = list(model.critic.parameters())
     grads = th.autograd.grad(losses.sum(), params, allow_unused=True)
     expected = [p.detach() - (0 if g is None else g) for p, g in zip(params, grads)]
@@ -143,11 +142,16 @@ def test_smoothing_noise_is_clipped_and_absent_on_discrete_one_hots() -> None:
     assert near_edge.max() == 1.0 and near_edge[..., :2].min() >= 0.4 - 1e-6
 
 
+def model_target_actions(model: MATD3, observations: th.Tensor) -> th.Tensor:
+    """:return: The target actions ``train`` computes for ``model`` now (its settings read at the call)."""
+    return target_actions(model.actor_target, observations, model._action_parts.continuous, model._step_settings().smoothing)
+
+
 def test_a_mixed_teams_target_actions_keep_the_one_hot_and_smooth_the_continuous_agent() -> None:
     model = MATD3("MlpPolicy", PettingZooToGym(MixedTeam()), learning_starts=1_000, target_policy_noise=1.0, seed=0)
     model.learn(40)
     next_obs = th.as_tensor(model.replay_buffer.next_observations[:40, 0])
-    smoothed = model._target_actions(next_obs)
+    smoothed = model_target_actions(model, next_obs)
     assert is_one_hot(smoothed[:, 1:])
     with th.no_grad():
         offset = smoothed[:, 0] - model.actor_target(next_obs)[:, 0]
@@ -230,7 +234,7 @@ def test_each_critics_loss_reaches_exactly_the_inputs_its_scheme_allows(
     obs, actions = data.observations.clone().requires_grad_(True), data.actions.clone().requires_grad_(True)
     # As train() computes them: its hooks give MATD3's smoothed min target and both twins' losses
     targets = model._critic_targets(data)
-    losses = critic_losses(model._trained_q, data._replace(observations=obs, actions=actions), targets)
+    losses = critic_losses(model.critic.trained_q, data._replace(observations=obs, actions=actions), targets)
     twins = losses.reshape(-1, N_AGENTS)  # [n_twins, n_agents]: 1 for MADDPG, 2 for MATD3
     assert twins.shape[0] == (2 if algorithm == "MATD3" else 1)
     selections = data.selections
@@ -250,7 +254,7 @@ def test_each_critics_loss_reaches_exactly_the_inputs_its_scheme_allows(
 def test_each_twins_loss_moves_only_its_own_agents_own_twin(scheme: str, collected_model: Any, replay_batch: Any) -> None:
     model = collected_model(scheme)
     data = replay_batch(model)
-    losses = critic_losses(model._trained_q, data, model._critic_targets(data))
+    losses = critic_losses(model.critic.trained_q, data, model._critic_targets(data))
     critics = (model.critic, model.critic.twin)
     for twin in range(2):
         for i in range(N_AGENTS):
@@ -383,7 +387,7 @@ def test_the_target_actions_read_the_current_target_policy_noise() -> None:
     model.target_policy_noise = 0.7
     obs = th.as_tensor(model.replay_buffer.next_observations[:8, 0])
     th.manual_seed(3)
-    smoothed = model._target_actions(obs)
+    smoothed = model_target_actions(model, obs)
     with th.no_grad():
         raw = model.actor_target.sample(obs)
     th.manual_seed(3)
