@@ -119,7 +119,7 @@ def setting_options(concern: type = ExperimentConfig) -> list[Option]:
             option = option._replace(hint=option.hint | int, help=option.help + " An integer N: 0..N-1.")
         if option.name in LISTS:
             option = option._replace(hint=option.hint | str)
-        if option.name == "num_agent_neighbors":  # "all", as the option said before 0.3
+        if option.name == "num_agent_neighbors":  # "all" for every other agent, as null says
             option = option._replace(hint=option.hint | Literal["all"], help=option.help + " Give null or all for all.")
         options.append(option)
     return options

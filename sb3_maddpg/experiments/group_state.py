@@ -169,7 +169,7 @@ def read_trained(directory: Path, config: RunConfig, echo: bool) -> TrainedRun |
     :param directory: A run's directory.
     :param config: The run.
     :param echo: Print why a record is not used, too (it is appended to the run's ``train.log``).
-    :return: Its checkpoints, train time and resources (``None`` in a record written before 0.3), when its training
+    :return: Its checkpoints, train time and resources (``None`` where unreadable), when its training
         is over (:func:`write_trained`) for this config and its checkpoints are still there; else ``None`` (the run
         trains, again if it had).
     """
@@ -185,10 +185,9 @@ def read_trained(directory: Path, config: RunConfig, echo: bool) -> TrainedRun |
     elif not all(Path(file).exists() for _, file in record["saved"]):
         why = "some of the checkpoints its training saved are missing"
     else:
-        resources = record.get("resources")
         try:
-            recorded = TrainingResources(**resources) if isinstance(resources, dict) else None
-        except TypeError:  # not ours: the cost table says "-" for this run rather than training it again
+            recorded: TrainingResources | None = TrainingResources(**record["resources"])
+        except (TypeError, KeyError):  # not ours: the cost table says "-" for this run rather than training it again
             recorded = None
         return TrainedRun([(int(steps), Path(file)) for steps, file in record["saved"]], float(record["train_time"]), recorded)
     log_line(f"{config.run_id}: {why}, so it trains again", str(directory / LOG_FILE), echo)

@@ -102,8 +102,7 @@ NUMERIC_SUMMARY_FIELDS = ("score", "behaviour")
 
 def summary_from_json(summary: dict[str, Any]) -> dict[str, Any]:
     """
-    :param summary: A run's ``summary.json`` as parsed: strict JSON (``null`` for a metric that does not apply) or,
-        from summaries written before 0.3, with ``NaN`` (which Python's parser reads).
+    :param summary: A run's ``summary.json`` as parsed: strict JSON, ``null`` for a metric that does not apply.
     :return: The summary with every ``null`` of :data:`NUMERIC_SUMMARY_FIELDS` as NaN, as it was computed.
     """
     for field in NUMERIC_SUMMARY_FIELDS:
@@ -260,22 +259,10 @@ def load_summaries(results_dir: str | os.PathLike[str]) -> list[dict[str, Any]]:
 
 def run_updates(summary: dict[str, Any]) -> int | None:
     """
-    :param summary: A finished run's summary, with ``"directory"`` (:func:`load_summaries`).
-    :return: The gradient updates its training took: the summary's ``n_updates``, or for summaries written before 0.3,
-        the last ``train/n_updates`` of its ``progress.csv`` (0 when the log has rows but never that value: ``train()``
-        never ran); ``None`` when neither says.
+    :param summary: A finished run's summary.
+    :return: The gradient updates its training took (its ``n_updates``), ``None`` where it does not say.
     """
-    if summary.get("n_updates") is not None:
-        return int(summary["n_updates"])
-    path = Path(summary.get("directory", "")) / PROGRESS_FILE
-    if "directory" not in summary or not path.exists():
-        return None
-    with open(path, newline="") as file:
-        rows = list(csv.DictReader(file))
-    if not rows:
-        return None
-    counts = [row["train/n_updates"] for row in rows if row.get("train/n_updates")]
-    return int(float(counts[-1])) if counts else 0
+    return None if summary.get("n_updates") is None else int(summary["n_updates"])
 
 
 def never_updated_warning(run_ids: list[str]) -> str | None:
