@@ -1,0 +1,84 @@
+"""The table "Which information helps, task by task" (issue 57): normalised per task between random actions and the
+better of the scripted reference and the best scheme, complete seeds only, verdicts against ``full`` after Holm within
+the task; and the committed table is the committed runs' (regenerated and compared)."""
+
+import importlib.util
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from sb3_maddpg.experiments.results_dir import write_json_atomic
+from sb3_maddpg.results.cross_task import TaskStudy, complete_seed_scores, format_cell, task_row
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def make_table_module() -> Any:
+    spec = importlib.util.spec_from_file_location("make_table", REPO / "benchmarks" / "cross_task" / "make_table.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def write_study(root: Path, scores: dict[str, list[float]], random: list[float], extra: dict[str, Any] | None = None) -> None:
+    """A results directory of a non-MPE setting: one run per score (seed = index), its random reference per seed."""
+    experiment = root / "task"
+    experiment.mkdir(parents=True)
+    write_json_atomic(experiment / "experiment.json", {"name": "task", "env": "my_pkg:env", "schemes": list(scores)})
+    for scheme, values in scores.items():
+        for seed, value in enumerate(values):
+            run = experiment / scheme / f"seed_{seed:03d}"
+            run.mkdir(parents=True)
+            summary = {"experiment": "task", "scheme": scheme, "seed": seed, "score": {"return_mean": value}}
+            write_json_atomic(run / "summary.json", {**summary, **(extra or {})})
+            (run / "done").write_text("")
+    seeds = {str(seed): {"score": {"return_mean": value}} for seed, value in enumerate(random)}
+    write_json_atomic(experiment / "references.json", {"policies": {"random": {"seeds": seeds}}})
+
+
+def test_scores_are_normalised_between_random_and_the_best_scheme_with_holm_verdicts(tmp_path: Path) -> None:
+    full = [10.0, 11.0, 12.0, 13.0, 14.0]
+    write_study(tmp_path, {"full": full, "independent": [v - 8 for v in full], "actions": [v + 0.5 for v in full]}, [0.0] * 5)
+    row = task_row(TaskStudy("task", tmp_path, "task", "return_mean"))
+    assert row.seeds == [0, 1, 2, 3, 4] and row.random == 0.0
+    assert row.top == 12.5 and row.top_is == "best scheme (actions)"  # the best scheme's mean is 1
+    assert row.cells["actions"]["mean"] == pytest.approx(1.0) and row.cells["full"]["mean"] == pytest.approx(12 / 12.5)
+    independent = row.cells["independent"]
+    assert independent["p"] == pytest.approx(2 / 252) and independent["p_holm"] == pytest.approx(4 / 252)  # family of 2
+    assert independent["verdict"] == "below"
+    assert row.cells["actions"]["verdict"] == "not separated"  # overlapping runs
+    assert "verdict" not in row.cells["full"]
+    assert format_cell(independent).endswith("below, p = .008 (Holm = .016)")
+
+
+def test_only_seeds_every_declared_scheme_finished_count(tmp_path: Path) -> None:
+    summaries = [{"experiment": "e", "scheme": "full", "seed": seed, "score": {"m": float(seed)}} for seed in (0, 1, 2)] + [
+        {"experiment": "e", "scheme": "selected", "seed": 1, "score": {"m": 5.0}}
+    ]
+    assert complete_seed_scores(summaries, "e", ["full", "selected"], "m") == {"full": {1: 1.0}, "selected": {1: 5.0}}
+    assert complete_seed_scores(summaries, "e", ["full", "selected", "actions"], "m") == {
+        "full": {},
+        "selected": {},
+        "actions": {},
+    }
+
+
+def test_a_task_without_a_random_reference_is_refused_with_what_to_run(tmp_path: Path) -> None:
+    write_study(tmp_path, {"full": [1.0]}, [0.0])
+    (tmp_path / "task" / "references.json").unlink()
+    with pytest.raises(ValueError, match=r"no random reference for 'task'.*reference_policies"):
+        task_row(TaskStudy("task", tmp_path, "task", "return_mean"))
+
+
+def test_the_committed_table_is_the_committed_runs() -> None:
+    module = make_table_module()
+    data, rst = module.table()
+    committed = json.loads(module.TABLE_JSON.read_text())
+    assert data == committed, "benchmarks/cross_task/table.json is stale: run python benchmarks/cross_task/make_table.py"
+    assert rst == module.TABLE_RST.read_text(), "docs/guide/cross_task_table.inc is stale: run the same command"
+    exp1 = next(row for row in data if row["experiment"] == "paper_n5i_exp1")
+    assert len(exp1["seeds"]) >= 5 and not math.isnan(exp1["cells"]["full"]["mean"])

@@ -1,0 +1,22 @@
+"""Docs a user reads (issue 58): each guide page at most 2,500 words, the guide at most 15,000, the README at most
+1,000 (words as ``wc -w`` counts them). Diagnoses, probes and study logs go to the ``benchmarks/`` READMEs."""
+
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+PAGE_LIMIT, GUIDE_LIMIT, README_LIMIT = 2_500, 15_000, 1_000
+
+
+def words(path: Path) -> int:
+    return len(path.read_text().split())
+
+
+def test_every_guide_page_and_the_guide_are_within_their_limits() -> None:
+    pages = {path.name: words(path) for path in sorted((REPO / "docs" / "guide").glob("*.rst"))}
+    assert len(pages) > 10
+    assert {name: count for name, count in pages.items() if count > PAGE_LIMIT} == {}
+    assert sum(pages.values()) <= GUIDE_LIMIT, sum(pages.values())
+
+
+def test_the_readme_is_within_its_limit() -> None:
+    assert words(REPO / "README.md") <= README_LIMIT
