@@ -11,6 +11,10 @@
 #
 # Issue 56, seeds 5-9 of Exp. 1 (seeds 0-4 are finished and skipped):
 #   SETTINGS=exp1 SEEDS=0,1,2,3,4,5,6,7,8,9 RESULTS_ROOT=/work/main/benchmarks WORKERS=2 nohup bash ... &
+# Issue 56, item 3: Exp. 2 whole (exp2.json holds all six schemes since make_configs.py --all-exp2; its three finished
+# schemes are skipped), and item 4: Exp. 1's selected over a fixed neighbour graph (exp1_fixed_graph.json; from a
+# commit that reads a {"neighbors": ...} selector, 2026-12-06 or later):
+#   SETTINGS="exp2 exp1_fixed_graph" RESULTS_ROOT=/work/main/benchmarks WORKERS=1 nohup bash ... &
 set -u
 cd "$(dirname "$0")/../.."
 RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"

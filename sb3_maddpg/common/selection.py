@@ -311,7 +311,8 @@ def resolve_selector(selector: Selector | int | dict[str, Any] | None) -> Select
 
     :param selector: ``None`` for the default ``NearestAgents(k=2)``; an int ``k`` for ``NearestAgents(k)``; a dict of
         :class:`NearestAgents`'s arguments ``k`` and ``target`` (as a JSON experiment file gives them, e.g.
-        ``{"k": 2, "target": "next"}``); or a :class:`Selector`.
+        ``{"k": 2, "target": "next"}``), or of :class:`FixedGraph`'s ``neighbors`` (``{"neighbors": [[1, 2], [0, 2],
+        [0, 1]]}``); or a :class:`Selector`.
     :return: The selector.
     """
     if selector is None:
@@ -319,12 +320,16 @@ def resolve_selector(selector: Selector | int | dict[str, Any] | None) -> Select
     if isinstance(selector, int) and not isinstance(selector, bool):
         return NearestAgents(k=selector)
     if isinstance(selector, dict):
-        unknown = sorted(set(selector) - {"k", "target"})
+        keys = {"neighbors"} if "neighbors" in selector else {"k", "target"}
+        unknown = sorted(set(selector) - keys)
         if unknown:
             raise ValueError(
                 f"selector={selector!r} has unknown key(s) {unknown}: a dict selector gives NearestAgents's 'k' and "
-                "'target' (e.g. {'k': 2, 'target': 'next'}); pass a Selector object for any other rule."
+                "'target' (e.g. {'k': 2, 'target': 'next'}) or FixedGraph's 'neighbors' (e.g. {'neighbors': [[1, 2], "
+                "[0, 2], [0, 1]]}); pass a Selector object for any other rule."
             )
+        if keys == {"neighbors"}:
+            return FixedGraph(selector["neighbors"])
         k = selector.get("k", 2)
         if isinstance(k, bool) or not isinstance(k, int):
             raise ValueError(f"selector={selector!r}: 'k' must be an int (the k nearest agents), got {k!r}.")

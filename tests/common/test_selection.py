@@ -16,7 +16,7 @@ from sb3_maddpg.common.selection import (
     resolve_selector,
     warn_if_selecting_everyone,
 )
-from sb3_maddpg.envs import make_simple_spread
+from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
 from tests.settings import FILLS_THE_BUFFER_ONLY
 
 # Positions as MPE lays them out, [vel(2), pos(2), ...], declared as the MPE tasks declare them.
@@ -222,6 +222,21 @@ def test_the_default_selector_is_the_papers_two_nearest_agents() -> None:
     for default in (resolve_selector(None), resolve_selector({}), resolve_selector({"target": "next"}), NearestAgents()):
         assert isinstance(default, NearestAgents) and default.k == 2
     assert resolve_selector(3).k == 3 and resolve_selector({"k": 1}).k == 1
+
+
+def test_a_fixed_graph_is_given_in_a_config_as_its_neighbors() -> None:
+    """A JSON experiment names a fixed graph as ``{"neighbors": [...]}``: the same selector as ``FixedGraph``, and a
+    run of it selects exactly those agents (issue 56's fixed-graph run)."""
+    ring = [[4, 1], [0, 2], [1, 3], [2, 4], [3, 0]]
+    selector = resolve_selector({"neighbors": ring})
+    assert isinstance(selector, FixedGraph) and selector.k == 2 and selector.neighbors.tolist() == ring
+    model = MADDPG(
+        "MlpPolicy", SimpleSpreadVecEnv(n_envs=2, n_agents=5), critic_sharing="selected", selector={"neighbors": ring}
+    )
+    selections = model.selector.select(np.zeros((3, model.agent_layout.obs_dim), dtype=np.float32), model.agent_layout)
+    assert selections.tolist() == [ring] * 3
+    with pytest.raises(ValueError, match=r"unknown key\(s\) \['k'\].*FixedGraph's 'neighbors'"):
+        resolve_selector({"neighbors": ring, "k": 2})
 
 
 @FILLS_THE_BUFFER_ONLY
