@@ -1,11 +1,12 @@
-"""PettingZoo's SISL pursuit as a task of the experiments: the adapter with the pursuers' positions (for selection by
-distance) and a task metric, the evaders caught per episode.
+"""PettingZoo's SISL pursuit and multiwalker as tasks of the experiments: the adapter with the agents' positions (for
+selection by distance) and a task metric each, the evaders caught and the distance the walkers carried the package.
 
-Run it as an experiment's task, ``env: "sb3_maddpg.envs.sisl:pursuit_env"`` (the preset ``pursuit``), or build it
-directly::
+Run them as an experiment's task, ``env: "sb3_maddpg.envs.sisl:pursuit_env"`` (the preset ``pursuit``) or
+``"sb3_maddpg.envs.sisl:multiwalker_env"`` (the preset ``multiwalker``), or build them directly::
 
-    from sb3_maddpg.envs.sisl import pursuit_env
+    from sb3_maddpg.envs.sisl import multiwalker_env, pursuit_env
     env = pursuit_env(x_size=8, y_size=8, n_pursuers=4, n_evaders=4, max_cycles=100, surround=False, n_catch=2)
+    walkers = multiwalker_env(n_walkers=3, max_cycles=500)
 
 ``pettingzoo.sisl`` (and pygame, which it imports) is imported when an env is built, not with this module, so that
 ``import sb3_maddpg`` does not need the ``sisl`` extra.
@@ -31,17 +32,52 @@ EVADERS_CAUGHT = TaskMetric(
 PURSUIT_TASK_METRICS = (EVADERS_CAUGHT,)
 """The task metrics :func:`pursuit_env` declares."""
 
+PACKAGE_DISTANCE = TaskMetric(
+    "package_distance",
+    "last",
+    "higher",
+    "team",
+    "how far the walkers carried the package from its start by the episode's end (terrain units; falling ends it)",
+)
+"""Multiwalker's task metric: the package's forward distance from where it started."""
+
+MULTIWALKER_TASK_METRICS = (PACKAGE_DISTANCE,)
+"""The task metrics :func:`multiwalker_env` declares."""
+
 PURSUIT_NO_OP = 4
 """Pursuit's action that leaves a pursuer where it is (its moves: 0-3 the four directions, 4 stay)."""
 
 
-def pursuit_state(parallel_env: Any) -> Any:
+GONE = (-1e6, -1e6)
+"""Where :func:`walker_positions` places a walker without a body: farther from every walker than the terrain is long."""
+
+
+def sisl_state(parallel_env: Any) -> Any:
     """
-    :param parallel_env: Pursuit's ``parallel_env`` (or a wrapper of it).
-    :return: The env's state: PettingZoo's ``pursuit_base.Pursuit`` (``pursuer_layer``, ``evader_layer``,
-        ``evaders_gone``), which pursuit's AEC env keeps as ``env``.
+    :param parallel_env: A SISL ``parallel_env`` (or a wrapper of it).
+    :return: The env's state, which the AEC env keeps as ``env``: pursuit's ``Pursuit``, multiwalker's
+        ``MultiWalkerEnv``.
     """
     return parallel_env.unwrapped.env
+
+
+def walker_positions(parallel_env: Any) -> np.ndarray:
+    """
+    :param parallel_env: Multiwalker's ``parallel_env``.
+    :return: Each walker's hull position ``(x, y)``, ``[n_walkers, 2]`` in ``possible_agents`` order; a walker whose
+        body is gone (it fell and was removed, or the episode is over) at :data:`GONE`, where no one selects it as near.
+    """
+    walkers = sisl_state(parallel_env).walkers  # new bodies at every reset: read them at every call
+    return np.array([GONE if walker.hull is None else tuple(walker.hull.position) for walker in walkers], dtype=np.float32)
+
+
+def package_distance(parallel_env: Any) -> dict[str, float]:
+    """
+    :param parallel_env: Multiwalker's ``parallel_env``.
+    :return: ``{"package_distance": d}``: the package's x now less its x at the start (the walkers' middle start).
+    """
+    state = sisl_state(parallel_env)
+    return {PACKAGE_DISTANCE.key: float(state.package.position.x - np.mean(state.start_x))}
 
 
 def pursuer_positions(parallel_env: Any) -> np.ndarray:
@@ -50,7 +86,7 @@ def pursuer_positions(parallel_env: Any) -> np.ndarray:
     :return: Each pursuer's grid cell ``(x, y)``, ``[n_pursuers, 2]`` in ``possible_agents`` order (``pursuer_i`` is
         the pursuer layer's agent ``i``; pursuit never removes a pursuer).
     """
-    layer = pursuit_state(parallel_env).pursuer_layer  # a new layer at every reset: read it at every call
+    layer = sisl_state(parallel_env).pursuer_layer  # a new layer at every reset: read it at every call
     return np.array([layer.get_position(i) for i in range(layer.n_agents())], dtype=np.float32)
 
 
@@ -60,7 +96,7 @@ def evaders_caught(parallel_env: Any) -> dict[str, float]:
     :return: ``{"evaders_caught": n}``: the evaders caught so far in the episode (pursuit's ``evaders_gone`` flags, set
         when it removes an evader from the grid).
     """
-    return {EVADERS_CAUGHT.key: float(np.count_nonzero(pursuit_state(parallel_env).evaders_gone))}
+    return {EVADERS_CAUGHT.key: float(np.count_nonzero(sisl_state(parallel_env).evaders_gone))}
 
 
 def episode_seed(first_seed: int, episode: int) -> int:
@@ -149,4 +185,33 @@ def pursuit_env(seed_each_episode: bool = True, **kwargs: Any) -> PettingZooToGy
         parallel_env = EachEpisodeSeeded(parallel_env)
     return PettingZooToGym(
         parallel_env, metrics_fn=evaders_caught, positions=pursuer_positions, task_metrics=PURSUIT_TASK_METRICS
+    )
+
+
+def multiwalker_env(seed_each_episode: bool = True, **kwargs: Any) -> PettingZooToGym:
+    """
+    PettingZoo's SISL multiwalker as one gymnasium env: bipedal walkers carry a package together; the team reward is
+    the sum of the walkers' rewards, each walker's four joint torques in [-1, 1] a part of the joint action.
+
+    It declares the walkers' positions (their hulls', for ``selected``) and the package's distance from its start
+    (:data:`PACKAGE_DISTANCE`, higher is better).
+
+    :param seed_each_episode: As :func:`pursuit_env`'s: every episode after a seeded reset from a seed of its own.
+    :param kwargs: ``multiwalker``'s keyword arguments, e.g. ``n_walkers=3, max_cycles=500``.
+    :return: The env.
+    """
+    try:
+        from pettingzoo.sisl import multiwalker_v9
+    except ImportError as error:
+        from sb3_maddpg.common.install_hint import extra_install_command
+
+        raise ImportError(
+            f"multiwalker cannot be imported ({error}): it needs PettingZoo's SISL envs and Box2D; install the sisl "
+            f"extra, {extra_install_command('sisl')}."
+        ) from error
+    parallel_env = multiwalker_v9.parallel_env(**kwargs)
+    if seed_each_episode:
+        parallel_env = EachEpisodeSeeded(parallel_env)
+    return PettingZooToGym(
+        parallel_env, metrics_fn=package_distance, positions=walker_positions, task_metrics=MULTIWALKER_TASK_METRICS
     )

@@ -12,7 +12,7 @@ pytest.importorskip("pettingzoo.sisl.pursuit_v5", reason="pursuit needs the sisl
 
 from sb3_maddpg.analysis.evaluation import evaluate_team
 from sb3_maddpg.envs import PettingZooToGym, RandomTeamPolicy
-from sb3_maddpg.envs.sisl import PURSUIT_NO_OP, pursuit_env, pursuit_state
+from sb3_maddpg.envs.sisl import PURSUIT_NO_OP, pursuit_env, sisl_state
 
 SETTING: dict[str, Any] = dict(x_size=8, y_size=8, n_pursuers=4, n_evaders=4, max_cycles=100, surround=False, n_catch=2)
 """The Beyond MPE setting (the preset ``pursuit``'s)."""
@@ -31,7 +31,7 @@ def joint_action(moves: np.ndarray) -> np.ndarray:
 def expected_cell(env: PettingZooToGym, cell: np.ndarray, move: int) -> np.ndarray:
     """:return: Where pursuit's rules take a pursuer from ``cell`` by ``move``: the next cell, or ``cell`` at the
     grid's edge or a building (``DiscreteAgent.step``)."""
-    state = pursuit_state(env.parallel_env)
+    state = sisl_state(env.parallel_env)
     x, y = (cell + MOVES[move]).astype(int)
     if not (0 <= x < state.x_size and 0 <= y < state.y_size) or state.map_matrix[x, y] == -1:
         return cell
@@ -40,7 +40,7 @@ def expected_cell(env: PettingZooToGym, cell: np.ndarray, move: int) -> np.ndarr
 
 def cell_counts(positions: np.ndarray, env: PettingZooToGym) -> np.ndarray:
     """:return: Pursuers per cell as pursuit's global state lays them out (``state()[y, x, 1]``)."""
-    state = pursuit_state(env.parallel_env)
+    state = sisl_state(env.parallel_env)
     counts = np.zeros((state.y_size, state.x_size))
     for x, y in positions.astype(int):
         counts[y, x] += 1
@@ -76,7 +76,7 @@ def test_the_evaders_caught_are_those_pursuit_removed_and_paid_for() -> None:
         caught, done = 0.0, False
         while not done:
             _, reward, terminated, truncated, info = env.step(joint_action(rng.integers(len(MOVES), size=4)))
-            state = pursuit_state(env.parallel_env)
+            state = sisl_state(env.parallel_env)
             remaining = state.evader_layer.n_agents()
             assert info["evaders_caught"] == SETTING["n_evaders"] - remaining  # the evaders left on the grid
             assert env.parallel_env.unwrapped.state()[..., 2].sum() == remaining  # and in the env's global state
@@ -105,7 +105,7 @@ def test_evaluate_team_scores_the_evaders_caught_at_each_episodes_end() -> None:
         while not done:
             observation, _, terminated, truncated, _ = env.step(team.predict(observation)[0])
             done = terminated or truncated
-        by_hand.append(SETTING["n_evaders"] - pursuit_state(env.parallel_env).evader_layer.n_agents())
+        by_hand.append(SETTING["n_evaders"] - sisl_state(env.parallel_env).evader_layer.n_agents())
     assert result["evaders_caught"] == pytest.approx(np.mean(by_hand))
 
 

@@ -15,7 +15,17 @@ from sb3_maddpg.experiments.setting import ExperimentConfig
 
 
 def test_each_package_file_holds_the_setting_it_is_named_after() -> None:
-    assert list(EXPERIMENTS) == ["exp1", "exp1_tuned", "exp2", "exp2_tuned", "n3_full", "n3_partial", "pursuit", "smoke"]
+    assert list(EXPERIMENTS) == [
+        "exp1",
+        "exp1_tuned",
+        "exp2",
+        "exp2_tuned",
+        "n3_full",
+        "n3_partial",
+        "pursuit",
+        "multiwalker",
+        "smoke",
+    ]
     for name in PACKAGE_PRESETS:
         assert EXPERIMENTS[name].name == name
     # The paper's settings, as its text gives them (SPEC: 100k and 150k episodes, 2 nearest agents in experiment 2).

@@ -1,6 +1,6 @@
 """
 The experiments' presets in one format, YAML: one file per setting beside this module (``exp1.yml``, ``exp2.yml``,
-``n3_full.yml``, ``n3_partial.yml``, ``pursuit.yml``, ``smoke.yml``), and the reading of any preset file
+``n3_full.yml``, ``n3_partial.yml``, ``pursuit.yml``, ``multiwalker.yml``, ``smoke.yml``), and the reading of any preset file
 (``sb3-maddpg run --config my_setting.yml``).
 
 A preset file is a mapping of an experiment's fields (:class:`~sb3_maddpg.experiments.setting.ExperimentConfig`'s;
@@ -24,7 +24,7 @@ from sb3_maddpg.compat import STAMP_KEYS, written_by
 from sb3_maddpg.experiments.setting import ExperimentConfig, merge_model_kwargs
 from sb3_maddpg.hyperparams import load_hyperparams
 
-PACKAGE_PRESETS = ("exp1", "exp2", "n3_full", "n3_partial", "pursuit", "smoke")
+PACKAGE_PRESETS = ("exp1", "exp2", "n3_full", "n3_partial", "pursuit", "multiwalker", "smoke")
 """The package's preset files (``<name>.yml`` beside this module), in the order the command line lists them."""
 
 PRESET_KEYS = ("note", "tuned")

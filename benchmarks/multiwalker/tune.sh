@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Issue 57, item 2, step 1: find multiwalker's training settings with the package's own tuning (Optuna), on a small
+# budget: 16 trials of 150,000 env steps, `full` sharing, seed 0, objective package_distance (how far the walkers carry
+# the package), 5 evaluations of 5 episodes per trial, the median pruner past the first 2. About 6 core-hours.
+#
+# Run it from a worktree pinned to a commit, writing into the main checkout; it resumes (the study is in SQLite):
+#   git worktree add --detach ../sweep-multiwalker <commit>
+#   cd ../sweep-multiwalker && OUT=/work/main/benchmarks/multiwalker WORKERS=1 nohup bash benchmarks/multiwalker/tune.sh &
+# Then: the best trial's values go into sb3_maddpg/experiments/presets/multiwalker.yml (its model_kwargs), stated there
+# with the study's numbers; `sb3-maddpg tune ... --preset-out` writes them as a preset file to copy from.
+set -u
+cd "$(dirname "$0")/../.."
+OUT="${OUT:-benchmarks/multiwalker}"
+WORKERS="${WORKERS:-1}"
+export SDL_VIDEODRIVER=dummy
+echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) tune multiwalker workers $WORKERS" >>"$OUT/commits.log"
+nice -n 19 python -m sb3_maddpg tune --config multiwalker --scheme full --storage "sqlite:///$OUT/tune.db" \
+    --study-name multiwalker_full --n-trials 16 --budget 150000 --n-evaluations 5 --eval-episodes 5 \
+    --warmup-evaluations 2 --seed 0 --workers "$WORKERS" --threads 1 --preset-out "$OUT/best.yml"
