@@ -1,23 +1,21 @@
 """The study's runner stays small (issue 58): ``experiments/``, with its presets, at most 3,000 code lines, counted
 by ``benchmarks/code_size.py`` (no docstrings, comments or blank lines)."""
 
-import importlib.util
 from pathlib import Path
+from types import ModuleType
+
+from tests.script_module import load_script
 
 REPO = Path(__file__).resolve().parent.parent
 EXPERIMENTS_LIMIT = 3_000
 
 
-def code_size() -> object:
-    spec = importlib.util.spec_from_file_location("code_size", REPO / "benchmarks" / "code_size.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def code_size() -> ModuleType:
+    return load_script(REPO / "benchmarks" / "code_size.py")
 
 
 def test_the_experiments_package_is_at_most_its_limit() -> None:
-    sizes = code_size().folder_sizes(REPO / "sb3_maddpg")  # type: ignore[attr-defined]
+    sizes = code_size().folder_sizes(REPO / "sb3_maddpg")
     assert 1_000 < sizes["experiments"] <= EXPERIMENTS_LIMIT, sizes["experiments"]
 
 
@@ -37,4 +35,4 @@ def test_docstrings_comments_and_blank_lines_are_not_code(tmp_path: Path) -> Non
         "    )",
     ]
     source.write_text("\n".join(lines) + "\n")
-    assert code_size().code_lines(source) == 5  # type: ignore[attr-defined]  # x, def, return ( "a" )
+    assert code_size().code_lines(source) == 5  # x, def, return ( "a" )

@@ -2,7 +2,6 @@
 better of the scripted reference and the best scheme, complete seeds only, verdicts against ``full`` after Holm within
 the task; and the committed table is the committed runs' (regenerated and compared)."""
 
-import importlib.util
 import json
 import math
 from pathlib import Path
@@ -12,16 +11,13 @@ import pytest
 
 from sb3_maddpg.experiments.results_dir import write_json_atomic
 from sb3_maddpg.results.cross_task import TaskStudy, complete_seed_scores, format_cell, task_row
+from tests.script_module import load_script
 
 REPO = Path(__file__).resolve().parents[2]
 
 
 def make_table_module() -> Any:
-    spec = importlib.util.spec_from_file_location("make_table", REPO / "benchmarks" / "cross_task" / "make_table.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(REPO / "benchmarks" / "cross_task" / "make_table.py")
 
 
 def write_study(root: Path, scores: dict[str, list[float]], random: list[float], extra: dict[str, Any] | None = None) -> None:
