@@ -21,7 +21,7 @@ if [ -z "${SKIP_TESTS:-}" ]; then
     echo "CUDA tests: exit $?"; tail -5 "$OUT/cuda_tests.log"
 fi
 RESULTS=/tmp/gpu_runs
-timeout "${RUN_TIMEOUT:-240}" python3 -m sb3_maddpg.experiments run --config benchmarks/paper_n5/exp1.json --name gpu_exp1 \
+timeout "${RUN_TIMEOUT:-240}" python3 -m sb3_maddpg run --config benchmarks/paper_n5/exp1.json --name gpu_exp1 \
     --schemes "$SCHEME" --seeds "$SEEDS" --episodes "$EPISODES" --backend batched --device "$DEVICE" \
     --results "$RESULTS" >"$OUT/run.log" 2>&1
 echo "run: exit $?"; tail -5 "$OUT/run.log"

@@ -1,5 +1,6 @@
 """Command line: ``sb3-maddpg run ...`` (or ``python -m sb3_maddpg run ...``), ``... tune ...`` and
-``... report ...`` (each command's code in its module: ``run_command``, ``tune_command``, ``report_command``), derived
+``... report ...`` (each command's code in its module: :mod:`~sb3_maddpg.cli.run`, :mod:`~sb3_maddpg.cli.tune`,
+:mod:`~sb3_maddpg.cli.report`), derived
 from the config model (:mod:`~sb3_maddpg.cli.options`): ``run``'s options are the fields of an experiment
 (:class:`~sb3_maddpg.experiments.setting.ExperimentConfig`), each over every ``--config``'s, and of its execution
 (:class:`~sb3_maddpg.experiments.backends.Execution`); ``tune``'s the task's, ``TuneSettings``' and ``run_study``'s. A

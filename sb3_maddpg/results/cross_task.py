@@ -19,8 +19,9 @@ from typing import Any
 import numpy as np
 
 from sb3_maddpg.experiments.config import BASELINE_SCHEME, ordered_schemes
-from sb3_maddpg.experiments.metrics import METRICS
+from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.results_dir import load_experiments, load_summaries
+from sb3_maddpg.experiments.tasks import metric_info, recorded_metrics
 from sb3_maddpg.results.aggregates import mean_difference_interval
 from sb3_maddpg.results.normalised_table import setting_references
 from sb3_maddpg.results.reference_table import load_references
@@ -54,6 +55,7 @@ class TaskRow:
 
     :param study: The task.
     :param seeds: The seeds every scheme has finished (the runs read).
+    :param label: The metric as the task shows it, with its direction (``"evaders caught, higher is better"``).
     :param random: Random actions' score on the metric (0 on the table's scale).
     :param top: The score that is 1 on the table's scale.
     :param top_is: What ``top`` is: ``"scripted controller"`` or ``"best scheme (<name>)"``.
@@ -63,6 +65,7 @@ class TaskRow:
 
     study: TaskStudy
     seeds: list[int]
+    label: str = ""
     random: float = math.nan
     top: float = math.nan
     top_is: str = ""
@@ -112,17 +115,26 @@ def task_row(study: TaskStudy) -> TaskRow:
     stored = load_experiments(study.results_dir).get(study.experiment)
     if stored is None:
         raise ValueError(f"{study.label}: no experiment {study.experiment!r} in {study.results_dir}: run it first.")
-    scores = complete_seed_scores(load_summaries(study.results_dir), study.experiment, stored["schemes"], study.metric)
+    summaries = load_summaries(study.results_dir)
+    scores = complete_seed_scores(summaries, study.experiment, stored["schemes"], study.metric)
     seeds = sorted(next(iter(scores.values()), {}))
-    row = TaskRow(study, seeds)
+    runs = [summary for summary in summaries if summary["experiment"] == study.experiment]
+    declared = recorded_metrics(runs[0].get("task_metrics")) if runs else None  # the direction the task's env declares
+    info = metric_info(study.metric, stored.get("env", DEFAULT_ENV), declared)
+    higher = info.higher_is_better
+    row = TaskRow(study, seeds, f"{info.label}, {'higher' if higher else 'lower'} is better")
     if not seeds:
         return row
-    higher = METRICS[study.metric].higher_is_better
     row.random, scripted = random_and_scripted(study, seeds)
     means = {scheme: float(np.mean(list(values.values()))) for scheme, values in scores.items()}
     best = max(means, key=lambda scheme: means[scheme] if higher else -means[scheme])
     candidates = [(means[best], f"best scheme ({best})")] + ([] if scripted is None else [(scripted, "scripted controller")])
     row.top, row.top_is = max(candidates, key=lambda item: item[0] if higher else -item[0])
+    if (row.top - row.random) * (1 if higher else -1) <= 0:
+        raise ValueError(
+            f"{study.label}: nothing here beats random actions ({row.random:.3g} on {study.metric}), so no scale runs "
+            "from random to better: leave the task out of the table until a scheme learns it."
+        )
     for scheme, values in scores.items():
         normalised = [(value - row.random) / (row.top - row.random) for value in values.values()]
         estimate = mean_difference_interval([normalised])
@@ -130,7 +142,7 @@ def task_row(study: TaskStudy) -> TaskRow:
     tested = [scheme for scheme in scores if scheme != BASELINE_SCHEME] if BASELINE_SCHEME in scores else []
     raw = [mann_whitney(list(scores[scheme].values()), list(scores[BASELINE_SCHEME].values()))[1] for scheme in tested]
     for scheme, p_value, adjusted in zip(tested, raw, holm(raw)):
-        above = row.cells[scheme]["mean"] > row.cells[BASELINE_SCHEME]["mean"]
+        above = (means[scheme] > means[BASELINE_SCHEME]) == higher  # the raw metric's own direction
         verdict = ("above" if above else "below") if adjusted < LEVEL else "not separated"
         row.cells[scheme].update(p=float(p_value), p_holm=float(adjusted), verdict=verdict)
     return row
@@ -148,6 +160,7 @@ def row_data(row: TaskRow) -> dict[str, Any]:
         "task": row.study.label,
         "experiment": row.study.experiment,
         "metric": row.study.metric,
+        "label": row.label,
         "seeds": row.seeds,
         "random": rounded(row.random),
         "top": rounded(row.top),
@@ -177,8 +190,7 @@ def format_table_rst(rows: Sequence[TaskRow], schemes: Sequence[str]) -> str:
     header = ["task (metric; 1 =)", "seeds", *schemes]
     lines = [".. list-table::", "   :header-rows: 1", "", "   * - " + "\n     - ".join(header)]
     for row in rows:
-        metric = METRICS[row.study.metric].label
-        task = f"{row.study.label} ({metric}; 1 = {row.top_is or 'no complete seed yet'})"
+        task = f"{row.study.label} ({row.label}; 1 = {row.top_is or 'no complete seed yet'})"
         cells = [format_cell(row.cells.get(scheme)) for scheme in schemes]
         lines.append("   * - " + "\n     - ".join([task, str(len(row.seeds)), *cells]))
     return "\n".join(lines) + "\n"

@@ -10,7 +10,7 @@ from sb3_maddpg.common.noise import per_env_noise
 from sb3_maddpg.common.selection import FixedGraph, NearestAgents, Selector
 from sb3_maddpg.maddpg import MADDPG
 from sb3_maddpg.matd3 import MATD3
-from sb3_maddpg.sharing import LEARNED_SCHEMES, schemes_per_agent
+from sb3_maddpg.sharing import LEARNED_SCHEMES, CriticFeaturesExtractor, schemes_per_agent
 
 SAME_EXCEPT_SEED = (
     "A run group trains runs that differ only in their seed: build every model with the same env layout and "
@@ -71,8 +71,12 @@ def check_model(model: MADDPG, index: int) -> None:
         )
     schemes = schemes_per_agent(model.critic_sharing, layout.agent_ids)
     learned = [scheme.__name__ for scheme in schemes if scheme in LEARNED_SCHEMES.values()]
-    networks = ("mlp.", "twin.mlp.")  # the critics' networks (MATD3's twins too); anything else is an extractor's
-    extractor_params = [name for name, _ in model.critic.named_parameters() if not name.startswith(networks)]
+    extractor_params = [
+        parameter
+        for module in model.critic.modules()
+        if isinstance(module, CriticFeaturesExtractor)
+        for parameter in module.parameters()
+    ]  # the critics' extractors' own (MATD3's twins' too), as the modules say
     if learned or extractor_params:
         raise ValueError(
             f"Model {index}'s critics use a learned scheme ({', '.join(dict.fromkeys(learned)) or 'an extractor'} with "

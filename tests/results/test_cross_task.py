@@ -7,8 +7,10 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
+from sb3_maddpg.analysis.normalised_score import reference_scores
 from sb3_maddpg.experiments.results_dir import write_json_atomic
 from sb3_maddpg.results.cross_task import TaskStudy, complete_seed_scores, format_cell, task_row
 from tests.script_module import load_script
@@ -20,20 +22,25 @@ def make_table_module() -> Any:
     return load_script(REPO / "benchmarks" / "cross_task" / "make_table.py")
 
 
-def write_study(root: Path, scores: dict[str, list[float]], random: list[float], extra: dict[str, Any] | None = None) -> None:
-    """A results directory of a non-MPE setting: one run per score (seed = index), its random reference per seed."""
+def write_study(
+    root: Path, scores: dict[str, list[float]], random: list[float] | None, metric: str = "return_mean", **stored: Any
+) -> None:
+    """A results directory of one setting (``stored``: its experiment's fields, a factory's task by default): one run
+    per score (seed = index), and its random reference per seed unless ``random`` is None."""
     experiment = root / "task"
     experiment.mkdir(parents=True)
-    write_json_atomic(experiment / "experiment.json", {"name": "task", "env": "my_pkg:env", "schemes": list(scores)})
+    fields = {"name": "task", "env": "my_pkg:env", "schemes": list(scores), **stored}
+    write_json_atomic(experiment / "experiment.json", fields)
     for scheme, values in scores.items():
         for seed, value in enumerate(values):
             run = experiment / scheme / f"seed_{seed:03d}"
             run.mkdir(parents=True)
-            summary = {"experiment": "task", "scheme": scheme, "seed": seed, "score": {"return_mean": value}}
-            write_json_atomic(run / "summary.json", {**summary, **(extra or {})})
+            summary = {"experiment": "task", "scheme": scheme, "seed": seed, "score": {metric: value}}
+            write_json_atomic(run / "summary.json", summary)
             (run / "done").write_text("")
-    seeds = {str(seed): {"score": {"return_mean": value}} for seed, value in enumerate(random)}
-    write_json_atomic(experiment / "references.json", {"policies": {"random": {"seeds": seeds}}})
+    if random is not None:
+        seeds = {str(seed): {"score": {metric: value}} for seed, value in enumerate(random)}
+        write_json_atomic(experiment / "references.json", {"policies": {"random": {"seeds": seeds}}})
 
 
 def test_scores_are_normalised_between_random_and_the_best_scheme_with_holm_verdicts(tmp_path: Path) -> None:
@@ -49,6 +56,28 @@ def test_scores_are_normalised_between_random_and_the_best_scheme_with_holm_verd
     assert row.cells["actions"]["verdict"] == "not separated"  # overlapping runs
     assert "verdict" not in row.cells["full"]
     assert format_cell(independent).endswith("below, p = .008 (Holm = .016)")
+
+
+def test_a_lower_is_better_metric_is_flipped_and_its_top_is_the_scripted_controller(tmp_path: Path) -> None:
+    full = [1.0, 1.1, 1.2, 1.3, 1.4]
+    write_study(
+        tmp_path, {"full": full, "selected": [v - 0.5 for v in full]}, None, "min_dist_sum", env="simple_spread", n_agents=3
+    )
+    row = task_row(TaskStudy("spread", tmp_path, "task", "min_dist_sum"))
+    references = reference_scores(3)
+    random, scripted = references["random"]["min_dist_sum"], references["scripted"]["min_dist_sum"]
+    assert row.random == random and row.top == scripted and row.top_is == "scripted controller"
+    assert "lower is better" in row.label
+    expected = np.mean([(v - 0.5 - random) / (scripted - random) for v in full])
+    assert row.cells["selected"]["mean"] == pytest.approx(expected)
+    assert row.cells["selected"]["mean"] > row.cells["full"]["mean"]  # fewer distance is higher on the scale
+    assert row.cells["selected"]["verdict"] == "above" and row.cells["selected"]["p_holm"] == pytest.approx(2 / 252)
+
+
+def test_a_task_nothing_learns_is_refused(tmp_path: Path) -> None:
+    write_study(tmp_path, {"full": [-5.0, -6.0], "actions": [-7.0, -8.0]}, [-1.0, -1.0])
+    with pytest.raises(ValueError, match="nothing here beats random actions"):
+        task_row(TaskStudy("task", tmp_path, "task", "return_mean"))
 
 
 def test_only_seeds_every_declared_scheme_finished_count(tmp_path: Path) -> None:
