@@ -136,3 +136,17 @@ def test_a_planted_upward_import_is_found() -> None:
         "sb3_maddpg.experiments.runner -> sb3_maddpg.results.stats",
         "sb3_maddpg.hyperparams -> sb3_maddpg.experiments.config",
     ]
+
+
+def test_the_console_script_names_the_command_lines_main() -> None:
+    """``sb3-maddpg`` is setup.cfg's entry point: the function it names must exist (a moved module breaks the
+    installed command without any import in the package failing)."""
+    import configparser
+    import importlib
+
+    config = configparser.ConfigParser()
+    config.read(PACKAGE.parent / "setup.cfg")
+    lines = config["options.entry_points"]["console_scripts"].strip().splitlines()
+    scripts = {name.strip(): target.strip() for name, target in (line.split("=", 1) for line in lines)}
+    module, _, function = scripts["sb3-maddpg"].partition(":")
+    assert callable(getattr(importlib.import_module(module), function))
