@@ -1,0 +1,56 @@
+"""Which of the package's modules a run's config passes through before ``learn`` (issue 58's measure).
+
+    python benchmarks/config_walk.py
+
+Runs one tiny run of the ``smoke`` preset through the command line (``sb3-maddpg run``, one worker: in this
+process) and records, with ``sys.setprofile``, every call of a package function that is given a run's config (a
+``RunConfig`` among its arguments) until ``learn`` starts: the modules a reader following the config from the command
+line to the algorithm opens, how often it enters each, and how often ``run_task``.
+"""
+
+import sys
+import tempfile
+from collections import Counter
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import sb3_maddpg
+from sb3_maddpg.cli.main import main as command_line
+from sb3_maddpg.experiments.setting import RunConfig
+
+ROOT = Path(sb3_maddpg.__path__[0])
+
+
+def main() -> None:
+    entered: Counter[str] = Counter()
+    run_task_calls, learning = 0, False
+
+    def profile(frame: FrameType, event: str, arg: Any) -> None:
+        nonlocal run_task_calls, learning
+        if event != "call" or learning:
+            return
+        path = Path(frame.f_code.co_filename)
+        if frame.f_code.co_name == "learn" and ROOT in path.parents:
+            learning = True  # the walk ends here; the tiny run trains and finishes unrecorded
+            return
+        if ROOT not in path.parents or not any(isinstance(value, RunConfig) for value in frame.f_locals.values()):
+            return
+        entered[str(path.relative_to(ROOT))] += 1
+        run_task_calls += frame.f_code.co_name == "run_task"
+
+    with tempfile.TemporaryDirectory() as results:
+        sys.setprofile(profile)
+        try:
+            argv = ["run", "--config", "smoke", "--schemes", "full", "--seeds", "[0]", "--episodes", "20"]
+            command_line([*argv, "--curve-points", "0", "--workers", "1", "--results", results, "--quiet"])
+        finally:
+            sys.setprofile(None)
+    calls = sum(entered.values())
+    print(f"{len(entered)} modules before learn, {calls} calls given a run's config; run_task {run_task_calls}x")
+    for module, calls in entered.most_common():
+        print(f"  {module}: {calls}")
+
+
+if __name__ == "__main__":
+    main()
