@@ -104,3 +104,25 @@ def test_exp1_tuned_is_the_configuration_measured_in_benchmarks() -> None:
     run = EXP1_TUNED.replace(schemes=("full",), seeds=(0,)).runs()[0].to_dict()
     differs = {key for key, value in measured.items() if run.get(key, value) != value}
     assert differs == {"keep_checkpoints"}  # kept by exp1 (a protocol choice), not a learning one
+
+
+def test_an_entry_with_other_keys_is_refused_by_name(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    import sb3_maddpg.hyperparams as hyperparams
+
+    (tmp_path / "maddpg.yml").write_text("exp1:\n  n_agents: 5\n  n_timesteps: 10\n  note: x\n  env_kwargs: {}\n")
+    monkeypatch.setattr(hyperparams.resources, "files", lambda package: tmp_path)
+    hyperparams._entries.cache_clear()
+    try:
+        with pytest.raises(ValueError, match=r"maddpg.yml, entry 'exp1': an entry has exactly the keys"):
+            hyperparams.load_hyperparams("exp1")
+    finally:
+        hyperparams._entries.cache_clear()
+
+
+def test_a_preset_whose_entry_is_for_another_budget_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    import sb3_maddpg.experiments.presets as presets
+
+    entry = dataclasses.replace(load_hyperparams("exp1"), n_timesteps=1_000)
+    monkeypatch.setattr(presets, "load_hyperparams", lambda setting, algo: entry)
+    with pytest.raises(ValueError, match=r"entry 'exp1' is for 5 agents and 1000 steps, the setting has 5 and 2500000"):
+        presets.read_preset_file(presets.resources.files(presets.__name__).joinpath("exp1.yml"))
