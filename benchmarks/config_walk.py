@@ -1,13 +1,16 @@
-"""Which of the package's modules a run's config passes through before ``learn`` (issue 58's measure).
+"""Which of the package's modules a run's config is handed to before ``learn`` (issue 58's measure).
 
     python benchmarks/config_walk.py
 
 Runs one tiny run of the ``smoke`` preset through the command line (``sb3-maddpg run``, one worker: in this
-process) and records, with ``sys.setprofile``, every call of a package function that is given a run's config (a
-``RunConfig`` among its arguments) until ``learn`` starts: the modules a reader following the config from the command
-line to the algorithm opens, how often it enters each, and how often ``run_task``.
+process) and records, with ``sys.setprofile``, every call of a package function that takes a ``RunConfig`` as a
+parameter (not the config's own methods, nor generators resumed) until ``learn`` starts: the modules a reader
+following the run's config from where it is made to the algorithm opens, how often each is entered, and how often
+``run_task``. What handles the config in other forms is not counted: the command line and presets (an
+``ExperimentConfig``), and the algorithm (its ``model_kwargs``).
 """
 
+import inspect
 import sys
 import tempfile
 from collections import Counter
@@ -20,6 +23,7 @@ from sb3_maddpg.cli.main import main as command_line
 from sb3_maddpg.experiments.setting import RunConfig
 
 ROOT = Path(sb3_maddpg.__path__[0])
+GENERATOR_LIKE = inspect.CO_GENERATOR | inspect.CO_COROUTINE | inspect.CO_ASYNC_GENERATOR
 
 
 def main() -> None:
@@ -34,7 +38,14 @@ def main() -> None:
         if frame.f_code.co_name == "learn" and ROOT in path.parents:
             learning = True  # the walk ends here; the tiny run trains and finishes unrecorded
             return
-        if ROOT not in path.parents or not any(isinstance(value, RunConfig) for value in frame.f_locals.values()):
+        code = frame.f_code
+        if ROOT not in path.parents or code.co_flags & GENERATOR_LIKE:
+            return
+        parameters = code.co_varnames[: code.co_argcount + code.co_kwonlyargcount]
+        given = [frame.f_locals.get(name) for name in parameters]
+        if parameters[:1] == ("self",) and isinstance(given[0], RunConfig):
+            return  # the config's own methods
+        if not any(isinstance(value, RunConfig) for value in given):
             return
         entered[str(path.relative_to(ROOT))] += 1
         run_task_calls += frame.f_code.co_name == "run_task"

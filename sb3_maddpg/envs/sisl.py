@@ -37,7 +37,7 @@ PACKAGE_DISTANCE = TaskMetric(
     "last",
     "higher",
     "team",
-    "how far the walkers carried the package from its start by the episode's end (terrain units; falling ends it)",
+    "how far the walkers carried the package from its start by the episode's end (Box2D world units; a fall ends it)",
 )
 """Multiwalker's task metric: the package's forward distance from where it started."""
 
@@ -65,7 +65,8 @@ def walker_positions(parallel_env: Any) -> np.ndarray:
     """
     :param parallel_env: Multiwalker's ``parallel_env``.
     :return: Each walker's hull position ``(x, y)``, ``[n_walkers, 2]`` in ``possible_agents`` order; a walker whose
-        body is gone (it fell and was removed, or the episode is over) at :data:`GONE`, where no one selects it as near.
+        body is gone (it fell, with ``remove_on_fall``, multiwalker's default) at :data:`GONE`, where no one selects it
+        as near. (With ``remove_on_fall=False`` a fallen walker keeps its place and can still be selected.)
     """
     walkers = sisl_state(parallel_env).walkers  # new bodies at every reset: read them at every call
     return np.array([GONE if walker.hull is None else tuple(walker.hull.position) for walker in walkers], dtype=np.float32)
@@ -188,13 +189,35 @@ def pursuit_env(seed_each_episode: bool = True, **kwargs: Any) -> PettingZooToGy
     )
 
 
+class TimeLimitTruncates(BaseParallelWrapper):
+    """
+    Multiwalker's time limit as a truncation. PettingZoo's multiwalker marks every walker *terminated* when the episode
+    reaches ``max_cycles`` (its own env says done only for a fall, the package dropped or the terrain's end), so a
+    learner would take the time limit for the task's end and never bootstrap there; this wrapper moves those
+    terminations to truncations, and keeps the env's own endings as they are.
+
+    :param env: Multiwalker's ``parallel_env``.
+    """
+
+    def step(self, actions: dict[str, Any]) -> Any:
+        """:return: The env's step, a walker terminated by the time limit alone truncated instead."""
+        observations, rewards, terminations, truncations, infos = self.env.step(actions)
+        state = sisl_state(self.env)
+        if state.frames >= state.max_cycles:
+            for agent, terminated in terminations.items():
+                if terminated and not state.last_dones[self.possible_agents.index(agent)]:
+                    terminations[agent], truncations[agent] = False, True
+        return observations, rewards, terminations, truncations, infos
+
+
 def multiwalker_env(seed_each_episode: bool = True, **kwargs: Any) -> PettingZooToGym:
     """
     PettingZoo's SISL multiwalker as one gymnasium env: bipedal walkers carry a package together; the team reward is
     the sum of the walkers' rewards, each walker's four joint torques in [-1, 1] a part of the joint action.
 
     It declares the walkers' positions (their hulls', for ``selected``) and the package's distance from its start
-    (:data:`PACKAGE_DISTANCE`, higher is better).
+    (:data:`PACKAGE_DISTANCE`, higher is better), and ends an episode at ``max_cycles`` by truncation
+    (:class:`TimeLimitTruncates`), not termination as PettingZoo's multiwalker does.
 
     :param seed_each_episode: As :func:`pursuit_env`'s: every episode after a seeded reset from a seed of its own.
     :param kwargs: ``multiwalker``'s keyword arguments, e.g. ``n_walkers=3, max_cycles=500``.
@@ -209,7 +232,7 @@ def multiwalker_env(seed_each_episode: bool = True, **kwargs: Any) -> PettingZoo
             f"multiwalker cannot be imported ({error}): it needs PettingZoo's SISL envs and Box2D; install the sisl "
             f"extra, {extra_install_command('sisl')}."
         ) from error
-    parallel_env = multiwalker_v9.parallel_env(**kwargs)
+    parallel_env = TimeLimitTruncates(multiwalker_v9.parallel_env(**kwargs))
     if seed_each_episode:
         parallel_env = EachEpisodeSeeded(parallel_env)
     return PettingZooToGym(

@@ -130,11 +130,9 @@ def task_row(study: TaskStudy) -> TaskRow:
     best = max(means, key=lambda scheme: means[scheme] if higher else -means[scheme])
     candidates = [(means[best], f"best scheme ({best})")] + ([] if scripted is None else [(scripted, "scripted controller")])
     row.top, row.top_is = max(candidates, key=lambda item: item[0] if higher else -item[0])
-    if (row.top - row.random) * (1 if higher else -1) <= 0:
-        raise ValueError(
-            f"{study.label}: nothing here beats random actions ({row.random:.3g} on {study.metric}), so no scale runs "
-            "from random to better: leave the task out of the table until a scheme learns it."
-        )
+    if (row.top - row.random) * (1 if higher else -1) <= 0:  # no scale from random to better: a row without cells
+        row.top_is = f"nothing beats random actions yet ({row.random:.3g})"
+        return row
     for scheme, values in scores.items():
         normalised = [(value - row.random) / (row.top - row.random) for value in values.values()]
         estimate = mean_difference_interval([normalised])

@@ -47,6 +47,35 @@ def test_the_package_distance_is_how_far_the_package_moved_from_its_start() -> N
     assert "package_distance" in scores and np.isfinite(scores["package_distance"])
 
 
+def test_the_time_limit_truncates_and_a_fall_terminates() -> None:
+    env = multiwalker_env(n_walkers=3, max_cycles=5)
+    env.reset(seed=0)
+    for _ in range(4):
+        assert env.step(np.zeros(env.action_space.shape, dtype=np.float32))[2:4] == (False, False)
+    assert env.step(np.zeros(env.action_space.shape, dtype=np.float32))[2:4] == (False, True)  # PettingZoo: terminated
+    env = multiwalker_env(n_walkers=3, max_cycles=500)
+    env.reset(seed=0)
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+        done = terminated or truncated
+    assert terminated and not truncated  # standing still, a walker falls: the task's own end
+
+
+def test_every_episode_after_a_seed_starts_the_same_whatever_the_team_did() -> None:
+    """Multiwalker draws its terrain at reset and noise at every step from one generator: each episode is seeded."""
+    starts = []
+    for torque in (0.0, 1.0):
+        env = multiwalker_env(n_walkers=3, max_cycles=30)
+        env.reset(seed=7)
+        done = False
+        while not done:
+            _, _, terminated, truncated, _ = env.step(np.full(env.action_space.shape, torque, dtype=np.float32))
+            done = terminated or truncated
+        starts.append(env.reset()[0])
+    np.testing.assert_array_equal(starts[0], starts[1])
+
+
 def test_doing_nothing_is_zero_torque() -> None:
     env = multiwalker_env(n_walkers=3, max_cycles=20)
     team = NoOpTeamPolicy(env.action_space, env.agent_layout)

@@ -109,14 +109,16 @@ def test_exp1_tuned_is_the_configuration_measured_in_benchmarks() -> None:
 def test_an_entry_with_other_keys_is_refused_by_name(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     import sb3_maddpg.hyperparams as hyperparams
 
-    (tmp_path / "maddpg.yml").write_text("exp1:\n  n_agents: 5\n  n_timesteps: 10\n  note: x\n  env_kwargs: {}\n")
+    entry = "exp1:\n  n_agents: 5\n  n_timesteps: 10\n  note: x\n  env_kwargs: {}\n"
     monkeypatch.setattr(hyperparams.resources, "files", lambda package: tmp_path)
-    hyperparams._entries.cache_clear()
-    try:
-        with pytest.raises(ValueError, match=r"maddpg.yml, entry 'exp1': an entry has exactly the keys"):
-            hyperparams.load_hyperparams("exp1")
-    finally:
+    for text in (entry, entry + "  model_kwargs: {}\n  gamma: 0.9\n"):  # a key missing; a key too many
+        (tmp_path / "maddpg.yml").write_text(text)
         hyperparams._entries.cache_clear()
+        try:
+            with pytest.raises(ValueError, match=r"maddpg.yml, entry 'exp1': an entry has exactly the keys"):
+                hyperparams.load_hyperparams("exp1")
+        finally:
+            hyperparams._entries.cache_clear()
 
 
 def test_a_preset_whose_entry_is_for_another_budget_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
