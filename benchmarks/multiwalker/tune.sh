@@ -14,6 +14,10 @@ OUT="${OUT:-benchmarks/multiwalker}"
 WORKERS="${WORKERS:-1}"
 export SDL_VIDEODRIVER=dummy
 echo "$(date -u +%FT%TZ) commit $(git rev-parse HEAD) tune multiwalker workers $WORKERS" >>"$OUT/commits.log"
-nice -n 19 python -m sb3_maddpg tune --config multiwalker --scheme full --storage "sqlite:///$OUT/tune.db" \
-    --study-name multiwalker_full --n-trials 16 --budget 150000 --n-evaluations 5 --eval-episodes 5 \
-    --warmup-evaluations 2 --seed 0 --workers "$WORKERS" --threads 1 --preset-out "$OUT/best.yml"
+# One process per trial: in one process a worker's memory grew to 21 GB over six multiwalker trials (2026-12-06, not
+# yet explained), which starved the runs beside it. The study resumes from its SQLite file at each call.
+for finished in $(seq 1 16); do
+  nice -n 19 python -m sb3_maddpg tune --config multiwalker --scheme full --storage "sqlite:///$OUT/tune.db" \
+      --study-name multiwalker_full --n-trials "$finished" --budget 150000 --n-evaluations 5 --eval-episodes 5 \
+      --warmup-evaluations 2 --seed 0 --workers "$WORKERS" --threads 1 --preset-out "$OUT/best.yml" || exit $?
+done
