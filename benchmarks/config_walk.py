@@ -3,10 +3,10 @@
     python benchmarks/config_walk.py
 
 Runs one tiny run of the ``smoke`` preset through the command line (``sb3-maddpg run``, one worker: in this
-process) and records, with ``sys.setprofile``, every call of a package function that takes a ``RunConfig`` as a
-parameter (not the config's own methods, nor generators resumed) until ``learn`` starts: the modules a reader
-following the run's config from where it is made to the algorithm opens, how often each is entered, and how often
-``run_task``. What handles the config in other forms is not counted: the command line and presets (an
+process) and records, with ``sys.setprofile``, every call of a package function that takes a ``RunConfig`` or its
+``RunTask`` (which carries the config) as a parameter (not their own methods, nor generators resumed) until ``learn``
+starts: the modules a reader following the run's config from where it is made to the algorithm opens, how often each
+is entered, and how often ``run_task``. What handles the config in other forms is not counted: the command line and presets (an
 ``ExperimentConfig``), and the algorithm (its ``model_kwargs``).
 """
 
@@ -21,8 +21,11 @@ from typing import Any
 import sb3_maddpg
 from sb3_maddpg.cli.main import main as command_line
 from sb3_maddpg.experiments.setting import RunConfig
+from sb3_maddpg.experiments.tasks import RunTask
 
 ROOT = Path(sb3_maddpg.__path__[0])
+CARRIERS = (RunConfig, RunTask)
+"""What carries a run's config: the config, and its task (``run_task(config)``)."""
 GENERATOR_LIKE = inspect.CO_GENERATOR | inspect.CO_COROUTINE | inspect.CO_ASYNC_GENERATOR
 
 
@@ -43,9 +46,9 @@ def main() -> None:
             return
         parameters = code.co_varnames[: code.co_argcount + code.co_kwonlyargcount]
         given = [frame.f_locals.get(name) for name in parameters]
-        if parameters[:1] == ("self",) and isinstance(given[0], RunConfig):
-            return  # the config's own methods
-        if not any(isinstance(value, RunConfig) for value in given):
+        if parameters[:1] == ("self",) and isinstance(given[0], CARRIERS):
+            return  # the config's and the task's own methods
+        if not any(isinstance(value, CARRIERS) for value in given):
             return
         entered[str(path.relative_to(ROOT))] += 1
         run_task_calls += frame.f_code.co_name == "run_task"

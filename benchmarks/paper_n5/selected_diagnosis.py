@@ -75,7 +75,7 @@ def main() -> None:
     config = dataclasses.replace(config, model_kwargs=model_kwargs)
     directory = args.out / f"{config.experiment}_selected_{args.selection}_seed_{args.seed:03d}"
     directory.mkdir(parents=True, exist_ok=True)
-    model = build_model(config, selector=selector_for(args.selection, config.n_agents))
+    model = build_model(run_task(config), selector=selector_for(args.selection, config.n_agents))
     model.set_logger(configure(str(directory), ["csv"]))
     started = time.perf_counter()
     model.learn(args.steps, log_interval=log_interval(config), progress_bar=False)

@@ -59,6 +59,7 @@ from sb3_maddpg.experiments.ray_tasks import (
 from sb3_maddpg.experiments.results_dir import CHECKPOINT_DIR, LOG_FILE, PROGRESS_FILE, run_directory
 from sb3_maddpg.experiments.runner import build_model, finish_run, start_run_directory, training_line
 from sb3_maddpg.experiments.setting import RunConfig
+from sb3_maddpg.experiments.tasks import run_task
 from sb3_maddpg.experiments.training_resources import TrainingResources
 
 # ----- a group, and a sweep of groups -----
@@ -120,7 +121,8 @@ def train_group(
 
         # Its checkpoints are deleted below, after its done marker: killed before, the run is evaluated again.
         keep = dataclasses.replace(config, keep_checkpoints=True)
-        results.append(finish_run(keep, directory, saved, time.perf_counter() - train_time, train_time, log, resources))
+        started = time.perf_counter() - train_time
+        results.append(finish_run(run_task(keep), directory, saved, started, train_time, log, resources))
         if not config.keep_checkpoints:
             shutil.rmtree(directory / CHECKPOINT_DIR, ignore_errors=True)
         (directory / TRAINED_FILE).unlink(missing_ok=True)
@@ -160,7 +162,7 @@ def _train_runs(
         if resumed is None:
             line = f"in a run group of {len(configs)} on {resolved}"
             for config, directory in zip(configs, directories):
-                log_line(f"{training_line(config)}, {line}", str(directory / LOG_FILE), False)
+                log_line(f"{training_line(run_task(config))}, {line}", str(directory / LOG_FILE), False)
         recorder.start(resumed)
         group.learn(max(0, recorder.total - group.num_timesteps), callback=recorder)
         train_time = recorder.train_time
@@ -212,7 +214,7 @@ def _model_logging_to(config: RunConfig, directory: Path, steps: int | None) -> 
         rows up to ``steps`` again (SB3's CSV output starts the file afresh).
     """
     rows = read_progress_rows(directory / PROGRESS_FILE, steps) if steps is not None else []  # before SB3 empties it
-    model = build_model(config, device="cpu")
+    model = build_model(run_task(config), device="cpu")
     model.set_logger(configure(str(directory), ["csv"]))
     for row in rows:
         for key, value in row.items():

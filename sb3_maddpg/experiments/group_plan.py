@@ -9,6 +9,7 @@ import torch as th
 from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.runner import build_model
 from sb3_maddpg.experiments.setting import RunConfig
+from sb3_maddpg.experiments.tasks import run_task
 
 BATCHED_HINT = (
     'Train such runs on the local backend (backend="local"), e.g. in a second sweep, leaving their schemes out of this '
@@ -103,7 +104,7 @@ def memory_bound(device: str, log: Callable[[str], None] | None = None) -> Calla
         config = runs[0]
         key = group_key(config)
         if key not in sizes:
-            model = build_model(config, device="cpu")
+            model = build_model(run_task(config), device="cpu")
             try:
                 size = runs_that_fit(model, resolve_device(device))
             finally:
@@ -175,7 +176,7 @@ def check_batched(configs: Sequence[RunConfig], device: str | None = None) -> No
                 "worlds only (env 'simple_spread', vec_env 'batched')."
             )
         else:
-            model = build_model(config, device="cpu")
+            model = build_model(run_task(config), device="cpu")
             try:
                 check_models([model])
                 cause = "" if SpreadTask.from_env(model.get_env()) is not None else "its env tells no simple_spread task."

@@ -103,8 +103,9 @@ class GroupRecorder(GroupCallback):
             CheckpointAtSteps(c.checkpoint_steps(), d / CHECKPOINT_DIR) for c, d in zip(configs, self.directories)
         ]
         self.saved_before: list[list[tuple[int, Path]]] = [[] for _ in configs]  # by earlier attempts
-        self.curve_envs = [run_task(config).make_eval_env(config.curve_eval_episodes) for config in configs]
-        curves = [curve_callback(c, env, self.worlds, d) for c, env, d in zip(configs, self.curve_envs, self.directories)]
+        tasks = [run_task(config) for config in configs]
+        self.curve_envs = [task.make_eval_env(task.config.curve_eval_episodes) for task in tasks]
+        curves = [curve_callback(t, env, self.worlds, d) for t, env, d in zip(tasks, self.curve_envs, self.directories)]
         self.curves = [curve for curve in curves if curve is not None]
         for model, checkpoint, curve in zip(self.models, self.checkpoints, curves):
             checkpoint.init_callback(model)

@@ -51,7 +51,7 @@ from sb3_maddpg.experiments.run_snapshot import (
     write_progress_rows,
 )
 from sb3_maddpg.experiments.setting import RunConfig
-from sb3_maddpg.experiments.tasks import metric_record, run_task
+from sb3_maddpg.experiments.tasks import RunTask, metric_record, run_task
 from sb3_maddpg.experiments.training_resources import TrainingResources
 from sb3_maddpg.sharing.registry import resolve_scheme
 
@@ -138,20 +138,19 @@ class CheckpointAtSteps(BaseCallback):
         return True
 
 
-def final_behaviour(config: RunConfig, model: Any, eval_env: VecEnv) -> dict[str, float] | None:
+def final_behaviour(task: RunTask, model: Any, eval_env: VecEnv) -> dict[str, float] | None:
     """
-    :param config: The run.
+    :param task: The run's task (:func:`~sb3_maddpg.experiments.tasks.run_task`).
     :param model: Its last checkpoint.
     :param eval_env: Its evaluation env.
     :return: What the team does at its episodes' end (:func:`~sb3_maddpg.analysis.behaviour.team_behaviour`, over
         ``eval_episodes`` episodes), for simple_spread runs that observe every landmark; else ``None``.
     """
-    task = run_task(config)
     if not task.scores_behaviour:
         return None
     if isinstance(eval_env, VecNormalize):  # the behaviour reads positions from raw observations
         model, eval_env = NormalizedObservationPolicy(model, eval_env), eval_env.venv
-    return team_behaviour(model, eval_env, n_episodes=config.eval_episodes, seed=task.eval_seed)
+    return team_behaviour(model, eval_env, n_episodes=task.config.eval_episodes, seed=task.eval_seed)
 
 
 def execute_run(
@@ -194,8 +193,8 @@ def execute_run(
         th.set_num_threads(threads)
 
     started = time.perf_counter()
-    task = run_task(config)  # derived once, here, for the whole run
-    model, before, pending_logs, why_not = resume_or_start(config, directory, device)
+    task = run_task(config)  # derived once, here, and handed on: the run's helpers take its task
+    model, before, pending_logs, why_not = resume_or_start(task, directory, device)
     model.set_logger(configure(str(directory), ["csv"]))
     restore_logger_values(model, pending_logs)
     progress = ProgressLogCallback(
@@ -205,7 +204,7 @@ def execute_run(
     checkpoints = CheckpointAtSteps(list(task.checkpoint_steps), directory / CHECKPOINT_DIR, saved)
     callbacks: list[BaseCallback] = [checkpoints, progress]
     curve_env = task.make_eval_env(config.curve_eval_episodes)
-    curve = curve_callback(config, curve_env, model.get_env().num_envs, directory)  # type: ignore[union-attr]
+    curve = curve_callback(task, curve_env, model.get_env().num_envs, directory)  # type: ignore[union-attr]
     if curve is not None:
         resume_curve(curve, model, before.curve)
         callbacks.append(curve)
@@ -226,7 +225,7 @@ def execute_run(
         callbacks.append(SnapshotCallback(snapshot_steps(config.total_timesteps), directory, so_far, on_save, say))
     if why_not not in ("", NO_SNAPSHOT):
         progress.log(f"{config.run_id}: starting afresh: {why_not}")
-    progress.log(training_line(config) if model.num_timesteps == 0 else resumed_line(config, model.num_timesteps))
+    progress.log(training_line(task) if model.num_timesteps == 0 else resumed_line(config, model.num_timesteps))
     model.learn(
         config.total_timesteps - model.num_timesteps,
         callback=CallbackList(callbacks),
@@ -241,25 +240,26 @@ def execute_run(
     del model
 
     curve_env.close()
-    return finish_run(config, directory, checkpoints.saved, started - before.train_time_s, train_time, progress.log, resources)
+    return finish_run(task, directory, checkpoints.saved, started - before.train_time_s, train_time, progress.log, resources)
 
 
 def resume_or_start(
-    config: RunConfig, directory: Path, device: str = "auto"
+    task: RunTask, directory: Path, device: str = "auto"
 ) -> tuple[Any, RunProgress, list[dict[str, Any]], str]:
     """
-    :param config: The run.
+    :param task: The run's task.
     :param directory: Its directory.
     :param device: Where the model trains (see :func:`execute_run`).
     :return: The model to train (the snapshot's, or a new one in a directory started afresh), what the run had
         written by then, the logger's pending values then, and why no snapshot was used (``""`` when one was).
     """
+    config = task.config
     device = config.model_kwargs.get("device", device)
     # The snapshot's state goes onto a new model of the config (never SB3's load, which unpickles).
-    resumed = load_snapshot(directory, config.to_dict(), lambda: build_model(config, device=device))
+    resumed = load_snapshot(directory, config.to_dict(), lambda: build_model(task, device=device))
     if isinstance(resumed, str):
         start_run_directory(config, directory)
-        return build_model(config, device=device), RunProgress(config.to_dict()), [], resumed
+        return build_model(task, device=device), RunProgress(config.to_dict()), [], resumed
     model, state = resumed
     return model, state["progress"], state["logger"], ""
 
@@ -302,19 +302,20 @@ def start_run_directory(config: RunConfig, directory: Path) -> None:
     write_json_atomic(directory / CONFIG_FILE, with_version(config.to_dict()))
 
 
-def build_model(config: RunConfig, **kwargs: Any) -> Any:
+def build_model(task: RunTask, **kwargs: Any) -> Any:
     """
-    :param config: The run.
+    :param task: The run's task (:func:`~sb3_maddpg.experiments.tasks.run_task`).
     :param kwargs: More keyword arguments for the algorithm (e.g. ``device``), under the config's ``model_kwargs``.
     :return: The run's untrained model, on a new training env
         (:meth:`~sb3_maddpg.experiments.tasks.RunTask.make_train_env`). Its ``critic_sharing`` is the run's scheme,
         unless its ``model_kwargs`` name one: a variant of a scheme compared beside it in one study (e.g. scheme
         ``"selected_next"`` with ``{"critic_sharing": "selected", "selector": {"k": 2, "target": "next"}}``).
     """
+    config = task.config
     algorithm: Any = load_algorithm(config.algorithm)
     # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.
     options = {**kwargs, **copy.deepcopy(config.model_kwargs), "critic_sharing": run_critic_sharing(config)}
-    return algorithm("MlpPolicy", run_task(config).make_train_env(), seed=config.seed, **options)
+    return algorithm("MlpPolicy", task.make_train_env(), seed=config.seed, **options)
 
 
 def run_critic_sharing(config: RunConfig) -> Any:
@@ -336,34 +337,34 @@ def run_critic_sharing(config: RunConfig) -> Any:
     return config.scheme
 
 
-def curve_callback(config: RunConfig, curve_env: VecEnv, n_envs: int, directory: Path) -> TeamEvalCallback | None:
+def curve_callback(task: RunTask, curve_env: VecEnv, n_envs: int, directory: Path) -> TeamEvalCallback | None:
     """
-    :param config: The run.
+    :param task: The run's task.
     :param curve_env: Its learning-curve evaluation env.
     :param n_envs: Its training env's worlds (the callback is called once per step of them all).
     :param directory: Its directory.
     :return: The callback that writes its learning curve, or ``None`` when it has none (``curve_points=0``).
     """
-    task = run_task(config)
     if task.curve_interval == 0:
         return None
     return TeamEvalCallback(
         curve_env,
         eval_freq=max(1, task.curve_interval // n_envs),
-        n_eval_episodes=config.curve_eval_episodes,
+        n_eval_episodes=task.config.curve_eval_episodes,
         seed=task.eval_seed,
         log_path=str(directory / CURVE_FILE),
         eval_at_start=True,
         task_metrics=task.metrics,
-        score_agents=config.score_agents,
+        score_agents=task.config.score_agents,
         sides=task.sides,
     )
 
 
-def training_line(config: RunConfig) -> str:
+def training_line(task: RunTask) -> str:
     """:return: A run's first progress line: its budget and its task."""
+    config = task.config
     budget = f"{config.total_timesteps:,} steps ({config.episodes:,} episodes)"
-    return f"{config.run_id}: training {budget} on {run_task(config).description}"
+    return f"{config.run_id}: training {budget} on {task.description}"
 
 
 def log_interval(config: RunConfig) -> int:
@@ -372,7 +373,7 @@ def log_interval(config: RunConfig) -> int:
 
 
 def finish_run(
-    config: RunConfig,
+    task: RunTask,
     directory: Path,
     saved: list[tuple[int, Path]],
     started: float,
@@ -384,7 +385,7 @@ def finish_run(
     Evaluate a trained run's checkpoints and write the rest of its directory: ``checkpoint_evals.csv``,
     ``summary.json`` and the ``done`` marker, last, once its snapshot is removed.
 
-    :param config: The run.
+    :param task: The run's task.
     :param directory: Its directory.
     :param saved: Its checkpoints, ``(env steps, model file)`` in order.
     :param started: When it started (``time.perf_counter()``).
@@ -393,14 +394,15 @@ def finish_run(
     :param resources: What trained it (recorded in the summary for the report's cost table); ``None``: not recorded.
     :return: The summary, plus ``"files"`` (see :func:`execute_run`).
     """
+    config = task.config
     eval_started = time.perf_counter()
-    rows, last = evaluate_checkpoints(config, saved)
+    rows, last = evaluate_checkpoints(task, saved)
     write_rows(str(directory / CHECKPOINT_EVALS_FILE), rows)
     eval_time = time.perf_counter() - eval_started
     if not config.keep_checkpoints:
         shutil.rmtree(directory / CHECKPOINT_DIR, ignore_errors=True)
 
-    summary = run_summary(config, rows, last, train_time, eval_time, time.perf_counter() - started, resources)
+    summary = run_summary(task, rows, last, train_time, eval_time, time.perf_counter() - started, resources)
     write_json_atomic(directory / SUMMARY_FILE, summary)
     log(
         f"{config.run_id}: done in {format_seconds(summary['wall_time_s'])} "
@@ -412,15 +414,15 @@ def finish_run(
     return collect_result(directory)
 
 
-def evaluate_checkpoints(config: RunConfig, saved: list[tuple[int, Path]]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+def evaluate_checkpoints(task: RunTask, saved: list[tuple[int, Path]]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """
-    :param config: The run.
+    :param task: The run's task.
     :param saved: Its checkpoints, ``(env steps, model file)`` in order.
     :return: One row per checkpoint (its steps, episodes and the task's scores: ``checkpoint_evals.csv``), and what
         the last checkpoint tells (empty without checkpoints): its ``n_updates``, ``learning_starts`` and, where the
         task scores it, its ``behaviour``.
     """
-    task = run_task(config)
+    config = task.config
     algorithm: Any = load_algorithm(config.algorithm)
     eval_env = task.make_eval_env(config.eval_episodes)
     rows = []
@@ -442,13 +444,13 @@ def evaluate_checkpoints(config: RunConfig, saved: list[tuple[int, Path]]) -> tu
     if saved:
         # The last checkpoint's gradient updates (a run group writes its count back into each model it saves).
         last = {"n_updates": int(checkpoint._n_updates), "learning_starts": int(getattr(checkpoint, "learning_starts", 0))}
-        last["behaviour"] = final_behaviour(config, checkpoint, eval_env)
+        last["behaviour"] = final_behaviour(task, checkpoint, eval_env)
     eval_env.close()
     return rows, last
 
 
 def run_summary(
-    config: RunConfig,
+    task: RunTask,
     rows: list[dict[str, Any]],
     last: dict[str, Any],
     train_time: float,
@@ -457,7 +459,7 @@ def run_summary(
     resources: TrainingResources | None = None,
 ) -> dict[str, Any]:
     """
-    :param config: The run.
+    :param task: The run's task.
     :param rows: Its checkpoints' evaluations (:func:`evaluate_checkpoints`).
     :param last: What its last checkpoint tells (:func:`evaluate_checkpoints`).
     :param train_time: Its training's wall time, seconds.
@@ -469,7 +471,7 @@ def run_summary(
         its env declares (``task_metrics``, :func:`~sb3_maddpg.experiments.tasks.metric_record`'s), timings, what
         trained it, and the last checkpoint's ``n_updates`` and ``behaviour`` where known.
     """
-    task = run_task(config)
+    config = task.config
     summary: dict[str, Any] = {
         "run_id": config.run_id,
         "experiment": config.experiment,

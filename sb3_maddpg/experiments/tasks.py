@@ -240,11 +240,6 @@ def _describe(config: "RunConfig") -> str:
     return f"{config.n_envs} {config.env} env(s){normalized}"
 
 
-def task_metrics(config: "RunConfig") -> tuple[DeclaredMetric, ...]:
-    """:return: ``run_task(config).metrics`` (:class:`RunTask`)."""
-    return run_task(config).metrics
-
-
 def metric_info(metric: str, env: str = DEFAULT_ENV, declared: Sequence[DeclaredMetric] | None = None) -> Metric:
     """
     How a report shows a score of a task: its label, scale and direction in that task.

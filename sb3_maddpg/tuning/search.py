@@ -30,7 +30,7 @@ from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.local_pool import worker_pool
 from sb3_maddpg.experiments.runner import build_model
 from sb3_maddpg.experiments.setting import ExperimentConfig, RunConfig, merge_model_kwargs
-from sb3_maddpg.experiments.tasks import declared_metrics, run_task, task_metrics
+from sb3_maddpg.experiments.tasks import declared_metrics, run_task
 from sb3_maddpg.version import __version__
 
 HEARTBEAT_SECONDS = 60
@@ -341,7 +341,8 @@ def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | N
         from sb3_maddpg.results.normalised_table import setting_references
 
         references = setting_references(settings.experiment.to_dict())
-    model = build_model(config)  # as a sweep's run builds it
+    task = run_task(config)
+    model = build_model(task)  # as a sweep's run builds it
     env = model.get_env()
     callback = TrialEvalCallback(
         trial,
@@ -349,11 +350,11 @@ def run_trial(trial: Any, settings: TuneSettings, log: Callable[[str], None] | N
         references,
         log=log,
         budget=settings.budget,
-        eval_env=run_task(config).make_eval_env(settings.eval_episodes),
+        eval_env=task.make_eval_env(settings.eval_episodes),
         eval_freq=settings.evaluation_step // env.num_envs,
         n_eval_episodes=settings.eval_episodes,
-        seed=config.eval_seed,
-        task_metrics=task_metrics(config),
+        seed=task.eval_seed,
+        task_metrics=task.metrics,
         score_agents=config.score_agents,
     )
     model.learn(settings.budget, callback=callback)

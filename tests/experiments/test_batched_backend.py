@@ -333,7 +333,7 @@ def test_runs_alone_train_on_the_device_asked_for(tmp_path: Path, monkeypatch: p
     seen: list[str] = []
     build_model = runner.build_model
     monkeypatch.setattr(
-        runner, "build_model", lambda config, **kwargs: seen.append(kwargs["device"]) or build_model(config, **kwargs)
+        runner, "build_model", lambda task, **kwargs: seen.append(kwargs["device"]) or build_model(task, **kwargs)
     )
     pinned = tiny(name="pinned", seeds=(0,), model_kwargs={**SMOKE.model_kwargs, "device": "cpu"})
     assert run_sweep([pinned], tmp_path, backend="local", verbose=0, device="cuda").ok

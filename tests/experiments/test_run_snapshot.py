@@ -35,6 +35,7 @@ from sb3_maddpg.experiments.run_snapshot import (
     SnapshotCallback,
     snapshot_steps,
 )
+from sb3_maddpg.experiments.tasks import RunTask, run_task
 
 
 class Killed(BaseException):
@@ -184,9 +185,9 @@ def test_a_resumed_run_loads_on_the_device_asked_for(tmp_path: Path, monkeypatch
     devices: list[Any] = []
     build_model = runner.build_model
 
-    def recording_build(config: RunConfig, **kwargs: Any) -> Any:
+    def recording_build(task: RunTask, **kwargs: Any) -> Any:
         devices.append(kwargs.get("device"))
-        return build_model(config, **kwargs)
+        return build_model(task, **kwargs)
 
     monkeypatch.setattr(runner, "build_model", recording_build)
     runner.execute_run(run, tmp_path, verbose=0, device="cpu")
@@ -233,7 +234,7 @@ def test_a_snapshot_resumes_without_unpickling(killed_run: Path, tmp_path: Path,
         for module, name in [(pickle, "load"), (pickle, "loads"), (cloudpickle, "load"), (cloudpickle, "loads")]:
             patch.setattr(module, name, refuse)
         patch.setattr(pickle, "Unpickler", RefusingUnpickler)
-        model, _, _, why_not = runner.resume_or_start(config(), directory, "cpu")
+        model, _, _, why_not = runner.resume_or_start(run_task(config()), directory, "cpu")
     assert why_not == "" and model.num_timesteps == 300 and model._n_updates > 0 and model.replay_buffer.pos > 0
 
 
@@ -309,7 +310,7 @@ def test_a_tampered_or_partial_snapshot_is_a_fresh_start(killed_run: Path, tmp_p
     directory = copy_of(killed_run, tmp_path)
     ran = tmp_path / "code_ran"
     tamper(directory / SNAPSHOT_DIR, ran)
-    model, _, _, why_not = runner.resume_or_start(config(), directory, "cpu")
+    model, _, _, why_not = runner.resume_or_start(run_task(config()), directory, "cpu")
     assert TAMPERED[tamper] in why_not and not ran.exists()
     assert model.num_timesteps == 0 and not (directory / SNAPSHOT_DIR).exists()  # the run's directory started afresh
 

@@ -69,7 +69,7 @@ def test_a_json_configs_selector_dict_reaches_the_model_as_nearest_agents_with_i
     path = tmp_path / "experiment.json"
     path.write_text(json.dumps(data))
     (config,) = load_experiment(str(path)).runs()[:1]
-    model = build_model(config)
+    model = build_model(run_task(config))
     assert isinstance(model.selector, NearestAgents) and (model.selector.k, model.selector.target) == (1, "next")
 
 
@@ -81,7 +81,7 @@ def test_a_schemes_variant_names_its_critic_sharing_and_runs_in_its_own_director
     )
     stored, next_step = experiment.runs()
     assert next_step.run_id == "smoke/selected_next/seed_000"
-    models = [build_model(config) for config in (stored, next_step)]
+    models = [build_model(run_task(config)) for config in (stored, next_step)]
     assert [type(model.critic.extractors[0]).__name__ for model in models] == ["SelectedCriticFeatures"] * 2
     assert [model.selector.target for model in models] == ["stored", "next"]
 
@@ -90,7 +90,7 @@ def test_a_scheme_that_is_none_says_how_to_name_a_variants_critic_sharing() -> N
     (config,) = dataclasses.replace(SMOKE, schemes=("selected_next",), seeds=(0,)).runs()
     cause, remedy = "^Unknown critic_sharing 'selected_next': use one of ", "For a variant of a scheme under a name of its own"
     with pytest.raises(ValueError, match=f"{cause}.*{remedy}"):
-        build_model(config)
+        build_model(run_task(config))
 
 
 def test_the_cli_takes_an_experiment_with_a_variant_and_refuses_a_scheme_that_is_none(

@@ -74,12 +74,12 @@ def test_the_behaviour_is_read_from_raw_observations(finished_run: Path) -> None
     path = checkpoints(finished_run)[-1]
     eval_env = run_task(config).make_eval_env(config.eval_episodes)
     load_observation_statistics(eval_env, path)
-    again = final_behaviour(config, MADDPG.load(path, device="cpu"), eval_env)
+    again = final_behaviour(run_task(config), MADDPG.load(path, device="cpu"), eval_env)
     assert again == pytest.approx(summary["behaviour"])
 
 
 def test_a_normalising_run_uses_obs_only_vecnormalize_and_the_wrapper_normalises() -> None:
-    model = build_model(NORMALIZED.runs()[0])
+    model = build_model(run_task(NORMALIZED.runs()[0]))
     normalization = model.get_vec_normalize_env()
     assert isinstance(normalization, VecNormalize) and normalization.norm_obs and not normalization.norm_reward
     normalization.obs_rms.mean[:] = 0.5  # statistics of its own, so that normalising changes the observations

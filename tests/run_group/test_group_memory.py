@@ -12,6 +12,7 @@ import sb3_maddpg.run_group.memory as memory
 from sb3_maddpg.experiments import SMOKE, ExperimentConfig, run_sweep
 from sb3_maddpg.experiments.group_plan import BatchedRunRefused, check_batched, memory_bound, plan_groups
 from sb3_maddpg.experiments.runner import build_model
+from sb3_maddpg.experiments.tasks import run_task
 from sb3_maddpg.run_group import RunGroup
 from sb3_maddpg.run_group.memory import run_buffer_nbytes, runs_that_fit
 
@@ -30,14 +31,14 @@ def tiny(seeds: int = 7, **model_kwargs: Any) -> ExperimentConfig:
 @pytest.mark.parametrize("scheme", ["full", "selected"])
 def test_one_runs_bytes_are_those_its_group_allocates(scheme: str) -> None:
     config = next(run for run in tiny(buffer_size=1_030).runs() if run.scheme == scheme)  # not a whole number of steps
-    model = build_model(config, device="cpu")
+    model = build_model(run_task(config), device="cpu")
     assert RunGroup([model]).buffers.nbytes() == run_buffer_nbytes(model)
-    pair = RunGroup([model, build_model(dataclasses.replace(config, seed=1), device="cpu")]).buffers.nbytes()
+    pair = RunGroup([model, build_model(run_task(dataclasses.replace(config, seed=1)), device="cpu")]).buffers.nbytes()
     assert pair <= 2 * run_buffer_nbytes(model) < 1.01 * pair  # the runs share the steps' bookkeeping: a bound
 
 
 def test_runs_that_fit_take_the_tighter_of_device_and_host(monkeypatch: pytest.MonkeyPatch) -> None:
-    model = build_model(tiny().runs()[0], device="cpu")
+    model = build_model(run_task(tiny().runs()[0]), device="cpu")
     run_bytes = run_buffer_nbytes(model)
     # On the CPU: 40% of the host (the buffers and a save's copy of their rows).
     on_cpu = runs_that_fit(model, "cpu", host_bytes=100 * run_bytes)
@@ -53,7 +54,7 @@ def test_runs_that_fit_take_the_tighter_of_device_and_host(monkeypatch: pytest.M
 
 def test_a_settings_seeds_are_split_into_groups_that_fit(monkeypatch: pytest.MonkeyPatch) -> None:
     configs = tiny(seeds=7).runs()
-    full, selected = (run_buffer_nbytes(build_model(config, device="cpu")) for config in configs[:2])
+    full, selected = (run_buffer_nbytes(build_model(run_task(config), device="cpu")) for config in configs[:2])
     assert full < selected < 1.3 * full  # the selected runs store their selections too
     run_bytes = selected
     monkeypatch.setattr(memory, "host_memory", lambda: int(7.5 * run_bytes))  # 40% of it: 3 runs of either scheme
@@ -85,7 +86,7 @@ def test_runs_whose_buffers_cannot_fit_are_refused_before_training(monkeypatch: 
 
 def test_a_sweep_says_its_split_and_trains_groups_that_fit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     experiment = dataclasses.replace(tiny(seeds=3), schemes=("full",))
-    run_bytes = run_buffer_nbytes(build_model(experiment.runs()[0], device="cpu"))
+    run_bytes = run_buffer_nbytes(build_model(run_task(experiment.runs()[0]), device="cpu"))
     monkeypatch.setattr(memory, "host_memory", lambda: int(5.5 * run_bytes))  # 40% of it: 2 runs
     result = run_sweep([experiment], tmp_path, backend="batched", device="cpu", verbose=0)
     assert result.ok and len(result.completed) == 3
@@ -96,7 +97,7 @@ def test_a_sweep_says_its_split_and_trains_groups_that_fit(tmp_path: Path, monke
 
 def test_a_sweep_warns_of_groups_asked_for_that_may_not_fit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     experiment = dataclasses.replace(tiny(seeds=3), schemes=("full",))
-    run_bytes = run_buffer_nbytes(build_model(experiment.runs()[0], device="cpu"))
+    run_bytes = run_buffer_nbytes(build_model(run_task(experiment.runs()[0]), device="cpu"))
     monkeypatch.setattr(memory, "host_memory", lambda: int(5.5 * run_bytes))  # 40% of it: 2 runs
     result = run_sweep([experiment], tmp_path, backend="batched", device="cpu", verbose=0, runs_per_process=3)
     assert result.ok and len(result.completed) == 3  # as asked: one group of 3 (tiny buffers, no harm here)
