@@ -6,9 +6,13 @@ algorithm side (which reads it) can share it without importing each other.
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
+import array_api_compat
 import numpy as np
+
+ArrayT = TypeVar("ArrayT")
+"""A numpy array or a torch tensor: what the rules written against the array API standard take and give."""
 
 
 @dataclass(frozen=True, repr=False)
@@ -97,14 +101,14 @@ class AgentLayout:
         """Whether the env declares where its agents' positions are (in the observations or in the infos)."""
         return self.position_slices is not None or self.positions_in_info
 
-    def positions(self, observations: np.ndarray, position_slices: Sequence[slice] | None = None) -> np.ndarray:
+    def positions(self, observations: ArrayT, position_slices: Sequence[slice] | None = None) -> ArrayT:
         """
-        Each agent's position, read from joint observations.
+        Each agent's position, read from joint observations (a numpy array or a torch tensor).
 
-        :param observations: Joint observations, ``[batch, obs_dim]``.
+        :param observations: Joint observations, ``[..., obs_dim]``.
         :param position_slices: Where each agent's position lies in its own observation (default: the env's
             :attr:`position_slices`).
-        :return: Positions, ``[batch, n_agents, d]``.
+        :return: Positions, ``[..., n_agents, d]``, in the observations' array library.
         """
         slices = self.position_slices if position_slices is None else tuple(position_slices)
         if slices is None:
@@ -112,7 +116,9 @@ class AgentLayout:
                 "This team's observations hold no declared positions: declare them with PettingZooToGym(env, "
                 "positions=...) (a slice of each agent's observation, a Dict observation key, or a function of the env)."
             )
-        return np.stack([observations[:, part][:, where] for part, where in zip(self.obs_slices, slices)], axis=1)
+        joint: Any = observations  # numpy or torch: both index and stack as the array API says
+        parts = [joint[..., part][..., where] for part, where in zip(self.obs_slices, slices)]
+        return array_api_compat.array_namespace(joint).stack(parts, axis=-2)
 
     @property
     def has_discrete_actions(self) -> bool:

@@ -11,9 +11,10 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Hashable, Sequence
 from typing import Any, Literal
 
+import array_api_compat
 import numpy as np
 
-from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.layout import AgentLayout, ArrayT
 from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
 from sb3_maddpg.common.user_code import user_stacklevel
 
@@ -184,12 +185,25 @@ class NearestAgents(Selector):
         return self._select_by(layout.positions(observations, slices))
 
     def _select_by(self, positions: np.ndarray) -> np.ndarray:
-        offsets = positions[:, :, None, :] - positions[:, None, :, :]
-        distances = np.einsum("bijk,bijk->bij", offsets, offsets)
-        # An agent never selects itself.
-        n_agents = positions.shape[1]
-        distances[:, np.arange(n_agents), np.arange(n_agents)] = np.inf
-        return np.argsort(distances, axis=-1, kind="stable")[:, :, : self.k]
+        return nearest_agents(positions, self.k)
+
+
+def nearest_agents(positions: ArrayT, k: int) -> ArrayT:
+    """
+    :class:`NearestAgents`' rule, written once against the array API standard: numpy on the host (the replay buffer),
+    torch where a run group's observations are (:class:`~sb3_maddpg.run_group.selection.DeviceSelector`).
+
+    :param positions: The agents' positions, ``[..., n_agents, d]``.
+    :param k: Agents each agent selects.
+    :return: Each agent's ``k`` nearest other agents, nearest first, ties to the lower index, int64 ``[..., n_agents, k]``.
+    """
+    where: Any = positions  # numpy or torch
+    xp = array_api_compat.array_namespace(where)
+    offsets = where[..., :, None, :] - where[..., None, :, :]
+    distances = xp.sum(offsets * offsets, axis=-1)
+    own = xp.eye(where.shape[-2], dtype=xp.bool, device=array_api_compat.device(where))
+    distances = xp.where(own, xp.inf, distances)  # an agent never selects itself
+    return xp.argsort(distances, axis=-1, stable=True)[..., :k]
 
 
 class FixedGraph(Selector):

@@ -3,14 +3,15 @@
 import torch as th
 
 from sb3_maddpg.common.layout import AgentLayout
-from sb3_maddpg.common.selection import FixedGraph, NearestAgents, Selector
+from sb3_maddpg.common.selection import FixedGraph, NearestAgents, Selector, nearest_agents
 
 
 class DeviceSelector:
     """
-    What ``selector.select`` returns, computed where the observations are: the built-in rules (:class:`NearestAgents`,
-    :class:`FixedGraph`) in torch, their tables made on the device once; any other selector on the host (a copy there
-    and back, each call).
+    What ``selector.select`` returns, computed where the observations are: the built-in rules in torch
+    (:class:`NearestAgents` by the host's own rule, :func:`~sb3_maddpg.common.selection.nearest_agents`, written once
+    against the array API; :class:`FixedGraph`'s table made on the device once); any other selector on the host (a
+    copy there and back, each call).
 
     :param selector: The selection rule.
     :param layout: The team's agent layout.
@@ -20,7 +21,6 @@ class DeviceSelector:
     def __init__(self, selector: Selector, layout: AgentLayout, device: th.device | str) -> None:
         self.selector = selector
         self.layout = layout
-        self._own = th.eye(layout.n_agents, dtype=th.bool, device=device)
         self._table = (
             th.as_tensor(selector.neighbors, dtype=th.long, device=device) if isinstance(selector, FixedGraph) else None
         )
@@ -38,13 +38,7 @@ class DeviceSelector:
                     "This env reports its agents' positions in its infos, not its observations: a run group selects "
                     "on the device from observations; train such an env's runs one by one (MADDPG.learn)."
                 )
-            parts = [observations[..., part][..., where] for part, where in zip(layout.obs_slices, slices)]
-            positions = th.stack(parts, dim=-2)
-            offsets = positions.unsqueeze(-2) - positions.unsqueeze(-3)
-            distances = (offsets * offsets).sum(dim=-1)
-            # An agent never selects itself; ties go to the lower index (a stable sort), as NearestAgents.
-            distances = distances.masked_fill(self._own, float("inf"))
-            return th.argsort(distances, dim=-1, stable=True)[..., : selector.k]
+            return nearest_agents(layout.positions(observations, slices), selector.k)  # the host's rule, in torch
         if self._table is not None:
             return self._table.expand(*lead, *self._table.shape)
         flat = observations.detach().reshape(-1, observations.shape[-1]).cpu().numpy()
