@@ -3,12 +3,14 @@
 import copy
 import math
 from collections.abc import Sequence
+from typing import Any
 
+import array_api_compat
 import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.noise import ActionNoise, NormalActionNoise, VectorizedActionNoise
 
-from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.layout import AgentLayout, ArrayT
 
 
 def default_noise(
@@ -101,7 +103,21 @@ def add_noise(actions: np.ndarray, action_noise: ActionNoise, discrete: np.ndarr
         (:meth:`~sb3_maddpg.common.layout.AgentLayout.discrete_components`), or None.
     :return: The noisy actions, ``[n_envs, action_dim]``.
     """
-    noise = draw_noise(action_noise, actions.shape)
+    return noisy_actions(actions, draw_noise(action_noise, actions.shape), discrete)
+
+
+def noisy_actions(actions: ArrayT, noise: ArrayT, discrete: np.ndarray | None = None) -> ArrayT:
+    """
+    The exploration rule, written once against the array API standard: a model's collection runs it in numpy
+    (:func:`add_noise`), a run group in torch on its device, with noise from each run's own stream.
+
+    :param actions: Joint actions in [-1, 1], ``[..., action_dim]``.
+    :param noise: A draw of the noise, of a shape that broadcasts to ``actions``.
+    :param discrete: Which action components belong to discrete agents (no noise on their one-hots), or None.
+    :return: ``actions + noise``, clipped to [-1, 1].
+    """
+    values: Any = actions  # numpy or torch
+    xp = array_api_compat.array_namespace(values)
     if discrete is not None and discrete.any():
-        noise = np.where(discrete, 0.0, noise)
-    return np.clip(actions + noise, -1.0, 1.0)
+        noise = xp.where(xp.asarray(discrete), 0.0, noise)
+    return xp.clip(values + noise, -1.0, 1.0)

@@ -11,7 +11,7 @@ import torch as th
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.losses import ActionParts
-from sb3_maddpg.common.noise import per_env_noise
+from sb3_maddpg.common.noise import noisy_actions, per_env_noise
 from sb3_maddpg.common.train_logs import StepLosses, summarise_steps
 from sb3_maddpg.common.update_schedule import UpdateSchedule
 from sb3_maddpg.common.update_step import GroupFunctions, update_step
@@ -242,7 +242,8 @@ class RunGroup:
     def explore(self, observations: th.Tensor, warm_up: bool | None = None) -> th.Tensor:
         """
         Each run's exploration actions in the [-1, 1] space, as ``MADDPG._sample_action``: uniform before
-        ``learning_starts``, then every actor on its own observation; plus Gaussian noise, clipped to [-1, 1].
+        ``learning_starts``, then every actor on its own observation; plus Gaussian noise, clipped to [-1, 1] by the
+        models' own rule (:func:`~sb3_maddpg.common.noise.noisy_actions`).
 
         :param observations: ``[R, E, obs_dim]``.
         :param warm_up: Whether the actions are uniform (default: whether ``learning_starts`` is still ahead).
@@ -254,7 +255,7 @@ class RunGroup:
         else:
             actions = self.networks.actions(observations)
         if self.noise_std is not None and self.noise_mean is not None:
-            actions = (actions + self.noise_mean + self.streams.normal(shape) * self.noise_std).clamp(-1.0, 1.0)
+            actions = noisy_actions(actions, self.noise_mean + self.streams.normal(shape) * self.noise_std)
         return actions
 
     def collect_step(self) -> None:
