@@ -10,8 +10,7 @@ Which runs train together is :mod:`~sb3_maddpg.experiments.group_plan`'s job, th
 :mod:`~sb3_maddpg.experiments.group_state`'s, what it writes while it trains
 :mod:`~sb3_maddpg.experiments.group_recorder`'s; this module trains a group and runs a sweep's groups. The groups
 train one after another in the sweep's process (:class:`GroupBackend`), or as Ray tasks, one per group
-(:class:`GroupRayBackend`); :func:`run_batched` and :func:`run_batched_ray` do the same for a list of runs outside
-a sweep (the functions of 0.2).
+(:class:`GroupRayBackend`).
 """
 
 import dataclasses
@@ -223,36 +222,6 @@ def _model_logging_to(config: RunConfig, directory: Path, steps: int | None) -> 
     return model
 
 
-def run_batched(
-    configs: Sequence[RunConfig],
-    results_dir: str,
-    on_result: OnResult,
-    device: str = "auto",
-    runs_per_process: int | None = None,
-    threads: int = 1,
-    verbose: int = 1,
-    most_runs: Callable[[Sequence[RunConfig]], int] | None = None,
-) -> None:
-    """
-    Run the sweep's runs in groups (:func:`~sb3_maddpg.experiments.group_plan.plan_groups`), one group after another in
-    this process; a group that fails fails its runs (each reported with the traceback) and the sweep goes on.
-
-    :param configs: The runs (checked with :func:`~sb3_maddpg.experiments.group_plan.check_batched`).
-    :param results_dir: The sweep's results directory.
-    :param on_result: Called for each run as its group ends.
-    :param device: Where the groups train.
-    :param runs_per_process: The most runs in one group (``None``: all of a setting and scheme, or as many as fit
-        in the device's memory, :func:`~sb3_maddpg.experiments.group_plan.memory_bound`).
-    :param threads: Torch threads.
-    :param verbose: 1 to print each group's progress lines.
-    :param most_runs: For :func:`~sb3_maddpg.experiments.group_plan.plan_groups` when ``runs_per_process`` is ``None``
-        (default: :func:`~sb3_maddpg.experiments.group_plan.memory_bound` on ``device``, saying a split on stdout).
-    """
-    if runs_per_process is None and most_runs is None:
-        most_runs = memory_bound(device, log=print if verbose else None)
-    train_groups(plan_groups(configs, runs_per_process, most_runs), results_dir, on_result, device, threads, verbose)
-
-
 def train_groups(
     groups: Sequence[Sequence[RunConfig]],
     results_dir: str,
@@ -285,42 +254,6 @@ def train_groups(
         else:
             for config, result in zip(group, results):
                 on_result(config, result, None)
-
-
-def run_batched_ray(
-    configs: Sequence[RunConfig],
-    results_dir: str,
-    on_result: OnResult,
-    device: str = "auto",
-    runs_per_process: int | None = None,
-    threads: int = 1,
-    address: str | None = None,
-    num_cpus: int | None = None,
-    verbose: int = 1,
-    on_parallel: Callable[[int, str], None] | None = None,
-) -> None:
-    """
-    Run the sweep's groups (:func:`~sb3_maddpg.experiments.group_plan.plan_groups`) as Ray tasks, one task per group
-    (:func:`train_groups_on_ray`).
-
-    :param configs: The runs (checked with :func:`~sb3_maddpg.experiments.group_plan.check_batched` before: this submits
-        them as they are).
-    :param results_dir: The sweep's results directory (on a cluster, an absolute path on shared storage).
-    :param on_result: Called for each run as its group ends.
-    :param device: Where the groups train: ``"cuda"`` (each task on the GPU Ray gives it), ``"cpu"``, or ``"auto"``
-        (CUDA when the cluster has GPUs).
-    :param runs_per_process: The most runs in one group (``None``: all of a setting and scheme).
-    :param threads: Torch threads (and Ray CPUs) per group.
-    :param address: The Ray cluster's address, or ``None`` to start a local instance.
-    :param num_cpus: CPUs of a local instance (``None``: all of this machine's).
-    :param verbose: 1 to print each group's progress lines (Ray forwards the workers' output).
-    :param on_parallel: Called once Ray is up with the groups that train at once and the device they train on.
-    :raise BatchedRunRefused: For a CUDA device on a cluster without GPUs (its tasks would wait forever), before any
-        task.
-    """
-    groups = plan_groups(configs, runs_per_process)
-    execution = Execution("batched-ray", num_cpus or 0, threads, address, device, runs_per_process, verbose)
-    train_groups_on_ray(groups, results_dir, on_result, execution, on_parallel)
 
 
 def train_groups_on_ray(
@@ -438,7 +371,7 @@ class GroupBackend:
 
 class GroupRayBackend(GroupBackend):
     """
-    Runs in run groups, each a Ray task (``--backend batched --ray``, or ``batched-ray``).
+    Runs in run groups, each a Ray task (``--backend batched-ray``).
 
     :param execution: Where and how the groups train.
     """

@@ -134,7 +134,6 @@ def run_sweep(
     verbose: int = 2,
     device: str = "auto",
     runs_per_process: int | None = None,
-    on_ray: bool = False,
     snapshots: bool = True,
     compile: bool | None = None,
 ) -> SweepResult:
@@ -162,8 +161,6 @@ def run_sweep(
         ``"cuda"`` or ``"auto"`` (CUDA when there is a GPU); a ``device`` in an experiment's ``model_kwargs`` comes first
         for its runs alone.
     :param runs_per_process: The batched backends' most runs per group (``None``: all of a setting and scheme).
-    :param on_ray: ``backend="batched"`` with this is ``"batched-ray"``: each group a Ray task (a GPU each on a CUDA
-        device; at ``ray_address``, or on a local instance of ``workers`` CPUs).
     :param snapshots: Runs alone (local, Ray) save a snapshot at each tenth of their budget, so that a killed run goes
         on from its last one (:mod:`~sb3_maddpg.experiments.run_snapshot`; about two replay buffers of disk per run in
         progress, e.g. 2.7 GB at N=5 with 1M-transition buffers).
@@ -180,8 +177,7 @@ def run_sweep(
     if len(set(names)) != len(names):
         raise ValueError(f"Experiment names must be unique, got {names}.")
     run_verbose = 1 if verbose >= 2 else 0
-    name = _backend_name(backend, on_ray)
-    execution = Execution(name, workers, threads, ray_address, device, runs_per_process, run_verbose, snapshots, compile)
+    execution = Execution(backend, workers, threads, ray_address, device, runs_per_process, run_verbose, snapshots, compile)
     chosen = make_backend(execution)
     with lock_results(results_path):
         todo, skipped = plan_sweep(experiments, results_path)
@@ -199,18 +195,6 @@ def run_sweep(
         for experiment in experiments:  # once per setting, on its runs' evaluation episodes, before any run
             write_references(experiment, results_path, progress.log)
         return execute_plan(chosen, plan, progress)
-
-
-def _backend_name(backend: str, on_ray: bool) -> str:
-    """:return: The name in :data:`~sb3_maddpg.experiments.backends.BACKENDS` of ``run_sweep``'s ``backend, on_ray``."""
-    if not on_ray:
-        return backend
-    if backend not in ("batched", "batched-ray"):
-        raise ValueError(
-            f"on_ray runs the batched backend's groups as Ray tasks, but the backend is {backend!r}: use "
-            "backend='batched' with on_ray=True, or backend='ray' for one task per run."
-        )
-    return "batched-ray"
 
 
 def execute_plan(backend: Backend, plan: SweepPlan, progress: SweepProgress) -> SweepResult:

@@ -1,10 +1,11 @@
-"""Tests of run groups as Ray tasks (``sb3-maddpg run --backend batched --ray``): one task per group, a GPU each on
+"""Tests of run groups as Ray tasks (``sb3-maddpg run --backend batched-ray``): one task per group, a GPU each on
 CUDA, the files of ``--backend batched`` without Ray, refusals before Ray starts."""
 
 import dataclasses
 import json
 import sys
 import types
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -12,8 +13,9 @@ import pytest
 
 from sb3_maddpg.cli.main import main
 from sb3_maddpg.experiments import SMOKE, ray_tasks, run_sweep
-from sb3_maddpg.experiments.batched import run_batched_ray
-from sb3_maddpg.experiments.group_plan import BatchedRunRefused
+from sb3_maddpg.experiments.backends import Execution
+from sb3_maddpg.experiments.batched import train_groups_on_ray
+from sb3_maddpg.experiments.group_plan import BatchedRunRefused, plan_groups
 from sb3_maddpg.experiments.local_pool import LOST_RUN
 from sb3_maddpg.experiments.ray_tasks import RAY_MAX_RETRIES, ray_task_options, run_ray
 from sb3_maddpg.experiments.results_dir import SWEEP_LOG, load_summaries
@@ -72,7 +74,7 @@ def test_a_group_task_asks_for_a_gpu_on_cuda() -> None:
 
 
 class FakeRay:
-    """What :func:`run_batched_ray` uses of Ray: its tasks' options and arguments recorded, none run."""
+    """What :func:`train_groups_on_ray` uses of Ray: its tasks' options and arguments recorded, none run."""
 
     class WorkerCrashedError(Exception):
         pass
@@ -109,8 +111,14 @@ class FakeRay:
         return [{"run_id": config.run_id, "files": {"summary.json": "{}"}} for config in self.submitted[ref][0]]
 
 
-def run_on(fake: FakeRay, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, **kwargs: Any) -> list[tuple[str, Any]]:
-    """Four seeds in groups of two through :func:`run_batched_ray` on ``fake``: what each run reported."""
+def run_on(
+    fake: FakeRay,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    device: str = "auto",
+    on_parallel: Callable[[int, str], None] | None = None,
+) -> list[tuple[str, Any]]:
+    """Four seeds in groups of two through :func:`train_groups_on_ray` on ``fake``: what each run reported."""
     monkeypatch.setitem(sys.modules, "ray", fake)
     reported: list[tuple[str, Any]] = []
 
@@ -118,7 +126,8 @@ def run_on(fake: FakeRay, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, **kwa
         reported.append((config.run_id, result if error is None else error))
 
     configs = dataclasses.replace(WARM_UP_ONLY, seeds=(0, 1, 2, 3)).runs()
-    run_batched_ray(configs, str(tmp_path), on_result, runs_per_process=2, threads=2, **kwargs)
+    execution = Execution("batched-ray", threads=2, device=device, runs_per_process=2)
+    train_groups_on_ray(plan_groups(configs, 2), str(tmp_path), on_result, execution, on_parallel)
     return reported
 
 
@@ -161,14 +170,12 @@ def test_refusals_come_before_ray_starts(
         "sb3-maddpg run: smoke/attention/seed_000 (and its other seeds) cannot train in a run group"
     )
     with pytest.raises(BatchedRunRefused, match="batched worlds only"):
-        run_sweep([dataclasses.replace(WARM_UP_ONLY, vec_env="mpe2")], tmp_path, backend="batched", on_ray=True, verbose=0)
+        run_sweep([dataclasses.replace(WARM_UP_ONLY, vec_env="mpe2")], tmp_path, backend="batched-ray", verbose=0)
     assert not (tmp_path / "smoke").exists() and not (tmp_path / "tiny").exists()  # nothing trained or written
 
     # --ray-address is Ray's: with a backend that trains on this machine it would be ignored.
     assert main([*args[:-1], "batched", "--ray-address", "auto"]) == 2
     assert "--ray-address is Ray's, but --backend batched trains on this machine" in capsys.readouterr().err
-    with pytest.raises(ValueError, match="on_ray runs the batched backend's groups"):
-        run_sweep([WARM_UP_ONLY], tmp_path, backend="local", on_ray=True)
 
 
 def test_runs_alone_on_ray_take_a_gpu_each_on_cuda_and_are_refused_where_none_is(
