@@ -13,3 +13,4 @@ python -m sb3_maddpg report benchmarks/paper_n5_independent/results --complete-s
     --metric success_rate_r0.3 --metric success_rate --metric min_dist_sum --metric return_mean
 rm -f "$OUT/marl_eval.json"  # marl-eval's input, not shown in the docs
 python benchmarks/paper_n5_independent/beside_shared.py --out "$OUT/beside_shared.md"
+python benchmarks/paper_n5_independent/readme_table.py  # the README's table from the claims (tests/test_readme_claims.py)

@@ -1,0 +1,97 @@
+"""The README's table "Which information helps at N=5", written from the study's committed claims.
+
+Reads ``docs/_static/paper_n5_independent/claims_min_dist_sum.csv`` (what ``report.sh`` writes from the runs) and
+writes the table between the README's two markers: each of the paper's claims against ``full``, its runs' means, the
+exact p, the Holm-adjusted p with its family's size, and the verdict the adjusted p allows; a claim whose schemes have
+not run is one row per setting, "not run yet". Run it after ``report.sh`` (``python
+benchmarks/paper_n5_independent/readme_table.py``); ``tests/test_readme_claims.py`` fails while the README says other
+numbers than the committed claims.
+"""
+
+import csv
+import sys
+from pathlib import Path
+
+from sb3_maddpg.experiments.config import BASELINE_SCHEME
+from sb3_maddpg.results.claims import PAPER_CLAIMS, PAPER_TABLE2, UNDECIDED_VERDICTS, format_p_value
+
+ROOT = Path(__file__).resolve().parent.parent.parent
+CLAIMS_CSV = ROOT / "docs" / "_static" / "paper_n5_independent" / "claims_min_dist_sum.csv"
+README = ROOT / "README.md"
+START, END = "<!-- table: benchmarks/paper_n5_independent/readme_table.py -->", "<!-- end -->"
+SETTINGS = {"full": "Exp. 1", "partial": "Exp. 2"}
+"""The paper's settings by observability, as the table names them."""
+HEADER = (
+    "| setting | the paper's claim | paper (success %, 31 seeds) | a network per agent (min-dist sum) | p | Holm p "
+    "| verdict |",
+    "|---|---|---|---|---|---|---|",
+)
+
+
+def table_rows(claims: list[dict[str, str]]) -> list[str]:
+    """
+    :param claims: The rows of the claims CSV.
+    :return: The table's rows, Exp. 1 then Exp. 2: each claim against ``full`` that the runs asked, then those whose
+        schemes have not run ("open"; the claims that ``full`` beats others in one row).
+    """
+    rows = []
+    for observability, setting in SETTINGS.items():
+        asked = [row for row in claims if row["observability"] == observability]
+        for row in asked:
+            if BASELINE_SCHEME not in (row["better"], row["worse"]):
+                continue  # a claim between two other schemes: a family of its own, not the README's
+            p_value, holm = float(row["p_value"]), float(row["p_holm"])
+            verdict = row["verdict"]
+            if verdict in UNDECIDED_VERDICTS:
+                verdict = f"{verdict} (p = {format_p_value(p_value)})"
+            means = f"{float(row['mean_better']):.2f} vs {float(row['mean_worse']):.2f}"
+            evidence = row["paper_evidence"] if row["better"] != "selected_next" else "(not in the paper)"
+            claim = f"`{row['better']}` > `{row['worse']}`"
+            cells = [setting, claim, evidence, means, format_p_value(p_value)]
+            cells += [f"{format_p_value(holm)} ({row['family_size']})", verdict]
+            rows.append("| " + " | ".join(cells) + " |")
+        done = {(row["better"], row["worse"]) for row in asked}
+        unrun = [
+            claim
+            for claim in PAPER_CLAIMS
+            if claim.observability == observability
+            and BASELINE_SCHEME in (claim.better, claim.worse)
+            and (claim.better, claim.worse) not in done
+        ]
+        for claim in unrun:
+            if claim.worse == BASELINE_SCHEME:
+                rows.append(f"| {setting} | `{claim.better}` > `{claim.worse}` | {claim.evidence} | not run yet | | | open |")
+        below = [claim.worse for claim in unrun if claim.better == BASELINE_SCHEME]  # one row: `full` > each of them
+        if below:
+            paper = PAPER_TABLE2[observability]
+            claim_text = f"`{BASELINE_SCHEME}` > " + ", ".join(f"`{scheme}`" for scheme in below)
+            evidence = f"{paper[BASELINE_SCHEME][0]:.2f} vs " + ", ".join(f"{paper[scheme][0]:.2f}" for scheme in below)
+            rows.append(f"| {setting} | {claim_text} | {evidence} | not run yet | | | open |")
+    return rows
+
+
+def readme_with_table(readme: str, claims: list[dict[str, str]]) -> str:
+    """
+    :param readme: The README's text.
+    :param claims: The rows of the claims CSV.
+    :return: The README with the table between its markers written from ``claims``.
+    """
+    before, start, rest = readme.partition(START)
+    _, end, after = rest.partition(END)
+    if not start or not end:
+        raise ValueError(f"README.md has no {START} ... {END} markers around the table: put them back around it.")
+    return before + START + "\n" + "\n".join([*HEADER, *table_rows(claims)]) + "\n" + END + after
+
+
+def read_claims(path: Path = CLAIMS_CSV) -> list[dict[str, str]]:
+    """:return: The rows of the committed claims CSV."""
+    with open(path, newline="") as file:
+        return list(csv.DictReader(file))
+
+
+if __name__ == "__main__":
+    text = readme_with_table(README.read_text(), read_claims())
+    changed = text != README.read_text()
+    README.write_text(text)
+    print(f"README.md's table {'rewritten' if changed else 'already as the claims say'} ({CLAIMS_CSV.name})")
+    sys.exit(0)

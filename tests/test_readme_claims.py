@@ -1,0 +1,64 @@
+"""The README's N=5 table says what the committed claims say (issue 56: the README states only what survives a
+correction): it is what ``benchmarks/paper_n5_independent/readme_table.py`` writes from the report's claims CSV."""
+
+import csv
+import io
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+from tests.script_module import load_script
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def readme_table() -> ModuleType:
+    return load_script(REPO / "benchmarks" / "paper_n5_independent" / "readme_table.py")
+
+
+def claims(text: str) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO(text)))
+
+
+HEADER = (
+    "setting,observability,better,worse,relation,paper_evidence,metric,n_better,n_worse,mean_better,mean_worse,"
+    "p_value,p_holm,family_size,improvement,improvement_low,improvement_high,verdict,seeds_needed\n"
+)
+
+
+def test_the_readme_table_is_the_committed_claims(readme_table: ModuleType) -> None:
+    readme = (REPO / "README.md").read_text()
+    assert readme_table.readme_with_table(readme, readme_table.read_claims()) == readme, (
+        "README.md's N=5 table differs from docs/_static/paper_n5_independent/claims_min_dist_sum.csv: run "
+        "python benchmarks/paper_n5_independent/readme_table.py"
+    )
+
+
+def test_a_verdict_the_correction_removes_is_a_lean_and_unrun_claims_are_open(readme_table: ModuleType) -> None:
+    rows = claims(
+        HEADER
+        + 'x,full,actions,full,>,"73.63 vs 63.89, p < .01",min_dist_sum,5,5,0.59,0.52,0.0079,0.0397,5,0,0,0,reverses,\n'
+        + 'x,full,full,independent,>,"63.89 vs 44.58, p < .01",min_dist_sum,5,5,0.52,0.64,0.0317,0.0952,5,1,1,1,'
+        + "leans the claim's way,9\n"
+        + 'x,full,independent,observations,>,"44.58 vs 36.89",min_dist_sum,5,5,0.6,0.7,0.1,0.1,1,1,1,1,holds,\n'
+    )
+    table = readme_table.table_rows(rows)
+    assert table[0] == "| Exp. 1 | `actions` > `full` | 73.63 vs 63.89, p < .01 | 0.59 vs 0.52 | .008 | .040 (5) | reverses |"
+    # Raw p .032 but Holm .095: no verdict word, the lean with its raw p.
+    assert table[1].endswith("| .032 | .095 (5) | leans the claim's way (p = .032) |")
+    assert not any("`independent` > `observations`" in row for row in table)  # not against full: not the README's
+    # What has no runs is open: Exp. 1's `selected` > `full` and `full` > `observations`, and all of Exp. 2.
+    assert table[2:] == [
+        "| Exp. 1 | `selected` > `full` | 71.58 vs 63.89, p < .05 | not run yet | | | open |",
+        "| Exp. 1 | `full` > `observations` | 63.89 vs 36.89 | not run yet | | | open |",
+        "| Exp. 2 | `selected` > `full` | 74.99 vs 70.11, not significant | not run yet | | | open |",
+        "| Exp. 2 | `full` > `observations`, `actions`, `independent` | 70.11 vs 67.70, 51.88, 51.02 | not run yet "
+        "| | | open |",
+    ]
+
+
+def test_a_readme_without_the_markers_is_refused_saying_where(readme_table: ModuleType) -> None:
+    with pytest.raises(ValueError, match="README.md has no <!-- table: .* markers around the table"):
+        readme_table.readme_with_table("# README\n\nno table here\n", [])
