@@ -13,6 +13,7 @@ import torch as th
 from sb3_maddpg.common.progress import log_line
 from sb3_maddpg.compat import with_version
 from sb3_maddpg.experiments.results_dir import CONFIG_FILE, LOG_FILE, read_json, run_directory, write_json_atomic
+from sb3_maddpg.experiments.run_snapshot import versions
 from sb3_maddpg.experiments.setting import RunConfig
 from sb3_maddpg.experiments.training_resources import TrainingResources
 
@@ -78,10 +79,11 @@ def remove_stale_states(results_dir: str | os.PathLike[str], configs: Sequence[R
 
 
 def save_state(path: Path, state: dict[str, Any]) -> None:
-    """Write a group's state whole or not at all (a temporary file renamed over the old one)."""
+    """Write a group's state whole or not at all (a temporary file renamed over the old one), with the versions it is
+    only resumed under (:func:`~sb3_maddpg.experiments.run_snapshot.versions`, as a run's snapshot)."""
     tmp_path = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        th.save(state, tmp_path)
+        th.save({**state, "versions": versions()}, tmp_path)
         os.replace(tmp_path, path)
     except BaseException:
         tmp_path.unlink(missing_ok=True)
@@ -99,8 +101,9 @@ def load_state(
     :param configs: The group's runs.
     :param results_dir: The sweep's results directory.
     :param log: Called with a line saying why a state file that exists is not used.
-    :return: The state, when it is readable, of these runs with these configs, and their directories still hold
-        what it was saved with (config and checkpoints); else ``None`` (the group starts afresh).
+    :return: The state, when it is readable, of these runs with these configs, saved under this package's, SB3's,
+        PyTorch's and NumPy's versions, and their directories still hold what it was saved with (config and
+        checkpoints); else ``None`` (the group starts afresh).
     """
     if not path.exists():
         return None
@@ -122,6 +125,8 @@ def _read_state(
         return None, f"cannot be read ({type(error).__name__}: truncated, or not a state)"
     if not isinstance(state, dict) or state.get("configs") != [config.to_dict() for config in configs]:
         return None, "is of other runs or configs"
+    if state.get("versions") != versions():  # a resumed group equals an uninterrupted one only under the same versions
+        return None, f"was saved under other versions ({state.get('versions')}, now {versions()})"
     version = state["group"].get("version") if isinstance(state.get("group"), dict) else None
     if version != STATE_VERSION:
         return None, f"is of another layout (version {version}; this package reads version {STATE_VERSION})"

@@ -263,6 +263,11 @@ def test_a_state_not_used_says_why_and_stale_temporary_files_are_removed(
     saved["group"]["version"] = 1
     torch.save(saved, state)
     restart_says(f"group_seeds_0-1.pt is of another layout (version 1; this package reads version {STATE_VERSION})")
+    # Nor one saved under other versions (a resumed group equals an uninterrupted one only under the same).
+    saved = torch.load(state, map_location="cpu", weights_only=True)
+    saved["versions"]["torch"] = "1.0.0"
+    torch.save(saved, state)
+    restart_says("group_seeds_0-1.pt was saved under other versions (")
     # A killed save's temporary file goes with the runs' stale states; another group's stays.
     ours, theirs = state.with_name(f".{state.name}.123.tmp"), state.with_name(".group_seeds_5.pt.123.tmp")
     ours.write_bytes(b"")
