@@ -116,21 +116,12 @@ def evaluate_reference(spec: Mapping[str, Any], config: "RunConfig") -> dict[str
     :return: ``{"eval_seed": ..., "n_episodes": ..., "score": {key: value}}``, the score's keys the run's
         (:attr:`~sb3_maddpg.experiments.tasks.RunTask.keys`).
     """
-    from sb3_maddpg.analysis.evaluation import evaluate_team
     from sb3_maddpg.experiments.tasks import run_task
 
     task = run_task(config)
     env = task.make_eval_env(config.eval_episodes)
     try:
-        result = evaluate_team(
-            reference_policy(spec, env, seed=task.eval_seed),
-            env,
-            n_episodes=config.eval_episodes,
-            seed=task.eval_seed,
-            task_metrics=task.metrics,
-            score_agents=config.score_agents,
-            sides=task.sides,
-        )
+        result = task.evaluate(reference_policy(spec, env, seed=task.eval_seed), env)
     finally:
         env.close()
     return {"eval_seed": task.eval_seed, "n_episodes": result["n_episodes"], "score": {k: result[k] for k in task.keys}}

@@ -17,7 +17,6 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from sb3_maddpg.analysis.behaviour import team_behaviour
 from sb3_maddpg.analysis.evaluation import (
     TeamEvalCallback,
-    evaluate_team,
     side_return_label,
     side_returns,
     write_rows,
@@ -430,15 +429,7 @@ def evaluate_checkpoints(task: RunTask, saved: list[tuple[int, Path]]) -> tuple[
         checkpoint = algorithm.load(path, device="cpu")
         if config.normalize_observations:
             load_observation_statistics(eval_env, path)
-        result = evaluate_team(
-            checkpoint,
-            eval_env,
-            n_episodes=config.eval_episodes,
-            seed=task.eval_seed,
-            task_metrics=task.metrics,
-            score_agents=config.score_agents,
-            sides=task.sides,
-        )
+        result = task.evaluate(checkpoint, eval_env)
         rows.append({"timesteps": steps, "episodes": steps // config.episode_length, **{k: result[k] for k in task.keys}})
     last: dict[str, Any] = {}
     if saved:

@@ -16,6 +16,7 @@ from sb3_maddpg.analysis.evaluation import (
     DeclaredMetric,
     declared_task_metrics,
     eval_keys,
+    evaluate_team,
     side_return_label,
 )
 from sb3_maddpg.envs.task_by_name import task_env_factory
@@ -188,6 +189,26 @@ class RunTask:
             num_agent_neighbors=config.num_agent_neighbors,
             max_cycles=config.episode_length,
             **config.env_kwargs,  # e.g. continuous_actions=False
+        )
+
+    def evaluate(self, policy: Any, eval_env: VecEnv) -> dict[str, Any]:
+        """
+        Evaluate a policy as the run's checkpoints are evaluated: ``eval_episodes`` episodes from the run's evaluation
+        seed, scored by the task's metrics, sides and scored agents.
+
+        :param policy: A model, a checkpoint or a reference policy (anything with ``predict``).
+        :param eval_env: An evaluation env of the task (:meth:`make_eval_env`).
+        :return: :func:`~sb3_maddpg.analysis.evaluation.evaluate_team`'s result (:attr:`keys` among its scores).
+        """
+        config = self.config
+        return evaluate_team(
+            policy,
+            eval_env,
+            n_episodes=config.eval_episodes,
+            seed=self.eval_seed,
+            task_metrics=self.metrics,
+            score_agents=config.score_agents,
+            sides=self.sides,
         )
 
     def make_train_env(self) -> VecEnv:
