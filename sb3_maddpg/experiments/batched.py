@@ -42,7 +42,7 @@ from sb3_maddpg.experiments.group_state import (
     TrainedRun,
     group_state_path,
     load_state,
-    read_progress_rows,
+    progress_rows_until,
     read_trained,
     remove_stale_states,
     write_trained,
@@ -212,7 +212,7 @@ def _model_logging_to(config: RunConfig, directory: Path, steps: int | None) -> 
     :return: Its model on the CPU, logging to its ``progress.csv`` through SB3's logger, which first writes the file's
         rows up to ``steps`` again (SB3's CSV output starts the file afresh).
     """
-    rows = read_progress_rows(directory / PROGRESS_FILE, steps) if steps is not None else []  # before SB3 empties it
+    rows = progress_rows_until(directory / PROGRESS_FILE, steps) if steps is not None else []  # before SB3 empties it
     model = build_model(run_task(config), device="cpu")
     model.set_logger(configure(str(directory), ["csv"]))
     for row in rows:

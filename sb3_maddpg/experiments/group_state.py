@@ -2,7 +2,6 @@
 resumes from), each run's record that its training is over (:data:`TRAINED_FILE`), and a resumed run's
 ``progress.csv`` rows."""
 
-import csv
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -13,7 +12,7 @@ import torch as th
 from sb3_maddpg.common.progress import log_line
 from sb3_maddpg.compat import with_version
 from sb3_maddpg.experiments.results_dir import CONFIG_FILE, LOG_FILE, read_json, run_directory, write_json_atomic
-from sb3_maddpg.experiments.run_snapshot import versions
+from sb3_maddpg.experiments.run_snapshot import read_progress_rows, versions
 from sb3_maddpg.experiments.setting import RunConfig
 from sb3_maddpg.experiments.training_resources import TrainingResources
 
@@ -207,17 +206,10 @@ def _same_config(stored: Any, config: RunConfig) -> bool:
         return False
 
 
-def read_progress_rows(path: Path, until: int) -> list[dict[str, Any]]:
-    """:return: The rows of a ``progress.csv`` up to env step ``until`` (values as numbers), to write them again."""
-    if not path.exists():
-        return []
-    rows = []
-    with open(path, newline="") as file:
-        for row in csv.DictReader(file):
-            values = {key: _number(value) for key, value in row.items() if value not in ("", None)}
-            if float(values.get("time/total_timesteps", 0)) <= until:
-                rows.append(values)
-    return rows
+def progress_rows_until(path: Path, until: int) -> list[dict[str, Any]]:
+    """:return: The rows of a ``progress.csv`` up to env step ``until`` (values as numbers), to log them again."""
+    rows = [{key: _number(value) for key, value in row.items() if value not in ("", None)} for row in read_progress_rows(path)]
+    return [row for row in rows if float(row.get("time/total_timesteps", 0)) <= until]
 
 
 def _number(text: str) -> Any:
