@@ -621,17 +621,18 @@ class TeamEvalCallback(BaseCallback):
 
 def write_rows(path: str, rows: list[dict[str, Any]]) -> None:
     """
-    Write dict rows as a CSV file (columns from the first row), replacing the file atomically.
+    Write dict rows as a CSV file, replacing the file atomically.
 
     :param path: The CSV file.
-    :param rows: The rows; nothing but the header is written when there are none.
+    :param rows: The rows; the columns are every key, in the order first seen (a key a row lacks: an empty cell);
+        nothing but the header is written when there are none.
     """
     directory = os.path.dirname(path)
     if directory:
         os.makedirs(directory, exist_ok=True)
     tmp_path = f"{path}.tmp"
     with open(tmp_path, "w", newline="") as file:
-        fieldnames = list(rows[0]) if rows else []
+        fieldnames = list(dict.fromkeys(key for row in rows for key in row))
         writer = csv.DictWriter(file, fieldnames=fieldnames)
         writer.writeheader()
         writer.writerows(rows)

@@ -230,20 +230,6 @@ def read_progress_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
         return list(csv.DictReader(file))
 
 
-def write_progress_rows(path: str | os.PathLike[str], rows: list[dict[str, str]]) -> None:
-    """
-    :param path: The ``progress.csv`` to write.
-    :param rows: Its rows, over every attempt; the columns are every key, in the order first seen.
-    """
-    columns = list(dict.fromkeys(key for row in rows for key in row))
-    tmp_path = f"{path}.tmp"
-    with open(tmp_path, "w", newline="") as file:
-        writer = csv.DictWriter(file, fieldnames=columns)
-        writer.writeheader()
-        writer.writerows(rows)
-    os.replace(tmp_path, path)
-
-
 def save_snapshot(run_dir: str | os.PathLike[str], model: BaseAlgorithm, progress: RunProgress) -> Path:
     """
     Write the run's snapshot beside the last one, then put it in its place.

@@ -47,7 +47,6 @@ from sb3_maddpg.experiments.run_snapshot import (
     remove_snapshot,
     restore_logger_values,
     snapshot_steps,
-    write_progress_rows,
 )
 from sb3_maddpg.experiments.setting import RunConfig
 from sb3_maddpg.experiments.tasks import RunTask, metric_record, run_task
@@ -233,7 +232,7 @@ def execute_run(
     )
     train_time = before.train_time_s + time.perf_counter() - started
     if before.progress_rows:  # this attempt's logger started progress.csv again: the earlier rows go first
-        write_progress_rows(directory / PROGRESS_FILE, before.progress_rows + read_progress_rows(directory / PROGRESS_FILE))
+        write_rows(str(directory / PROGRESS_FILE), [*before.progress_rows, *read_progress_rows(directory / PROGRESS_FILE)])
     resources = TrainingResources.here(model.device.type)
     model.get_env().close()  # type: ignore[union-attr]
     del model
