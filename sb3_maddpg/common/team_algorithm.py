@@ -29,6 +29,7 @@ from sb3_maddpg.common.buffers import (
 )
 from sb3_maddpg.common.env_checks import check_same_layout, layout_of, refuse_env_of_another_team, refuse_reward_normalization
 from sb3_maddpg.common.layout import AgentLayout
+from sb3_maddpg.common.memory_release import release_freed_memory
 from sb3_maddpg.common.noise import add_noise, default_noise, fit_noise_to_envs
 from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
 from sb3_maddpg.common.selection import Selector, resolve_selector, warn_if_selecting_everyone
@@ -61,6 +62,8 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
     agent_layout: AgentLayout | None
     selector: Selector | None
     update_rule: UpdateSchedule
+    _memory_released_at: int = 0
+    """The gradient steps at the last release of freed heap memory (:mod:`~sb3_maddpg.common.memory_release`)."""
 
     def _set_up_team(
         self,
@@ -161,6 +164,8 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         learning_starts: int = 0,
         log_interval: int | None = None,
     ) -> RolloutReturn:
+        # The heap the last gradient steps freed goes back to the system (sb3_maddpg.common.memory_release).
+        self._memory_released_at = release_freed_memory(self._n_updates, self._memory_released_at)
         rollout = super().collect_rollouts(
             env, callback, train_freq, replay_buffer, action_noise, learning_starts, log_interval
         )
@@ -451,4 +456,5 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             "_warned_never_updated",
             "_warned_empty_resume",
             "_agent_episode_returns",
+            "_memory_released_at",
         ]
