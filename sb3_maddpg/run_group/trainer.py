@@ -11,6 +11,7 @@ import torch as th
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.losses import ActionParts
+from sb3_maddpg.common.memory_release import release_freed_memory
 from sb3_maddpg.common.noise import noisy_actions, per_env_noise
 from sb3_maddpg.common.train_logs import StepLosses, summarise_steps
 from sb3_maddpg.common.update_schedule import UpdateSchedule
@@ -128,6 +129,7 @@ class RunGroup:
         self.num_timesteps = first.num_timesteps
         """Env steps of each run (all its worlds counted)."""
         self.n_updates = first._n_updates
+        self._memory_released_at = self.n_updates
         """Gradient steps of each run."""
         noise = None if first.action_noise is None else per_env_noise(first.action_noise)
         # Checked: a NormalActionNoise (or none); its mean and std per action component, on the device.
@@ -227,6 +229,8 @@ class RunGroup:
         steps = [self._step(None) for _ in range(gradient_steps)]
         if steps:
             self.losses = summarise_steps(steps)
+        # The heap the steps freed goes back to the system, as a single model's (sb3_maddpg.common.memory_release).
+        self._memory_released_at = release_freed_memory(self.n_updates, self._memory_released_at)
 
     def _sample(self) -> MultiAgentReplayBufferSamples:
         """Each run's batch (the buffers checked before, by :meth:`train`: the draw reads no Python value that changes

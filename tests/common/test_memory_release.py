@@ -2,6 +2,7 @@
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -14,7 +15,12 @@ from sb3_maddpg.envs import SimpleSpreadVecEnv
 def trims(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """The calls of ``malloc_trim``, recorded (and not made)."""
     calls: list[int] = []
-    monkeypatch.setattr(memory_release, "MALLOC_TRIM", lambda pad: calls.append(pad) or 1)
+
+    def malloc_trim(pad: int) -> int:
+        calls.append(pad)
+        return 1
+
+    monkeypatch.setattr(memory_release, "MALLOC_TRIM", malloc_trim)
     return calls
 
 
@@ -43,3 +49,15 @@ def test_a_save_does_not_carry_the_release_count(tmp_path: Path) -> None:
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc_trim is Linux's")
 def test_glibc_malloc_trim_is_found_on_linux() -> None:
     assert memory_release.MALLOC_TRIM is not None
+
+
+def test_a_run_group_releases_freed_memory_as_a_model_does(trims: list[int]) -> None:
+    from sb3_maddpg.run_group import RunGroup
+
+    env = SimpleSpreadVecEnv(2, n_agents=2)
+    settings: dict[str, Any] = {"learning_starts": 20, "batch_size": 16, "buffer_size": 500, "transitions_per_update": 10}
+    models = [MADDPG("MlpPolicy", env, seed=seed, device="cpu", **settings) for seed in (0, 1)]
+    group = RunGroup(models)
+    group.learn(2_000)
+    assert group.n_updates >= 80
+    assert len(trims) == group.n_updates // memory_release.TRIM_EVERY
