@@ -170,6 +170,11 @@ def _report_parser() -> ArgumentParser:
         f"like with like (the finished runs left out are counted, the first {LEFT_OUT_SHOWN} named; exit status 1 "
         "when no seed is complete)",
     )
+    report.add_argument(
+        "--seeds",
+        help="report only these seeds, e.g. 0-4 or 0,2,5-9, those every scheme of a setting has finished (as "
+        "--complete-seeds): a study read as it stood at its first seeds, beside its reading at all of them",
+    )
     return report
 
 

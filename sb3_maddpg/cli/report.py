@@ -1,5 +1,6 @@
 """``sb3-maddpg report``: the report of a results directory (:func:`~sb3_maddpg.results.report.make_report`),
-of some of its experiments, or of the seeds every scheme has finished, with each user's error said in one line."""
+of some of its experiments, of the seeds every scheme has finished, or of some seeds, with each user's error said in
+one line."""
 
 import argparse
 import importlib.util
@@ -75,23 +76,33 @@ def report_command(args: argparse.Namespace) -> int:
         if not_held is not None:
             print(f"sb3-maddpg report: --experiment: {not_held}", file=sys.stderr)
             return 2
+    seeds = None
+    if args.seeds is not None:
+        try:
+            seeds = parse_seeds(args.seeds)
+        except ValueError:
+            print(f"sb3-maddpg report: --seeds {args.seeds!r}: give seeds and ranges, e.g. 0-4 or 0,2,5-9.", file=sys.stderr)
+            return 2
     # What the report reads, as errors name it: the directory, or the experiments of it that --experiment names.
     reading = args.results if not args.experiment else f"{args.results} (experiments {', '.join(args.experiment)})"
-    if not args.complete_seeds:
+    if seeds is not None:
+        reading += f" (seeds {args.seeds})"
+    if not args.complete_seeds and seeds is None:
         if not args.experiment:
             return _write_report(args.results, out, args.metric, plots)
         with tempfile.TemporaryDirectory(prefix="sb3_maddpg_report_") as view:
             chosen = str(Path(view) / "experiments")
             link_experiments(args.results, chosen, args.experiment)
             return _write_report(chosen, out, args.metric, plots, shown_as=reading)
+    option = "--complete-seeds" if args.complete_seeds else "--seeds"
     with tempfile.TemporaryDirectory(prefix="sb3_maddpg_report_") as view:
         complete = str(Path(view) / "complete_seeds")
-        left_out = link_complete_seeds(args.results, complete, args.experiment)
+        left_out = link_complete_seeds(args.results, complete, args.experiment, seeds)
         if not Path(complete).is_dir():
             print(
                 f"sb3-maddpg report: no seed in {reading} is finished by every scheme of its setting "
                 + (
-                    f"({len(left_out)} finished run(s)): report them without --complete-seeds, or once every scheme "
+                    f"({len(left_out)} finished run(s)): report them without {option}, or once every scheme "
                     "of a setting has finished a seed."
                     if left_out
                     else "(no finished runs): report it once a sweep has finished runs there (sb3-maddpg run --results DIR)."
@@ -102,11 +113,27 @@ def report_command(args: argparse.Namespace) -> int:
         if left_out:
             shown = ", ".join(left_out[:LEFT_OUT_SHOWN]) + (", ..." if len(left_out) > LEFT_OUT_SHOWN else "")
             print(
-                f"sb3-maddpg report: --complete-seeds leaves out {len(left_out)} finished run(s), their seed not "
+                f"sb3-maddpg report: {option} leaves out {len(left_out)} finished run(s), their seed not "
                 f"finished by every scheme of their setting: {shown}",
                 file=sys.stderr,
             )
         return _write_report(complete, out, args.metric, plots, shown_as=reading)
+
+
+def parse_seeds(text: str) -> set[int]:
+    """
+    :param text: ``report --seeds``' value: seeds and ranges, comma-separated (``0-4``, ``0,2,5-9``).
+    :return: The seeds.
+    :raise ValueError: For anything else.
+    """
+    seeds: set[int] = set()
+    for part in text.split(","):
+        low, dash, high = part.strip().partition("-")
+        first, last = int(low), int(high) if dash else int(low)
+        if first < 0 or last < first:
+            raise ValueError(f"{part!r} is no seed or range")
+        seeds.update(range(first, last + 1))
+    return seeds
 
 
 def unwritable_out_message(out: str) -> str | None:

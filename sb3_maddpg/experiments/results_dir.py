@@ -17,7 +17,7 @@ import os
 import sys
 import time
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Collection, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -352,7 +352,10 @@ def link_experiments(results_dir: str | os.PathLike[str], view: str | os.PathLik
 
 
 def link_complete_seeds(
-    results_dir: str | os.PathLike[str], view: str | os.PathLike[str], experiments: Sequence[str] | None = None
+    results_dir: str | os.PathLike[str],
+    view: str | os.PathLike[str],
+    experiments: Sequence[str] | None = None,
+    seeds: Collection[int] | None = None,
 ) -> list[str]:
     """
     Link into ``view`` the runs of the seeds that every scheme of their experiment has finished, so that a sweep in
@@ -364,7 +367,8 @@ def link_complete_seeds(
         ``<experiment>/references.json`` where there is one, and ``<experiment>/<scheme>/seed_<seed>`` symbolic links
         (absolute) into ``results_dir``.
     :param experiments: Only these experiments (``None``: every experiment there).
-    :return: The finished runs left out, ``<experiment>/<scheme>/seed_<seed>``.
+    :param seeds: Only these seeds (``None``: every seed), e.g. a study's first five, to read it as it stood then.
+    :return: The finished runs of those seeds left out, ``<experiment>/<scheme>/seed_<seed>``.
     :raise ValueError: When ``results_dir`` holds no experiment of one of ``experiments``' names.
     """
     if experiments is not None:
@@ -375,7 +379,11 @@ def link_complete_seeds(
         if experiments is not None and name not in experiments:
             continue
         finished = {
-            scheme: {run.name for run in (results / name / scheme).glob("seed_*") if (run / DONE_FILE).exists()}
+            scheme: {
+                run.name
+                for run in (results / name / scheme).glob("seed_*")
+                if (run / DONE_FILE).exists() and (seeds is None or _seed_of(run.name) in seeds)
+            }
             for scheme in experiment["schemes"]
         }
         common = set.intersection(*finished.values()) if finished else set()
@@ -391,6 +399,14 @@ def link_complete_seeds(
             for seed in sorted(common):
                 (view / name / scheme / seed).symlink_to(results / name / scheme / seed)
     return left_out
+
+
+def _seed_of(run_name: str) -> int | None:
+    """:return: The seed of a run directory's name (``seed_003``: 3), ``None`` for another name."""
+    try:
+        return int(run_name.removeprefix("seed_"))
+    except ValueError:
+        return None
 
 
 class ResultsDirectoryLocked(RuntimeError):

@@ -586,6 +586,31 @@ def test_report_of_complete_seeds_leaves_out_a_seed_one_scheme_has_not_finished(
     assert "no seed in" in capsys.readouterr().err and not (tmp_path / "none").exists()
 
 
+def test_report_of_some_seeds_reads_the_study_as_it_stood_then(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    results = tmp_path / "results"
+    shutil.copytree(PAPER_SMALL_RESULTS, results)
+    (setting,) = [path.parent for path in results.glob("*/experiment.json")]
+    (setting / "full" / "seed_003" / "done").unlink()  # one scheme's seed 3 still running
+    argv = ["report", str(results), "--metric", "min_dist_sum", "--no-plots"]
+
+    def runs_per_scheme(out: Path) -> dict[str, int]:
+        with open(out / "table_min_dist_sum.csv") as file:
+            return {row["scheme"]: int(row["n"]) for row in csv.DictReader(file)}
+
+    assert main([*argv, "--out", str(tmp_path / "first"), "--seeds", "0-2,5"]) == 0
+    assert set(runs_per_scheme(tmp_path / "first").values()) == {4}  # seeds 0, 1, 2 and 5 of every scheme
+    assert capsys.readouterr().err == ""  # no finished run of those seeds left out
+    assert main([*argv, "--out", str(tmp_path / "with_3"), "--seeds", "2-3"]) == 0
+    assert set(runs_per_scheme(tmp_path / "with_3").values()) == {1}  # seed 3 is not finished by full
+    err = capsys.readouterr().err
+    assert err.startswith("sb3-maddpg report: --seeds leaves out") and f"{setting.name}/independent/seed_003" in err
+    assert main([*argv, "--out", str(tmp_path / "none"), "--seeds", "3"]) == 1
+    assert "(seeds 3)" in capsys.readouterr().err and not (tmp_path / "none").exists()
+    for bad in ("4-2", "a", "-1", "1,,2"):
+        assert main([*argv, "--out", str(tmp_path / "bad"), "--seeds", bad]) == 2
+        assert capsys.readouterr().err.startswith(f"sb3-maddpg report: --seeds {bad!r}: give seeds and ranges, e.g. 0-4")
+
+
 def test_a_report_s_user_errors_are_one_line_naming_the_cause_and_the_fix_with_exit_status_2(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
