@@ -12,5 +12,9 @@ python -m sb3_maddpg report benchmarks/paper_n5_independent/results --complete-s
     --experiment paper_n5i_exp1 --experiment paper_n5i_exp2 \
     --metric success_rate_r0.3 --metric success_rate --metric min_dist_sum --metric return_mean
 rm -f "$OUT/marl_eval.json"  # marl-eval's input, not shown in the docs
+# Issue 56's "before": the study as it stood at its first five seeds, beside the report above at every complete seed.
+python -m sb3_maddpg report benchmarks/paper_n5_independent/results --seeds 0-4 --no-plots --out "$OUT/seeds_0-4" \
+    --experiment paper_n5i_exp1 --experiment paper_n5i_exp2 --metric success_rate_r0.3 --metric min_dist_sum
+rm -f "$OUT/seeds_0-4/marl_eval.json"
 python benchmarks/paper_n5_independent/beside_shared.py --out "$OUT/beside_shared.md"
 python benchmarks/paper_n5_independent/readme_table.py  # the README's table from the claims (tests/test_readme_claims.py)
