@@ -2,10 +2,10 @@
 (:mod:`sb3_maddpg.common.memory_release`), each in a process of its own.
 
 Trains the ``multiwalker`` preset's ``full`` run (needs the sisl extra) for ``--steps`` env steps, its first 2,000
-random, and reads the process's resident memory every 2,000 steps; the growth from step 4,000 on is training's. The
-same run once with ``malloc_trim`` every 40 gradient steps (the package's default) and once without it (the
-release switched off), interleaved. Expected: with the release, about the replay buffer's rows (~0.9 KB per env step
-here); without it, several times that.
+random, and reads the process's resident memory (``/proc``: Linux) every 2,000 steps; the growth from step 4,000 on
+is training's, the replay buffer's rows (0.8 KB per env step) included. The same run once with ``malloc_trim`` every
+40 gradient steps (the package's default) and once without it (the release switched off), interleaved. Expected:
+with the release, at most about the buffer's rows; without it, several times that.
 
     python benchmarks/heap_growth.py --steps 14000
 """

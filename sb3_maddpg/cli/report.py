@@ -14,6 +14,7 @@ from sb3_maddpg.analysis.evaluation import side_return_key
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
 from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS, LEFT_OUT_SHOWN
+from sb3_maddpg.experiments.group_state import seed_ranges
 from sb3_maddpg.experiments.metrics import METRICS
 from sb3_maddpg.experiments.results_dir import link_complete_seeds, link_experiments, unknown_experiments_message
 
@@ -98,6 +99,17 @@ def report_command(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory(prefix="sb3_maddpg_report_") as view:
         complete = str(Path(view) / "complete_seeds")
         left_out = link_complete_seeds(args.results, complete, args.experiment, seeds)
+        if not Path(complete).is_dir() and seeds is not None:
+            finished = sorted(
+                {int(done.parent.name.removeprefix("seed_")) for done in Path(args.results).glob("*/*/seed_*/done")}
+            )
+            there = f"seeds finished there: {seed_ranges(finished)}" if finished else "no run finished there"
+            print(
+                f"sb3-maddpg report: no seed of --seeds {args.seeds} in {args.results} is finished by every scheme of its "
+                f"setting ({there}): give seeds the runs have finished, or report once they have.",
+                file=sys.stderr,
+            )
+            return 1
         if not Path(complete).is_dir():
             print(
                 f"sb3-maddpg report: no seed in {reading} is finished by every scheme of its setting "

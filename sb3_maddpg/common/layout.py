@@ -4,15 +4,36 @@ This module depends on numpy only, so both the environment side (which builds a 
 algorithm side (which reads it) can share it without importing each other.
 """
 
+import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 import array_api_compat
+import array_api_compat.numpy
 import numpy as np
 
 ArrayT = TypeVar("ArrayT")
 """A numpy array or a torch tensor: what the rules written against the array API standard take and give."""
+
+
+def array_namespace(array: Any) -> Any:
+    """
+    The array API namespace of a numpy array or a torch tensor (any other array: ``array_api_compat``'s lookup).
+
+    :param array: The array.
+    :return: ``array_api_compat.numpy`` or ``array_api_compat.torch`` (imported only for a tensor: the env side, which
+        never imports torch, passes numpy arrays), found by type, not by ``array_api_compat.array_namespace``'s cached
+        lookup, which ``torch.compile`` warns about in a compiled run group.
+    """
+    if isinstance(array, np.ndarray):
+        return array_api_compat.numpy
+    torch = sys.modules.get("torch")
+    if torch is not None and isinstance(array, torch.Tensor):
+        import array_api_compat.torch as torch_namespace
+
+        return torch_namespace
+    return array_api_compat.array_namespace(array)
 
 
 @dataclass(frozen=True, repr=False)
@@ -118,7 +139,7 @@ class AgentLayout:
             )
         joint: Any = observations  # numpy or torch: both index and stack as the array API says
         parts = [joint[..., part][..., where] for part, where in zip(self.obs_slices, slices)]
-        return array_api_compat.array_namespace(joint).stack(parts, axis=-2)
+        return array_namespace(joint).stack(parts, axis=-2)
 
     @property
     def has_discrete_actions(self) -> bool:

@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.noise import ActionNoise, NormalActionNoise, VectorizedActionNoise
 
-from sb3_maddpg.common.layout import AgentLayout, ArrayT
+from sb3_maddpg.common.layout import AgentLayout, ArrayT, array_namespace
 
 
 def default_noise(
@@ -113,11 +113,12 @@ def noisy_actions(actions: ArrayT, noise: ArrayT, discrete: np.ndarray | None = 
 
     :param actions: Joint actions in [-1, 1], ``[..., action_dim]``.
     :param noise: A draw of the noise, of a shape that broadcasts to ``actions``.
-    :param discrete: Which action components belong to discrete agents (no noise on their one-hots), or None.
+    :param discrete: Which action components belong to discrete agents (no noise on their one-hots), a numpy mask
+        (put where ``actions`` are), or None.
     :return: ``actions + noise``, clipped to [-1, 1].
     """
     values: Any = actions  # numpy or torch
-    xp = array_api_compat.array_namespace(values)
     if discrete is not None and discrete.any():
-        noise = xp.where(xp.asarray(discrete), 0.0, noise)
-    return xp.clip(values + noise, -1.0, 1.0)
+        xp = array_namespace(values)
+        noise = xp.where(xp.asarray(discrete, device=array_api_compat.device(values)), 0.0, noise)
+    return (values + noise).clip(-1.0, 1.0)  # the arrays' own clip: numpy's and torch's alike, without a wrapper

@@ -14,7 +14,7 @@ from typing import Any, Literal
 import array_api_compat
 import numpy as np
 
-from sb3_maddpg.common.layout import AgentLayout, ArrayT
+from sb3_maddpg.common.layout import AgentLayout, ArrayT, array_namespace
 from sb3_maddpg.common.package_warnings import SB3MADDPGWarning
 from sb3_maddpg.common.user_code import user_stacklevel
 
@@ -198,12 +198,12 @@ def nearest_agents(positions: ArrayT, k: int) -> ArrayT:
     :return: Each agent's ``k`` nearest other agents, nearest first, ties to the lower index, int64 ``[..., n_agents, k]``.
     """
     where: Any = positions  # numpy or torch
-    xp = array_api_compat.array_namespace(where)
+    xp = array_namespace(where)
     offsets = where[..., :, None, :] - where[..., None, :, :]
-    distances = xp.sum(offsets * offsets, axis=-1)
+    distances = xp.vecdot(offsets, offsets, axis=-1)
     own = xp.eye(where.shape[-2], dtype=xp.bool, device=array_api_compat.device(where))
     distances = xp.where(own, xp.inf, distances)  # an agent never selects itself
-    return xp.argsort(distances, axis=-1, stable=True)[..., :k]
+    return xp.astype(xp.argsort(distances, axis=-1, stable=True)[..., :k], xp.int64, copy=False)
 
 
 class FixedGraph(Selector):

@@ -124,8 +124,10 @@ def _read_state(
         return None, f"cannot be read ({type(error).__name__}: truncated, or not a state)"
     if not isinstance(state, dict) or state.get("configs") != [config.to_dict() for config in configs]:
         return None, "is of other runs or configs"
-    if state.get("versions") != versions():  # a resumed group equals an uninterrupted one only under the same versions
-        return None, f"was saved under other versions ({state.get('versions')}, now {versions()})"
+    if "versions" not in state:
+        return None, "was saved before group states recorded their versions (before 0.3.0)"
+    if state["versions"] != versions():  # a resumed group equals an uninterrupted one only under the same versions
+        return None, f"was saved under other versions ({state['versions']}, now {versions()})"
     version = state["group"].get("version") if isinstance(state.get("group"), dict) else None
     if version != STATE_VERSION:
         return None, f"is of another layout (version {version}; this package reads version {STATE_VERSION})"

@@ -309,6 +309,8 @@ def build_model(task: RunTask, **kwargs: Any) -> Any:
         unless its ``model_kwargs`` name one: a variant of a scheme compared beside it in one study (e.g. scheme
         ``"selected_next"`` with ``{"critic_sharing": "selected", "selector": {"k": 2, "target": "next"}}``).
     """
+    if not isinstance(task, RunTask):
+        raise TypeError(f"build_model takes a run's task, got a {type(task).__name__}: build_model(run_task(config)).")
     config = task.config
     algorithm: Any = load_algorithm(config.algorithm)
     # A deep copy: algorithms may write into their kwargs (e.g. policy_kwargs), and the config must stay as it was.

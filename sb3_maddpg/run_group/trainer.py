@@ -129,8 +129,8 @@ class RunGroup:
         self.num_timesteps = first.num_timesteps
         """Env steps of each run (all its worlds counted)."""
         self.n_updates = first._n_updates
-        self._memory_released_at = self.n_updates
         """Gradient steps of each run."""
+        self._memory_released_at = self.n_updates
         noise = None if first.action_noise is None else per_env_noise(first.action_noise)
         # Checked: a NormalActionNoise (or none); its mean and std per action component, on the device.
         self.noise_mean: th.Tensor | None = None if noise is None else _tensor(noise._mu, self.device)  # type: ignore[attr-defined]

@@ -1,5 +1,6 @@
 """Freed heap memory goes back to the system while a model trains (glibc's ``malloc_trim``, every 40 gradient steps)."""
 
+import ctypes
 import sys
 from pathlib import Path
 from typing import Any
@@ -46,9 +47,25 @@ def test_a_save_does_not_carry_the_release_count(tmp_path: Path) -> None:
     assert MADDPG.load(tmp_path / "model.zip")._memory_released_at == 0
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc_trim is Linux's")
-def test_glibc_malloc_trim_is_found_on_linux() -> None:
+def _has_glibc() -> bool:
+    try:
+        ctypes.CDLL("libc.so.6")
+    except OSError:
+        return False
+    return sys.platform.startswith("linux")
+
+
+@pytest.mark.skipif(not _has_glibc(), reason="malloc_trim is glibc's (Linux; not musl, macOS or Windows)")
+def test_glibc_malloc_trim_is_found_where_glibc_is() -> None:
     assert memory_release.MALLOC_TRIM is not None
+
+
+def test_a_run_config_for_build_model_says_to_pass_its_task() -> None:
+    from sb3_maddpg.experiments import SMOKE
+    from sb3_maddpg.experiments.runner import build_model
+
+    with pytest.raises(TypeError, match=r"build_model takes a run's task, got a RunConfig: build_model\(run_task"):
+        build_model(SMOKE.runs()[0])  # type: ignore[arg-type]
 
 
 def test_a_run_group_releases_freed_memory_as_a_model_does(trims: list[int]) -> None:

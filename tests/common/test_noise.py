@@ -125,3 +125,19 @@ def test_noise_of_another_number_of_envs() -> None:
     assert copy.n_envs == 3 and copy.base_noise is not base and isinstance(copy.base_noise, OrnsteinUhlenbeckActionNoise)
     base.noise_prev = np.ones(2)
     assert np.all(copy.noises[0].noise_prev == 0)  # a copy: the model's own process is not advanced
+
+
+def test_the_exploration_rule_is_the_same_in_numpy_and_torch() -> None:
+    import torch as th
+
+    from sb3_maddpg.common.noise import noisy_actions
+
+    generator = np.random.default_rng(3)
+    actions = generator.uniform(-1, 1, (4, 6)).astype(np.float32)
+    noise = generator.normal(0, 0.8, (4, 6)).astype(np.float32)
+    discrete = np.array([False, False, True, True, True, False])
+    on_host = noisy_actions(actions, noise, discrete)
+    on_torch = noisy_actions(th.as_tensor(actions), th.as_tensor(noise), discrete)
+    assert isinstance(on_torch, th.Tensor) and np.array_equal(on_torch.numpy(), on_host)
+    assert np.array_equal(on_host[:, 2:5], actions[:, 2:5])  # no noise on the discrete one-hot
+    assert on_host.min() >= -1.0 and on_host.max() <= 1.0 and (np.abs(on_host) == 1.0).any()  # clipped, and it mattered

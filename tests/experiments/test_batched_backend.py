@@ -268,6 +268,10 @@ def test_a_state_not_used_says_why_and_stale_temporary_files_are_removed(
     saved["versions"]["torch"] = "1.0.0"
     torch.save(saved, state)
     restart_says("group_seeds_0-1.pt was saved under other versions (")
+    saved = torch.load(state, map_location="cpu", weights_only=True)
+    del saved["versions"]
+    torch.save(saved, state)
+    restart_says("group_seeds_0-1.pt was saved before group states recorded their versions (before 0.3.0)")
     # A killed save's temporary file goes with the runs' stale states; another group's stays.
     ours, theirs = state.with_name(f".{state.name}.123.tmp"), state.with_name(".group_seeds_5.pt.123.tmp")
     ours.write_bytes(b"")

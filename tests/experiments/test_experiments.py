@@ -604,8 +604,10 @@ def test_report_of_some_seeds_reads_the_study_as_it_stood_then(tmp_path: Path, c
     assert set(runs_per_scheme(tmp_path / "with_3").values()) == {1}  # seed 3 is not finished by full
     err = capsys.readouterr().err
     assert err.startswith("sb3-maddpg report: --seeds leaves out") and f"{setting.name}/independent/seed_003" in err
-    assert main([*argv, "--out", str(tmp_path / "none"), "--seeds", "3"]) == 1
-    assert "(seeds 3)" in capsys.readouterr().err and not (tmp_path / "none").exists()
+    assert main([*argv, "--out", str(tmp_path / "none"), "--seeds", "3,40"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("sb3-maddpg report: no seed of --seeds 3,40 in") and "(seeds finished there: 0-7)" in err
+    assert not (tmp_path / "none").exists()
     for bad in ("4-2", "a", "-1", "1,,2"):
         assert main([*argv, "--out", str(tmp_path / "bad"), "--seeds", bad]) == 2
         assert capsys.readouterr().err.startswith(f"sb3-maddpg report: --seeds {bad!r}: give seeds and ranges, e.g. 0-4")
