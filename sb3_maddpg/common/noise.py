@@ -5,7 +5,6 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-import array_api_compat
 import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.noise import ActionNoise, NormalActionNoise, VectorizedActionNoise
@@ -120,5 +119,5 @@ def noisy_actions(actions: ArrayT, noise: ArrayT, discrete: np.ndarray | None = 
     values: Any = actions  # numpy or torch
     if discrete is not None and discrete.any():
         xp = array_namespace(values)
-        noise = xp.where(xp.asarray(discrete, device=array_api_compat.device(values)), 0.0, noise)
+        noise = xp.where(xp.asarray(discrete, device=getattr(values, "device", None)), 0.0, noise)
     return (values + noise).clip(-1.0, 1.0)  # the arrays' own clip: numpy's and torch's alike, without a wrapper

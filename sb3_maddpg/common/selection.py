@@ -11,7 +11,6 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Hashable, Sequence
 from typing import Any, Literal
 
-import array_api_compat
 import numpy as np
 
 from sb3_maddpg.common.layout import AgentLayout, ArrayT, array_namespace
@@ -201,7 +200,7 @@ def nearest_agents(positions: ArrayT, k: int) -> ArrayT:
     xp = array_namespace(where)
     offsets = where[..., :, None, :] - where[..., None, :, :]
     distances = xp.vecdot(offsets, offsets, axis=-1)
-    own = xp.eye(where.shape[-2], dtype=xp.bool, device=array_api_compat.device(where))
+    own = xp.eye(where.shape[-2], dtype=xp.bool, device=getattr(where, "device", None))  # numpy < 2: none
     distances = xp.where(own, xp.inf, distances)  # an agent never selects itself
     return xp.astype(xp.argsort(distances, axis=-1, stable=True)[..., :k], xp.int64, copy=False)
 
