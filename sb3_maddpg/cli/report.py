@@ -14,9 +14,9 @@ from sb3_maddpg.analysis.evaluation import side_return_key
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.envs.mpe_tasks import MPE_TASK_SIDES
 from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS, LEFT_OUT_SHOWN
-from sb3_maddpg.experiments.group_state import seed_ranges
+from sb3_maddpg.experiments.group_state import parse_seed_ranges, seed_ranges
 from sb3_maddpg.experiments.metrics import METRICS
-from sb3_maddpg.experiments.results_dir import link_complete_seeds, link_experiments, unknown_experiments_message
+from sb3_maddpg.experiments.results_dir import link_complete_seeds, link_experiments, seed_of, unknown_experiments_message
 
 if TYPE_CHECKING:
     from sb3_maddpg.results.report import UnscoredMetricError
@@ -100,9 +100,8 @@ def report_command(args: argparse.Namespace) -> int:
         complete = str(Path(view) / "complete_seeds")
         left_out = link_complete_seeds(args.results, complete, args.experiment, seeds)
         if not Path(complete).is_dir() and seeds is not None:
-            finished = sorted(
-                {int(done.parent.name.removeprefix("seed_")) for done in Path(args.results).glob("*/*/seed_*/done")}
-            )
+            runs = (seed_of(done.parent.name) for done in Path(args.results).glob("*/*/seed_*/done"))
+            finished = sorted({seed for seed in runs if seed is not None})
             there = f"seeds finished there: {seed_ranges(finished)}" if finished else "no run finished there"
             print(
                 f"sb3-maddpg report: no seed of --seeds {args.seeds} in {args.results} is finished by every scheme of its "
@@ -140,11 +139,10 @@ def parse_seeds(text: str) -> set[int]:
     """
     seeds: set[int] = set()
     for part in text.split(","):
-        low, dash, high = part.strip().partition("-")
-        first, last = int(low), int(high) if dash else int(low)
-        if first < 0 or last < first:
+        in_part = parse_seed_ranges(part.strip())  # a group state's seed ranges: "0-4" (a range backwards is empty)
+        if not in_part:
             raise ValueError(f"{part!r} is no seed or range")
-        seeds.update(range(first, last + 1))
+        seeds |= in_part
     return seeds
 
 

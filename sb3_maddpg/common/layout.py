@@ -1,7 +1,7 @@
 """The agent layout: where each agent's observation and action sit in the flat joint vectors.
 
-This module depends on numpy only, so both the environment side (which builds a layout) and the
-algorithm side (which reads it) can share it without importing each other.
+This module depends on numpy and array_api_compat only (torch only for a tensor it is given), so both the environment
+side (which builds a layout) and the algorithm side (which reads it) can share it without importing each other.
 """
 
 import sys

@@ -382,7 +382,7 @@ def link_complete_seeds(
             scheme: {
                 run.name
                 for run in (results / name / scheme).glob("seed_*")
-                if (run / DONE_FILE).exists() and (seeds is None or _seed_of(run.name) in seeds)
+                if (run / DONE_FILE).exists() and (seeds is None or seed_of(run.name) in seeds)
             }
             for scheme in experiment["schemes"]
         }
@@ -401,7 +401,7 @@ def link_complete_seeds(
     return left_out
 
 
-def _seed_of(run_name: str) -> int | None:
+def seed_of(run_name: str) -> int | None:
     """:return: The seed of a run directory's name (``seed_003``: 3), ``None`` for another name."""
     try:
         return int(run_name.removeprefix("seed_"))
