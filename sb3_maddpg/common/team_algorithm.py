@@ -92,6 +92,12 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         self._agent_episode_returns: np.ndarray | None = None
         self.agent_layout = None
         self.selector = None
+        if self.action_noise is not None and not isinstance(self.action_noise, ActionNoise):
+            raise TypeError(  # else a str or a number fails at the first noisy step, far from its cause
+                f"action_noise must be an SB3 ActionNoise or None, got {type(self.action_noise).__name__} "
+                f"{self.action_noise!r}: use e.g. NormalActionNoise(np.zeros(d), sigma * np.ones(d)) over the joint "
+                f"action, or leave it None and set noise_std."
+            )
         if self.env is None:
             return
         self.agent_layout = layout_of(self.env)

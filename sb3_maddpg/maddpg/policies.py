@@ -18,6 +18,34 @@ DEFAULT_NET_ARCH = {"pi": [64, 64], "qf": [64, 64, 64]}
 """The paper's networks: actor of 3 and critic of 4 fully connected layers, 64 hidden units."""
 
 
+def hidden_sizes(net_arch: list[int] | dict[str, list[int]] | None) -> dict[str, list[int]]:
+    """
+    The actors' and critics' hidden sizes, checked: a torch error about a negative dimension, or a ``KeyError``, named
+    neither the argument nor what to write.
+
+    :param net_arch: ``dict(pi=[...], qf=[...])``, one list for both, or None for the paper's (:data:`DEFAULT_NET_ARCH`).
+    :return: ``{"pi": [...], "qf": [...]}``, new lists.
+    """
+    if net_arch is None:
+        net_arch = DEFAULT_NET_ARCH
+    example = "e.g. net_arch=dict(pi=[64, 64], qf=[64, 64, 64]) or net_arch=[64, 64]"
+    if isinstance(net_arch, Mapping):
+        if set(net_arch) != {"pi", "qf"}:
+            raise ValueError(
+                f"net_arch as a dict must have exactly the keys 'pi' (the actors) and 'qf' (the critics), got "
+                f"{sorted(net_arch)}: {example}."
+            )
+        sizes = {"pi": net_arch["pi"], "qf": net_arch["qf"]}
+    else:
+        sizes = {"pi": net_arch, "qf": net_arch}
+    for part, layers in sizes.items():
+        if not isinstance(layers, list | tuple) or not all(
+            isinstance(units, int | np.integer) and not isinstance(units, bool) and units >= 1 for units in layers
+        ):
+            raise ValueError(f"net_arch's {part!r} must be a list of hidden sizes, integers >= 1, got {layers!r}: {example}.")
+    return {part: [int(units) for units in layers] for part, layers in sizes.items()}
+
+
 class MADDPGPolicy(BasePolicy):
     """
     Policy for MADDPG: per-agent actors, per-agent critics fed by a sharing scheme, and target copies.
@@ -78,9 +106,7 @@ class MADDPGPolicy(BasePolicy):
                 f"The agent layout (obs {agent_layout.obs_dim}, action {agent_layout.action_dim}) does not match the spaces "
                 f"{observation_space.shape} and {action_space.shape}."
             )
-        if net_arch is None:
-            net_arch = DEFAULT_NET_ARCH
-        self.net_arch = dict(net_arch) if isinstance(net_arch, dict) else {"pi": list(net_arch), "qf": list(net_arch)}
+        self.net_arch = hidden_sizes(net_arch)
         self.agent_layout = agent_layout
         self.critic_sharing = critic_sharing
         self.critic_sharing_kwargs = dict(critic_sharing_kwargs or {})
