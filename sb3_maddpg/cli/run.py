@@ -6,6 +6,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from sb3_maddpg.cli.options import execution_options, given_fields, override, setting_options
 from sb3_maddpg.experiments.config import EXPERIMENTS, algorithm_argument, load_algorithm, load_experiment
@@ -99,6 +100,24 @@ def _check_execution(args: argparse.Namespace) -> None:
         )
     if Path(args.results).exists() and not Path(args.results).is_dir():
         raise ValueError(f"--results {args.results} is a file, not a directory: give a directory (new or a sweep's).")
+    from sb3_maddpg.experiments.backends import Execution
+
+    try:
+        Execution(**execution_of(args))
+    except ValueError as error:
+        raise ValueError(f"--{error}") from None
+
+
+def execution_of(args: argparse.Namespace) -> dict[str, Any]:
+    """
+    :param args: Parsed ``run`` arguments.
+    :return: Their execution options (:class:`~sb3_maddpg.experiments.backends.Execution`'s fields), workers by the
+        backend if not given.
+    """
+    execution = {option.name: getattr(args, option.name) for option in execution_options()}
+    if execution["workers"] is None:
+        execution["workers"] = 1 if args.backend == "local" else 0
+    return execution
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -135,11 +154,8 @@ def run_command(args: argparse.Namespace) -> int:
     if not args.quiet:
         for experiment in experiments:
             print(f"{experiment.name}: {experiment.description}")
-    execution = {option.name: getattr(args, option.name) for option in execution_options()}
-    if execution["workers"] is None:
-        execution["workers"] = 1 if args.backend == "local" else 0
     try:
-        result = run_sweep(experiments, args.results, verbose=1 if args.quiet else 2, **execution)
+        result = run_sweep(experiments, args.results, verbose=1 if args.quiet else 2, **execution_of(args))
     except (BatchedRunRefused, ReferencePolicyError) as error:  # said before anything trained
         print(f"sb3-maddpg run: {error}", file=sys.stderr)
         return 2

@@ -41,6 +41,20 @@ class Execution:
     snapshots: bool = True
     compile: bool | None = None
 
+    def __post_init__(self) -> None:
+        # Checked here, so that a dry run and a sweep refuse the same values before anything trains.
+        local = self.backend == "local"
+        counts = (
+            ("workers", self.workers, 1 if local else 0, "parallel processes" if local else "a local Ray instance's CPUs"),
+            ("threads", self.threads, 1, "torch threads per run or run group"),
+        )
+        for name, value, lowest, meaning in counts:
+            if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
+                raise ValueError(
+                    f"{name} ({meaning}) must be an integer >= {lowest} for the {self.backend} backend, got {value!r}: "
+                    "use 1" + ("" if lowest else ", or 0 for all CPUs") + "."
+                )
+
     @property
     def ray_cpus(self) -> int | None:
         """The CPUs of a local Ray instance (``None``: all of this machine's)."""
