@@ -22,6 +22,7 @@ import numpy as np
 import yaml
 
 from sb3_maddpg.analysis.evaluation import TeamEvalCallback, scores_simple_spread
+from sb3_maddpg.common.argument_ranges import Range, check_arguments
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.common.torch_threads import use_torch_threads
 from sb3_maddpg.compat import VERSION_KEY
@@ -142,6 +143,32 @@ def check_fixed_params(fixed: dict[str, Any]) -> None:
             raise ValueError(f"fixed parameter {name!r} is not a sampled parameter: fix one of {sampled}.")
 
 
+TUNE_RANGES: dict[str, Range] = {
+    "n_trials": Range("finished trials at which the study stops", integer=True, low=1, hint="use 50"),
+    "budget": Range("env steps per trial", integer=True, low=1, hint="use a tenth to a fifth of a run's budget"),
+    "n_evaluations": Range("evaluations per trial, each reported to the pruner", integer=True, low=1, hint="use 10"),
+    "eval_episodes": Range("episodes per evaluation", integer=True, low=1, hint="use 100, or 5 on a slow task"),
+    "last_evaluations": Range(
+        "the last evaluations whose mean is a trial's value",
+        integer=True,
+        low=1,
+        high_is="n_evaluations",
+        hint="lower last_evaluations or raise n_evaluations",
+    ),
+    "warmup_evaluations": Range(
+        "a trial's first evaluations that the default pruner never stops at",
+        integer=True,
+        low=0,
+        hint="0 lets the pruner stop a trial at any evaluation, 1 (the default) spares its first",
+    ),
+    "seed": Range("the sampler's and every trial's seed", integer=True, low=0, high=2**32 - 1, hint="use 0"),
+    "heartbeat_seconds": Range(
+        "how often a running trial tells the study it is alive", integer=True, low=1, hint=f"use {HEARTBEAT_SECONDS}"
+    ),
+}
+"""The valid range of each numeric field of :class:`TuneSettings` (as :mod:`~sb3_maddpg.common.argument_ranges`)."""
+
+
 @dataclasses.dataclass(frozen=True)
 class TuneSettings:
     """
@@ -195,20 +222,8 @@ class TuneSettings:
                 f"TuneSettings.objective {self.objective!r} is not one of {self.experiment.env}'s objectives: give one of "
                 f"{choices}{group}."
             )
-        for name in ("n_trials", "budget", "n_evaluations", "eval_episodes", "last_evaluations", "heartbeat_seconds"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"TuneSettings.{name} must be at least 1, got {getattr(self, name)}.")
-        if self.warmup_evaluations < 0:
-            raise ValueError(
-                f"TuneSettings.warmup_evaluations must be at least 0, got {self.warmup_evaluations}: 0 lets the pruner "
-                "stop a trial at any evaluation, 1 (the default) spares its first."
-            )
-        if self.last_evaluations > self.n_evaluations:
-            raise ValueError(
-                f"TuneSettings.last_evaluations ({self.last_evaluations}) cannot exceed n_evaluations "
-                f"({self.n_evaluations}): a trial scores its mean over its last evaluations, so lower last_evaluations "
-                "or raise n_evaluations."
-            )
+        check_arguments({name: valid for name, valid in TUNE_RANGES.items() if name != "last_evaluations"}, vars(self))
+        TUNE_RANGES["last_evaluations"].check("last_evaluations", self.last_evaluations, self.n_evaluations)
 
     @property
     def direction(self) -> str:

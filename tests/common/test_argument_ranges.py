@@ -20,6 +20,7 @@ from sb3_maddpg.common.argument_ranges import (
 from sb3_maddpg.envs import SimpleSpreadVecEnv, make_simple_spread
 from sb3_maddpg.experiments.config import EXPERIMENTS
 from sb3_maddpg.experiments.setting import PROTOCOL_RANGES, TASK_RANGES, ExperimentConfig
+from sb3_maddpg.tuning.search import TUNE_RANGES, TuneSettings
 
 N_AGENTS = 3
 SMALL = dict(buffer_size=64, learning_starts=0, batch_size=8, policy_kwargs=dict(net_arch=[8]))
@@ -30,6 +31,7 @@ OWNERS: list[tuple[Any, dict[str, Range]]] = [
     (MATD3, {**TEAM_ALGORITHM_RANGES, **TD3_RANGES}),
     (SimpleSpreadVecEnv, SIMPLE_SPREAD_RANGES),
     (ExperimentConfig, {**TASK_RANGES, **PROTOCOL_RANGES}),
+    (TuneSettings, TUNE_RANGES),
 ]
 CASES = [(owner, name) for owner, ranges in OWNERS for name in ranges]
 NUMERIC = (int, float, "int", "float")
@@ -37,7 +39,10 @@ NUMERIC = (int, float, "int", "float")
 
 def _upper(valid: Range) -> float | None:
     """The upper bound at :data:`N_AGENTS` agents."""
-    return {"n_agents - 1": N_AGENTS - 1, "n_agents": N_AGENTS}.get(valid.high_is or "", valid.high)
+    n_evaluations = TuneSettings.__dataclass_fields__["n_evaluations"].default
+    return {"n_agents - 1": N_AGENTS - 1, "n_agents": N_AGENTS, "n_evaluations": n_evaluations}.get(
+        valid.high_is or "", valid.high
+    )
 
 
 def out_of_range(valid: Range) -> st.SearchStrategy[Any]:
@@ -72,6 +77,8 @@ def in_range(valid: Range) -> st.SearchStrategy[Any]:
 def _build(owner: Any, **kwargs: Any) -> Any:
     if owner is ExperimentConfig:  # the config model, as a stored or a preset file's fields reach it
         return ExperimentConfig.from_fields({**EXPERIMENTS["smoke"].to_dict(), **kwargs})
+    if owner is TuneSettings:  # one last evaluation: any n_evaluations in range can be built
+        return TuneSettings(EXPERIMENTS["smoke"], "study", "sqlite:///unused.db", **{"last_evaluations": 1, **kwargs})
     if owner is SimpleSpreadVecEnv:
         return SimpleSpreadVecEnv(**{"n_envs": 2, "n_agents": N_AGENTS, **kwargs})
     return owner("MlpPolicy", make_simple_spread(n_agents=N_AGENTS), **{**SMALL, **kwargs})

@@ -206,8 +206,8 @@ def user_errors(tmp_path: Path) -> list[tuple[list[str], str]]:
         (["tune", "--config", "smoke", "--scheme", "fulll"], "Unknown critic_sharing 'fulll'"),
         (
             ["tune", "--config", "smoke", "--n-evaluations", "2"],
-            "last_evaluations (3) cannot exceed n_evaluations (2): a trial scores its mean over its last evaluations, "
-            "so lower last_evaluations or raise n_evaluations",
+            "last_evaluations (the last evaluations whose mean is a trial's value) must be an integer in "
+            "[1, n_evaluations = 2], got 3: lower last_evaluations or raise n_evaluations",
         ),
         (["bogus"], "sb3-maddpg: argument command: invalid choice: 'bogus'"),
     ]

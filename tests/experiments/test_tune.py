@@ -246,11 +246,13 @@ def test_a_bad_thread_count_with_workers_is_refused_clearly(tmp_path: Path, caps
         ),
         (
             {"last_evaluations": 3},
-            r"^TuneSettings.last_evaluations \(3\) cannot exceed n_evaluations \(2\): .* lower last_evaluations or raise "
-            r"n_evaluations\.$",
+            r"^last_evaluations \(the last evaluations whose mean is a trial's value\) must be an integer in "
+            r"\[1, n_evaluations = 2\], got 3: lower last_evaluations or raise n_evaluations\.$",
         ),
-        ({"budget": 0}, r"^TuneSettings.budget must be at least 1, got 0\.$"),
-        ({"warmup_evaluations": -1}, r"^TuneSettings.warmup_evaluations must be at least 0, got -1: 0 lets the pruner stop"),
+        ({"budget": 0}, r"^budget \(env steps per trial\) must be an integer >= 1, got 0: use "),
+        ({"n_trials": 2.5}, r"^n_trials \(finished trials at which the study stops\) must be an integer >= 1, got 2\.5"),
+        ({"eval_episodes": True}, r"^eval_episodes \(episodes per evaluation\) must be an integer >= 1, got True"),
+        ({"warmup_evaluations": -1}, r"^warmup_evaluations \(.*\) must be an integer >= 0, got -1: 0 lets the pruner stop"),
         (
             {"experiment": TINY.replace(env="simple_tag"), "objective": "min_dist_sum"},
             r"'min_dist_sum' is not one of simple_tag's objectives: give one of collisions \(maximize\) \(group_return needs "
