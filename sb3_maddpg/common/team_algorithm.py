@@ -312,6 +312,16 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param progress_bar: Display a progress bar (needs tqdm and rich).
         :return: The trained model.
         """
+        if (
+            isinstance(total_timesteps, bool)
+            or not isinstance(total_timesteps, int | float | np.integer | np.floating)
+            or not 0 <= total_timesteps < float("inf")
+            or total_timesteps != int(total_timesteps)
+        ):  # SB3 takes any number: learn(-5) trained nothing without a word
+            raise ValueError(
+                f"total_timesteps (env steps to train for, all envs counted) must be a whole number >= 0, got "
+                f"{total_timesteps!r}: use e.g. learn(1_000_000) (1e6 is taken too)."
+            )
         if not reset_num_timesteps:
             self._warn_if_resuming_on_an_empty_buffer()
         with package_threads():  # one torch thread unless the user chose one (sb3_maddpg.common.torch_threads)
@@ -400,6 +410,11 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param kwargs: Attributes to set on the model over the saved ones.
         :return: The model.
         """
+        if isinstance(path, str | pathlib.Path) and not any(pathlib.Path(f"{path}{end}").is_file() for end in ("", ".zip")):
+            raise FileNotFoundError(  # SB3's error names the path with a second ".zip"
+                f"No saved model at {path}: {cls.__name__}.load takes the path model.save(path) wrote (with or without "
+                f"its .zip); check the path and the working directory ({pathlib.Path.cwd()})."
+            )
         data = read_saved_data(path, custom_objects)  # None where unreadable: SB3's load says why
         if env is not None:
             refuse_env_of_another_team(data, env)
