@@ -104,8 +104,9 @@ def _check_execution(args: argparse.Namespace) -> None:
 
     try:
         Execution(**execution_of(args))
-    except ValueError as error:
-        raise ValueError(f"--{error}") from None
+    except ValueError as error:  # the error names the field first: say it as its option
+        field, _, rest = str(error).partition(" ")
+        raise ValueError(f"--{field.replace('_', '-')} {rest}") from None
 
 
 def execution_of(args: argparse.Namespace) -> dict[str, Any]:

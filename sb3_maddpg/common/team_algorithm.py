@@ -92,10 +92,11 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
         self._agent_episode_returns: np.ndarray | None = None
         self.agent_layout = None
         self.selector = None
-        if self.action_noise is not None and not isinstance(self.action_noise, ActionNoise):
-            raise TypeError(  # else a str or a number fails at the first noisy step, far from its cause
-                f"action_noise must be an SB3 ActionNoise or None, got {type(self.action_noise).__name__} "
-                f"{self.action_noise!r}: use e.g. NormalActionNoise(np.zeros(d), sigma * np.ones(d)) over the joint "
+        noise = self.action_noise
+        if noise is not None and not (isinstance(noise, ActionNoise) or (callable(noise) and hasattr(noise, "reset"))):
+            raise TypeError(  # else a str or a number fails at the first noisy step, far from its cause; SB3 only calls it
+                f"action_noise must be an SB3 ActionNoise (or a callable with reset()) or None, got {type(noise).__name__} "
+                f"{noise!r}: use e.g. NormalActionNoise(np.zeros(d), sigma * np.ones(d)) over the joint "
                 f"action, or leave it None and set noise_std."
             )
         if self.env is None:
@@ -326,7 +327,7 @@ class TeamOffPolicyAlgorithm(OffPolicyAlgorithm):
             self._warn_if_resuming_on_an_empty_buffer()
         with package_threads():  # one torch thread unless the user chose one (sb3_maddpg.common.torch_threads)
             result = super().learn(
-                total_timesteps=total_timesteps,
+                total_timesteps=int(total_timesteps),  # 1e6 taken, an int stored
                 callback=callback,
                 log_interval=log_interval,
                 tb_log_name=type(self).__name__ if tb_log_name is None else tb_log_name,

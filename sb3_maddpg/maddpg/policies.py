@@ -30,16 +30,16 @@ def hidden_sizes(net_arch: list[int] | dict[str, list[int]] | None) -> dict[str,
         net_arch = DEFAULT_NET_ARCH
     example = "e.g. net_arch=dict(pi=[64, 64], qf=[64, 64, 64]) or net_arch=[64, 64]"
     if isinstance(net_arch, Mapping):
-        if set(net_arch) != {"pi", "qf"}:
+        if not {"pi", "qf"} <= set(net_arch):  # other keys are ignored, as SB3's TD3 ignores them
             raise ValueError(
-                f"net_arch as a dict must have exactly the keys 'pi' (the actors) and 'qf' (the critics), got "
-                f"{sorted(net_arch)}: {example}."
+                f"net_arch as a dict needs the keys 'pi' (the actors) and 'qf' (the critics), got "
+                f"{sorted(map(repr, net_arch))}: {example}."
             )
         sizes = {"pi": net_arch["pi"], "qf": net_arch["qf"]}
     else:
         sizes = {"pi": net_arch, "qf": net_arch}
     for part, layers in sizes.items():
-        if not isinstance(layers, list | tuple) or not all(
+        if not isinstance(layers, list | tuple | np.ndarray) or not all(
             isinstance(units, int | np.integer) and not isinstance(units, bool) and units >= 1 for units in layers
         ):
             raise ValueError(f"net_arch's {part!r} must be a list of hidden sizes, integers >= 1, got {layers!r}: {example}.")

@@ -219,8 +219,7 @@ class TuneSettings:
             choices = ", ".join(f"{name} ({direction})" for name, direction in objectives.items())
             group = "" if self.experiment.score_agents else " (group_return needs the experiment's score_agents)"
             raise ValueError(
-                f"TuneSettings.objective {self.objective!r} is not one of {self.experiment.env}'s objectives: give one of "
-                f"{choices}{group}."
+                f"objective {self.objective!r} is not one of {self.experiment.env}'s objectives: give one of {choices}{group}."
             )
         check_arguments({name: valid for name, valid in TUNE_RANGES.items() if name != "last_evaluations"}, vars(self))
         TUNE_RANGES["last_evaluations"].check("last_evaluations", self.last_evaluations, self.n_evaluations)

@@ -35,6 +35,11 @@ def test_the_counts_each_backend_takes(backend: str) -> None:
         assert Execution(backend, workers=0).ray_cpus is None  # 0: all CPUs
 
 
+def test_runs_per_process_below_one_is_refused_before_planning() -> None:
+    with pytest.raises(ValueError, match=r"^runs_per_process must be at least 1, got 0"):
+        Execution("batched", runs_per_process=0)
+
+
 @pytest.mark.parametrize("options", [["--workers", "0"], ["--workers", "-3"], ["--threads", "0"]])
 def test_run_refuses_the_counts_in_a_dry_run(options: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     argv = ["run", "--config", "smoke", "--results", str(tmp_path / "runs"), "--dry-run", *options]
@@ -42,3 +47,9 @@ def test_run_refuses_the_counts_in_a_dry_run(options: list[str], tmp_path: Path,
     error = capsys.readouterr().err
     assert error.startswith(f"sb3-maddpg run: {options[0]} (") and "must be an integer >= 1" in error
     assert not (tmp_path / "runs").exists()
+
+
+def test_run_names_a_field_by_its_option(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["run", "--config", "smoke", "--results", str(tmp_path), "--dry-run", "--backend", "batched"]
+    assert main([*argv, "--runs-per-process", "0"]) == 2
+    assert capsys.readouterr().err.startswith("sb3-maddpg run: --runs-per-process must be at least 1, got 0")

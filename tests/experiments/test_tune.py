@@ -242,7 +242,7 @@ def test_a_bad_thread_count_with_workers_is_refused_clearly(tmp_path: Path, caps
     [
         (
             {"objective": "speed"},
-            r"^TuneSettings.objective 'speed' is not one of simple_spread's objectives: give one of min_dist_sum",
+            r"^objective 'speed' is not one of simple_spread's objectives: give one of min_dist_sum",
         ),
         (
             {"last_evaluations": 3},

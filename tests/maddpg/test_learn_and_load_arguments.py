@@ -28,6 +28,7 @@ def test_whole_budgets_train_that_many_steps(budget: Any) -> None:
     model = MADDPG("MlpPolicy", SimpleSpreadVecEnv(n_envs=1, n_agents=2), **SMALL)
     model.learn(budget)  # 200: two whole rounds of the default 100 transitions per update
     assert model.num_timesteps == 200
+    assert type(model._total_timesteps) is int  # saved and printed as a count, not 200.0
 
 
 def test_a_budget_of_nothing_is_taken_and_said() -> None:

@@ -1,6 +1,7 @@
 """The constructor arguments that are not numbers: ``net_arch`` and ``action_noise`` are refused by name when malformed,
 with what to write, and taken when well formed."""
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,13 +24,13 @@ SMALL = dict(buffer_size=64, learning_starts=0, batch_size=8)
         ([True], "'pi'"),
         ("64", "'pi'"),
         (dict(pi=[8], qf=[-3]), "'qf'"),
-        (dict(pi=[8]), "exactly the keys"),
-        (dict(pi=[8], qf=[8], vf=[8]), "exactly the keys"),
+        (dict(pi=[8]), "needs the keys"),
+        ({"qf": [8], 1: [2]}, "needs the keys"),
     ],
 )
 @pytest.mark.parametrize("algorithm", [MADDPG, MATD3])
 def test_malformed_net_arch_is_refused_by_name(algorithm: type[MADDPG], net_arch: Any, part: str) -> None:
-    with pytest.raises(ValueError, match=r"^net_arch.*" + part.replace("'", "'") + r".*e\.g\. net_arch="):
+    with pytest.raises(ValueError, match=r"^net_arch.*" + part + r".*e\.g\. net_arch="):
         algorithm("MlpPolicy", SimpleSpreadVecEnv(n_envs=1, n_agents=2), policy_kwargs=dict(net_arch=net_arch), **SMALL)
 
 
@@ -41,6 +42,8 @@ def test_malformed_net_arch_is_refused_by_name(algorithm: type[MADDPG], net_arch
         ((np.int64(4),), {"pi": [4], "qf": [4]}),
         (dict(pi=[4], qf=[6, 6]), {"pi": [4], "qf": [6, 6]}),
         ([], {"pi": [], "qf": []}),  # linear networks
+        (np.array([8, 8]), {"pi": [8, 8], "qf": [8, 8]}),
+        (dict(pi=[4], qf=[6], vf=[9]), {"pi": [4], "qf": [6]}),  # other keys ignored, as SB3's TD3 does
     ],
 )
 def test_well_formed_net_arch_builds_those_layers(net_arch: Any, expected: dict[str, list[int]]) -> None:
@@ -52,6 +55,15 @@ def test_well_formed_net_arch_builds_those_layers(net_arch: Any, expected: dict[
         assert widths[:-1] == expected[part]  # the last layer is the output: an action or a value
 
 
+def test_a_save_whose_net_arch_has_other_keys_loads(tmp_path: Path) -> None:
+    """Before the check, a dict's keys beyond pi and qf were kept and saved: such a save must still load."""
+    env = SimpleSpreadVecEnv(n_envs=1, n_agents=2)
+    model = MADDPG("MlpPolicy", env, policy_kwargs=dict(net_arch=dict(pi=[4], qf=[6], vf=[9])), **SMALL)
+    model.policy_kwargs["net_arch"] = dict(pi=[4], qf=[6], vf=[9])  # as an older version saved it
+    model.save(tmp_path / "older")
+    assert MADDPG.load(tmp_path / "older", env=env).policy.net_arch == {"pi": [4], "qf": [6]}
+
+
 def test_default_net_arch_is_not_shared_with_a_model() -> None:
     """The policy's lists are its own: changing them must not change the paper's defaults."""
     sizes = hidden_sizes(None)
@@ -61,8 +73,29 @@ def test_default_net_arch_is_not_shared_with_a_model() -> None:
 
 @pytest.mark.parametrize("noise", ["normal", 0.1, {"sigma": 0.1}])
 def test_action_noise_that_is_not_an_action_noise_is_refused(noise: Any) -> None:
-    with pytest.raises(TypeError, match=r"^action_noise must be an SB3 ActionNoise or None, got .*noise_std"):
+    refusal = r"^action_noise must be an SB3 ActionNoise \(or a callable with reset\(\)\) or None, got .*noise_std"
+    with pytest.raises(TypeError, match=refusal):
         MADDPG("MlpPolicy", SimpleSpreadVecEnv(n_envs=1, n_agents=2), action_noise=noise, **SMALL)
+
+
+class CalledNoise:
+    """Noise SB3 can use without being an ActionNoise: it only calls it and its reset()."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+
+    def __call__(self) -> np.ndarray:
+        return np.full(self.size, 0.1, np.float32)
+
+    def reset(self) -> None:
+        pass
+
+
+def test_a_callable_with_reset_is_taken_as_noise() -> None:
+    env = SimpleSpreadVecEnv(n_envs=1, n_agents=2)
+    model = MADDPG("MlpPolicy", env, action_noise=CalledNoise(env.action_space.shape[0]), **SMALL)
+    model.learn(200)  # noisy steps with it: two rounds of 100 transitions
+    assert model.num_timesteps == 200
 
 
 def test_an_action_noise_is_taken() -> None:
