@@ -290,8 +290,23 @@ class PettingZooToGym(gym.Env):
         ]
 
 
+def _described(value: Any) -> str:
+    """:return: What a value is, briefly: ``"module 'mpe2.simple_spread_v3'"``, ``"None"``."""
+    name = getattr(value, "__name__", None)
+    return repr(value) if name is None else f"{type(value).__name__} {name!r}"
+
+
 def _refuse_aec_env(env: Any) -> None:
-    """An AEC env (one agent acts at a time) looks like a parallel one until ``reset`` returns None: refuse it first."""
+    """
+    An AEC env (one agent acts at a time) looks like a parallel one until ``reset`` returns None: refuse it first; and
+    what is no env at all (its factory, its module, None) before an ``AttributeError`` on ``possible_agents``.
+    """
+    if not hasattr(env, "possible_agents"):
+        called = " (call it: e.g. simple_spread_v3.parallel_env(...))" if callable(env) else ""
+        raise TypeError(
+            f"PettingZooToGym needs a PettingZoo ParallelEnv instance, got {_described(env)}, which has no "
+            f"possible_agents{called}: pass the env itself, e.g. PettingZooToGym(simple_spread_v3.parallel_env())."
+        )
     # Duck-typed, so that this module needs no PettingZoo import: only AEC envs step one agent at a time.
     if callable(getattr(env, "agent_iter", None)) and callable(getattr(env, "last", None)):
         raise TypeError(
