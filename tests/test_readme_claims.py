@@ -45,7 +45,9 @@ def test_a_verdict_the_correction_removes_is_a_lean_and_unrun_claims_are_open(re
         + 'x,full,independent,observations,>,"44.58 vs 36.89",min_dist_sum,5,5,0.6,0.7,0.1,0.1,1,1,1,1,holds,\n'
     )
     table = readme_table.table_rows(rows)
-    assert table[0] == "| Exp. 1 | `actions` > `full` | 73.63 vs 63.89, p < .01 | 0.59 vs 0.52 | .008 | .040 (5) | reverses |"
+    assert table[0] == (
+        "| Exp. 1 | `actions` > `full` | 73.63 vs 63.89, p < .01 | 0.59 vs 0.52 (5 v 5) | .008 | .040 (5) | reverses |"
+    )
     # Raw p .032 but Holm .095: no verdict word, the lean with its raw p.
     assert table[1].endswith("| .032 | .095 (5) | leans the claim's way (p = .032) |")
     assert not any("`independent` > `observations`" in row for row in table)  # not against full: not the README's
@@ -57,6 +59,20 @@ def test_a_verdict_the_correction_removes_is_a_lean_and_unrun_claims_are_open(re
         "| Exp. 2 | `full` > `observations`, `actions`, `independent` | 70.11 vs 67.70, 51.88, 51.02 | not run yet "
         "| | | open |",
     ]
+
+
+def test_the_line_under_the_table_says_each_setting_s_runs_and_floor(readme_table: ModuleType) -> None:
+    """The smallest p two groups of n allow is 2 / C(2n, n): 2/252 at 5 a side, 2/924 at 6; times the family after
+    Holm. A setting with unequal groups says the range and the smaller group's floor."""
+    rows = claims(
+        HEADER
+        + 'x,full,actions,full,>,"e",min_dist_sum,6,6,0.59,0.52,0.002,0.011,5,0,0,0,reverses,\n'
+        + 'x,full,full,independent,>,"e",min_dist_sum,6,6,0.52,0.64,0.002,0.011,5,1,1,1,holds,\n'
+        + 'y,partial,selected,full,>,"e",min_dist_sum,5,6,1.05,1.13,0.1,0.2,2,0,0,0,leans the claim\'s way,\n'
+    )
+    assert readme_table.floor_line(rows) == (
+        "Runs a side (the smallest p, no overlap; after Holm over the family): Exp. 1 6 (.002; .011), Exp. 2 5-6 (.008; .016)."
+    )
 
 
 def test_a_readme_without_the_markers_is_refused_saying_where(readme_table: ModuleType) -> None:

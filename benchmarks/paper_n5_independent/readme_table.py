@@ -9,6 +9,7 @@ numbers than the committed claims.
 """
 
 import csv
+import math
 import sys
 from pathlib import Path
 
@@ -22,7 +23,7 @@ START, END = "<!-- table: benchmarks/paper_n5_independent/readme_table.py -->", 
 SETTINGS = {"full": "Exp. 1", "partial": "Exp. 2"}
 """The paper's settings by observability, as the table names them."""
 HEADER = (
-    "| setting | the paper's claim | paper (success %, 31 seeds) | a network per agent (min-dist sum) | p | Holm p "
+    "| setting | the paper's claim | paper (success %, 31 seeds) | a network per agent (min-dist sum, runs) | p | Holm p "
     "| verdict |",
     "|---|---|---|---|---|---|---|",
 )
@@ -44,7 +45,7 @@ def table_rows(claims: list[dict[str, str]]) -> list[str]:
             verdict = row["verdict"]
             if verdict in UNDECIDED_VERDICTS:
                 verdict = f"{verdict} (p = {format_p_value(p_value)})"
-            means = f"{float(row['mean_better']):.2f} vs {float(row['mean_worse']):.2f}"
+            means = f"{float(row['mean_better']):.2f} vs {float(row['mean_worse']):.2f} ({row['n_better']} v {row['n_worse']})"
             evidence = row["paper_evidence"] if row["better"] != "selected_next" else "(not in the paper)"
             claim = f"`{row['better']}` > `{row['worse']}`"
             cells = [setting, claim, evidence, means, format_p_value(p_value)]
@@ -70,6 +71,28 @@ def table_rows(claims: list[dict[str, str]]) -> list[str]:
     return rows
 
 
+def floor_line(claims: list[dict[str, str]]) -> str:
+    """
+    :param claims: The rows of the claims CSV.
+    :return: A line under the table: each setting's runs a side against ``full`` and the smallest p they allow (no
+        overlap: 2 / C(2n, n)), raw and after Holm over the setting's family, so that the prose needs no seed count.
+    """
+    parts = []
+    for observability, setting in SETTINGS.items():
+        rows = [
+            row for row in claims if row["observability"] == observability and BASELINE_SCHEME in (row["better"], row["worse"])
+        ]
+        if not rows:
+            continue
+        sides = sorted({int(row[key]) for row in rows for key in ("n_better", "n_worse")})
+        smallest = min(sides)
+        floor = 2 / math.comb(2 * smallest, smallest)
+        family = max(int(row["family_size"]) for row in rows)
+        runs = f"{smallest}" if len(sides) == 1 else f"{smallest}-{max(sides)}"
+        parts.append(f"{setting} {runs} ({format_p_value(floor)}; {format_p_value(min(1.0, family * floor))})")
+    return "Runs a side (the smallest p, no overlap; after Holm over the family): " + ", ".join(parts) + "."
+
+
 def readme_with_table(readme: str, claims: list[dict[str, str]]) -> str:
     """
     :param readme: The README's text.
@@ -80,7 +103,8 @@ def readme_with_table(readme: str, claims: list[dict[str, str]]) -> str:
     _, end, after = rest.partition(END)
     if not start or not end:
         raise ValueError(f"README.md has no {START} ... {END} markers around the table: put them back around it.")
-    return before + START + "\n" + "\n".join([*HEADER, *table_rows(claims)]) + "\n" + END + after
+    table = "\n".join([*HEADER, *table_rows(claims)])
+    return before + START + "\n" + table + "\n\n" + floor_line(claims) + "\n" + END + after
 
 
 def read_claims(path: Path = CLAIMS_CSV) -> list[dict[str, str]]:
