@@ -62,8 +62,8 @@ def test_a_verdict_the_correction_removes_is_a_lean_and_unrun_claims_are_open(re
 
 
 def test_the_line_under_the_table_says_each_setting_s_runs_and_floor(readme_table: ModuleType) -> None:
-    """The smallest p two groups of n allow is 2 / C(2n, n): 2/252 at 5 a side, 2/924 at 6; times the family after
-    Holm. A setting with unequal groups says the range and the smaller group's floor."""
+    """The smallest p two groups allow is 2 / C(n1 + n2, n1): 2/924 at 6 a side; times the family after Holm. A
+    setting with unequal groups says the range of runs, and 5 v 6 allows 2/462 (.0043), not 5 v 5's 2/252."""
     rows = claims(
         HEADER
         + 'x,full,actions,full,>,"e",min_dist_sum,6,6,0.59,0.52,0.002,0.011,5,0,0,0,reverses,\n'
@@ -71,7 +71,7 @@ def test_the_line_under_the_table_says_each_setting_s_runs_and_floor(readme_tabl
         + 'y,partial,selected,full,>,"e",min_dist_sum,5,6,1.05,1.13,0.1,0.2,2,0,0,0,leans the claim\'s way,\n'
     )
     assert readme_table.floor_line(rows) == (
-        "Runs a side (the smallest p, no overlap; after Holm over the family): Exp. 1 6 (.002; .011), Exp. 2 5-6 (.008; .016)."
+        "Runs a side (the smallest p, no overlap; after Holm over the family): Exp. 1 6 (.002; .011), Exp. 2 5-6 (.004; .009)."
     )
 
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Issue 57, item 2, step 1: find multiwalker's training settings with the package's own tuning (Optuna), on a small
-# budget: TRIALS (16 by default) trials of 150,000 env steps, `full` sharing, seed 0, objective package_distance (how far the walkers carry
-# the package), 5 evaluations of 5 episodes per trial, the median pruner past the first 2. About 6 core-hours.
+# budget: TRIALS (16 by default) trials of 150,000 env steps, `full` sharing, seed 0, objective package_distance (how
+# far the walkers carry the package), 5 evaluations of 5 episodes per trial, the median pruner past the first 2.
 #
 # Run it from a worktree pinned to a commit, writing into the main checkout; it resumes (the study is in SQLite):
 #   git worktree add --detach ../sweep-multiwalker <commit>

@@ -75,7 +75,8 @@ def floor_line(claims: list[dict[str, str]]) -> str:
     """
     :param claims: The rows of the claims CSV.
     :return: A line under the table: each setting's runs a side against ``full`` and the smallest p they allow (no
-        overlap: 2 / C(2n, n)), raw and after Holm over the setting's family, so that the prose needs no seed count.
+        overlap: 2 / C(n1 + n2, n1)), raw and after Holm over the setting's family, so that the prose needs no seed
+        count. Where the comparisons' sizes differ, the largest of their floors: the one every test can reach.
     """
     parts = []
     for observability, setting in SETTINGS.items():
@@ -84,11 +85,11 @@ def floor_line(claims: list[dict[str, str]]) -> str:
         ]
         if not rows:
             continue
-        sides = sorted({int(row[key]) for row in rows for key in ("n_better", "n_worse")})
-        smallest = min(sides)
-        floor = 2 / math.comb(2 * smallest, smallest)
+        pairs = {(int(row["n_better"]), int(row["n_worse"])) for row in rows}
+        floor = max(2 / math.comb(n_better + n_worse, n_better) for n_better, n_worse in pairs)
         family = max(int(row["family_size"]) for row in rows)
-        runs = f"{smallest}" if len(sides) == 1 else f"{smallest}-{max(sides)}"
+        sides = sorted({n for pair in pairs for n in pair})
+        runs = f"{sides[0]}" if len(sides) == 1 else f"{sides[0]}-{sides[-1]}"
         parts.append(f"{setting} {runs} ({format_p_value(floor)}; {format_p_value(min(1.0, family * floor))})")
     return "Runs a side (the smallest p, no overlap; after Holm over the family): " + ", ".join(parts) + "."
 

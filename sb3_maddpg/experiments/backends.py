@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
+from sb3_maddpg.common.argument_ranges import Range
 from sb3_maddpg.experiments.group_plan import check_runs_per_process
 from sb3_maddpg.experiments.local_pool import OnResult, run_local
 from sb3_maddpg.experiments.setting import RunConfig
@@ -45,18 +46,12 @@ class Execution:
     def __post_init__(self) -> None:
         # Checked here, so that a dry run and a sweep refuse the same values before anything trains.
         local = self.backend == "local"
-        workers_are = {"local": "parallel processes", "batched": "unused: run groups train in this process"}
-        counts = (
-            ("workers", self.workers, 1 if local else 0, workers_are.get(self.backend, "a local Ray instance's CPUs")),
-            ("threads", self.threads, 1, "torch threads per run or run group"),
+        workers_are = {"local": "parallel processes of the local backend", "batched": "unused by the batched backend"}
+        meaning = workers_are.get(self.backend, f"CPUs of a local Ray instance, for the {self.backend} backend")
+        Range(meaning, integer=True, low=1 if local else 0, hint="use 1" + ("" if local else ", or 0 for all CPUs")).check(
+            "workers", self.workers
         )
-        for name, value, lowest, meaning in counts:
-            if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
-                raise ValueError(
-                    f"{name} ({meaning}) must be an integer >= {lowest} for the {self.backend} backend, got {value!r}: "
-                    "use 1" + ("" if lowest else ", or 0 for all CPUs") + "."
-                )
-
+        Range("torch threads per run or run group", integer=True, low=1, hint="use 1").check("threads", self.threads)
         check_runs_per_process(self.runs_per_process)
 
     @property

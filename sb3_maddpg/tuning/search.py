@@ -22,7 +22,7 @@ import numpy as np
 import yaml
 
 from sb3_maddpg.analysis.evaluation import TeamEvalCallback, scores_simple_spread
-from sb3_maddpg.common.argument_ranges import Range, check_arguments
+from sb3_maddpg.common.argument_ranges import Range
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.common.torch_threads import use_torch_threads
 from sb3_maddpg.compat import VERSION_KEY
@@ -221,8 +221,9 @@ class TuneSettings:
             raise ValueError(
                 f"objective {self.objective!r} is not one of {self.experiment.env}'s objectives: give one of {choices}{group}."
             )
-        check_arguments({name: valid for name, valid in TUNE_RANGES.items() if name != "last_evaluations"}, vars(self))
-        TUNE_RANGES["last_evaluations"].check("last_evaluations", self.last_evaluations, self.n_evaluations)
+        bounds = {"last_evaluations": self.n_evaluations}  # the upper bounds that depend on another field
+        for name, valid in TUNE_RANGES.items():
+            valid.check(name, getattr(self, name), bounds.get(name))
 
     @property
     def direction(self) -> str:
