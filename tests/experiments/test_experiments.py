@@ -447,7 +447,15 @@ REPORTED_EXPERIMENTS = {"paper_n5_independent": ("paper_n5i_exp1", "paper_n5i_ex
 """Studies whose report reads some of their results directory's experiments (the rest: a learning curve's runs)."""
 COMMITTED_REPORTS = [
     (REPO / "benchmarks" / name / "results", REPO / "docs" / "_static" / name)
-    for name in ("paper_small", "paper_n3", "paper_n5_outlook", "learned_selection", "paper_n5", "paper_n5_independent")
+    for name in (
+        "paper_small",
+        "paper_n3",
+        "paper_n5_outlook",
+        "learned_selection",
+        "paper_n5",
+        "paper_n5_independent",
+        "pursuit",
+    )
     if (REPO / "docs" / "_static" / name).is_dir()
 ]
 
