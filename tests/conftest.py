@@ -1,7 +1,14 @@
 """Shared pytest setup."""
 
 import os
+import signal
 import sys
+
+# A suite started in the background (`cmd &`, nohup, some CI runners) inherits SIGINT ignored, and every subprocess
+# would too: the tests that press Ctrl-C on the CLI would then wait on a process that never sees it. Python's own
+# handler here makes the subprocesses start with the default action, as from a terminal.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # Headless rendering: pygame (imported by mpe2) must see this before it opens a display.
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
