@@ -53,10 +53,10 @@ def test_a_verdict_the_correction_removes_is_a_lean_and_unrun_claims_are_open(re
     assert not any("`independent` > `observations`" in row for row in table)  # not against full: not the README's
     # What has no runs is open: Exp. 1's `selected` > `full` and `full` > `observations`, and all of Exp. 2.
     assert table[2:] == [
-        "| Exp. 1 | `selected` > `full` | 71.58 vs 63.89, p < .05 | not run yet | | | open |",
-        "| Exp. 1 | `full` > `observations` | 63.89 vs 36.89 | not run yet | | | open |",
-        "| Exp. 2 | `selected` > `full` | 74.99 vs 70.11, not significant | not run yet | | | open |",
-        "| Exp. 2 | `full` > `observations`, `actions`, `independent` | 70.11 vs 67.70, 51.88, 51.02 | not run yet "
+        "| Exp. 1 | `selected` > `full` | 71.58 vs 63.89, p < .05 | not finished | | | open |",
+        "| Exp. 1 | `full` > `observations` | 63.89 vs 36.89 | not finished | | | open |",
+        "| Exp. 2 | `selected` > `full` | 74.99 vs 70.11, not significant | not finished | | | open |",
+        "| Exp. 2 | `full` > `observations`, `actions`, `independent` | 70.11 vs 67.70, 51.88, 51.02 | not finished "
         "| | | open |",
     ]
 

@@ -3,7 +3,7 @@
 Reads ``docs/_static/paper_n5_independent/claims_min_dist_sum.csv`` (what ``report.sh`` writes from the runs) and
 writes the table between the README's two markers: each of the paper's claims against ``full``, its runs' means, the
 exact p, the Holm-adjusted p with its family's size, and the verdict the adjusted p allows; a claim whose schemes have
-not run is one row per setting, "not run yet". Run it after ``report.sh`` (``python
+not finished is one row per setting, "not finished". Run it after ``report.sh`` (``python
 benchmarks/paper_n5_independent/readme_table.py``); ``tests/test_readme_claims.py`` fails while the README says other
 numbers than the committed claims.
 """
@@ -61,13 +61,13 @@ def table_rows(claims: list[dict[str, str]]) -> list[str]:
         ]
         for claim in unrun:
             if claim.worse == BASELINE_SCHEME:
-                rows.append(f"| {setting} | `{claim.better}` > `{claim.worse}` | {claim.evidence} | not run yet | | | open |")
+                rows.append(f"| {setting} | `{claim.better}` > `{claim.worse}` | {claim.evidence} | not finished | | | open |")
         below = [claim.worse for claim in unrun if claim.better == BASELINE_SCHEME]  # one row: `full` > each of them
         if below:
             paper = PAPER_TABLE2[observability]
             claim_text = f"`{BASELINE_SCHEME}` > " + ", ".join(f"`{scheme}`" for scheme in below)
             evidence = f"{paper[BASELINE_SCHEME][0]:.2f} vs " + ", ".join(f"{paper[scheme][0]:.2f}" for scheme in below)
-            rows.append(f"| {setting} | {claim_text} | {evidence} | not run yet | | | open |")
+            rows.append(f"| {setting} | {claim_text} | {evidence} | not finished | | | open |")
     return rows
 
 
