@@ -4,8 +4,8 @@ import os
 import signal
 import sys
 
-# A suite started in the background (`cmd &`, nohup, some CI runners) inherits SIGINT ignored, and every subprocess
-# would too: the tests that press Ctrl-C on the CLI would then wait on a process that never sees it. Python's own
+# A suite started in the background from a script (`cmd &` without job control) inherits SIGINT ignored; every subprocess
+# would too, and the tests that press Ctrl-C on the CLI would then wait on a process that never sees it. Python's own
 # handler here makes the subprocesses start with the default action, as from a terminal.
 if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
