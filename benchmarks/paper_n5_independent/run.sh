@@ -15,6 +15,8 @@
 # schemes are skipped), and item 4: Exp. 1's selected over a fixed neighbour graph (exp1_fixed_graph.json; from a
 # commit that reads a {"neighbors": ...} selector, 2026-12-06 or later):
 #   SETTINGS="exp2 exp1_fixed_graph" RESULTS_ROOT=/work/main/benchmarks WORKERS=1 nohup bash ... &
+# (Since 2026-12-06 Exp. 2's three run into results_exp2_extra/ beside the Exp. 1 sweep: start the fixed graph alone,
+# as the study README says, not with exp2.)
 set -u
 cd "$(dirname "$0")/../.."
 RESULTS_ROOT="${RESULTS_ROOT:-benchmarks}"
