@@ -36,7 +36,7 @@ def test_the_readme_table_is_the_committed_claims(readme_table: ModuleType) -> N
     )
 
 
-def test_a_verdict_the_correction_removes_is_a_lean_and_unrun_claims_are_open(readme_table: ModuleType) -> None:
+def test_a_verdict_the_correction_removes_is_a_lean_and_unfinished_claims_are_open(readme_table: ModuleType) -> None:
     rows = claims(
         HEADER
         + 'x,full,actions,full,>,"73.63 vs 63.89, p < .01",min_dist_sum,5,5,0.59,0.52,0.0079,0.0397,5,0,0,0,reverses,\n'

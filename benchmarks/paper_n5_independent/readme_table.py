@@ -52,17 +52,17 @@ def table_rows(claims: list[dict[str, str]]) -> list[str]:
             cells += [f"{format_p_value(holm)} ({row['family_size']})", verdict]
             rows.append("| " + " | ".join(cells) + " |")
         done = {(row["better"], row["worse"]) for row in asked}
-        unrun = [
+        unfinished = [
             claim
             for claim in PAPER_CLAIMS
             if claim.observability == observability
             and BASELINE_SCHEME in (claim.better, claim.worse)
             and (claim.better, claim.worse) not in done
         ]
-        for claim in unrun:
+        for claim in unfinished:
             if claim.worse == BASELINE_SCHEME:
                 rows.append(f"| {setting} | `{claim.better}` > `{claim.worse}` | {claim.evidence} | not finished | | | open |")
-        below = [claim.worse for claim in unrun if claim.better == BASELINE_SCHEME]  # one row: `full` > each of them
+        below = [claim.worse for claim in unfinished if claim.better == BASELINE_SCHEME]  # one row: `full` > each of them
         if below:
             paper = PAPER_TABLE2[observability]
             claim_text = f"`{BASELINE_SCHEME}` > " + ", ".join(f"`{scheme}`" for scheme in below)

@@ -23,6 +23,7 @@ from sb3_maddpg.experiments.defaults import DEFAULT_ENV
 from sb3_maddpg.experiments.results_dir import load_experiments, load_summaries
 from sb3_maddpg.experiments.tasks import metric_info, recorded_metrics
 from sb3_maddpg.results.aggregates import mean_difference_interval
+from sb3_maddpg.results.claims import format_p_value
 from sb3_maddpg.results.normalised_table import setting_references
 from sb3_maddpg.results.reference_table import load_references
 from sb3_maddpg.results.stats import holm, mann_whitney
@@ -179,8 +180,9 @@ def format_cell(cell: Mapping[str, Any] | None) -> str:
 
 
 def _p_text(p_value: float) -> str:
-    """:return: ``= .008`` for 0.0079 (three decimals, no leading zero), ``< .001`` below that."""
-    return "< .001" if p_value < 0.0005 else "= " + f"{p_value:.3f}".removeprefix("0")
+    """:return: ``= .008`` for 0.0079, ``< .001`` below .001: as the claims pages and the README print it."""
+    text = format_p_value(p_value)
+    return text if text.startswith("<") else "= " + text
 
 
 def format_table_rst(rows: Sequence[TaskRow], schemes: Sequence[str]) -> str:

@@ -58,6 +58,12 @@ def test_scores_are_normalised_between_random_and_the_best_scheme_with_holm_verd
     assert format_cell(independent).endswith("below, p = .008 (Holm = .016)")
 
 
+def test_a_p_below_a_thousandth_prints_as_the_readme_prints_it() -> None:
+    # 7 runs a side without overlap: 2 / C(14, 7) = .00058, which rounds to .001 but the README prints "< .001".
+    cell = {"mean": 0.8, "low": 0.7, "high": 0.9, "verdict": "below", "p": 2 / 3432, "p_holm": 0.003}
+    assert format_cell(cell) == "0.80 [0.70, 0.90]; below, p < .001 (Holm = .003)"
+
+
 def test_a_lower_is_better_metric_is_flipped_and_its_top_is_the_scripted_controller(tmp_path: Path) -> None:
     full = [1.0, 1.1, 1.2, 1.3, 1.4]
     write_study(
