@@ -1,5 +1,6 @@
-"""The README's N=5 table says what the committed claims say (issue 56: the README states only what survives a
-correction): it is what ``benchmarks/paper_n5_independent/readme_table.py`` writes from the report's claims CSV."""
+"""The README's N=5 table and the docs page's say what the committed claims say (issue 56: they state only what
+survives a correction): they are what ``benchmarks/paper_n5_independent/claims_tables.py`` writes from the report's
+claims CSVs."""
 
 import csv
 import io
@@ -14,8 +15,8 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(scope="module")
-def readme_table() -> ModuleType:
-    return load_script(REPO / "benchmarks" / "paper_n5_independent" / "readme_table.py")
+def claims_tables() -> ModuleType:
+    return load_script(REPO / "benchmarks" / "paper_n5_independent" / "claims_tables.py")
 
 
 def claims(text: str) -> list[dict[str, str]]:
@@ -28,15 +29,44 @@ HEADER = (
 )
 
 
-def test_the_readme_table_is_the_committed_claims(readme_table: ModuleType) -> None:
+def test_the_readme_table_is_the_committed_claims(claims_tables: ModuleType) -> None:
     readme = (REPO / "README.md").read_text()
-    assert readme_table.readme_with_table(readme, readme_table.read_claims()) == readme, (
+    assert claims_tables.readme_with_table(readme, claims_tables.read_claims()) == readme, (
         "README.md's N=5 table differs from docs/_static/paper_n5_independent/claims_min_dist_sum.csv: run "
-        "python benchmarks/paper_n5_independent/readme_table.py"
+        "python benchmarks/paper_n5_independent/claims_tables.py"
     )
 
 
-def test_a_verdict_the_correction_removes_is_a_lean_and_unfinished_claims_are_open(readme_table: ModuleType) -> None:
+def test_the_docs_page_s_table_is_the_committed_claims_its_prose_reads(claims_tables: ModuleType) -> None:
+    table = claims_tables.docs_table(claims_tables.read_claims(claims_tables.DOCS_CLAIMS_CSV), claims_tables.DOCS_SEEDS)
+    assert claims_tables.DOCS_TABLE.read_text() == table, (
+        f"docs/guide/paper_n5_claims.inc differs from {claims_tables.DOCS_CLAIMS_CSV}: run "
+        "python benchmarks/paper_n5_independent/claims_tables.py"
+    )
+    assert ".. include:: paper_n5_claims.inc" in (REPO / "docs" / "guide" / "paper_n5.rst").read_text()
+
+
+def test_the_docs_table_has_the_readme_s_rows_as_an_rst_list_table(claims_tables: ModuleType) -> None:
+    rows = claims(
+        HEADER + 'x,full,actions,full,>,"73.63 vs 63.89, p < .01",min_dist_sum,5,5,0.59,0.52,0.0079,0.0397,5,0,0,0,reverses,\n'
+    )
+    lines = claims_tables.docs_table(rows, "seeds 0-4").splitlines()
+    assert lines[0] == ".. list-table:: The paper's claims with a network per agent, seeds 0-4 (lower min-dist sum is better)"
+    first = lines.index("   * - Exp. 1")
+    assert lines[first : first + 7] == [
+        "   * - Exp. 1",
+        "     - ``actions`` > ``full``",  # Markdown's code spans become RST literals
+        "     - 73.63 vs 63.89, p < .01",
+        "     - 0.59 vs 0.52 (5 v 5)",
+        "     - .008",
+        "     - .040 (5)",
+        "     - reverses",
+    ]
+    assert "     - not finished" in lines and "     -" in lines  # the unfinished claims, their empty cells bare
+    assert lines[-1] == claims_tables.floor_line(rows)
+
+
+def test_a_verdict_the_correction_removes_is_a_lean_and_unfinished_claims_are_open(claims_tables: ModuleType) -> None:
     rows = claims(
         HEADER
         + 'x,full,actions,full,>,"73.63 vs 63.89, p < .01",min_dist_sum,5,5,0.59,0.52,0.0079,0.0397,5,0,0,0,reverses,\n'
@@ -44,7 +74,7 @@ def test_a_verdict_the_correction_removes_is_a_lean_and_unfinished_claims_are_op
         + "leans the claim's way,9\n"
         + 'x,full,independent,observations,>,"44.58 vs 36.89",min_dist_sum,5,5,0.6,0.7,0.1,0.1,1,1,1,1,holds,\n'
     )
-    table = readme_table.table_rows(rows)
+    table = claims_tables.table_rows(rows)
     assert table[0] == (
         "| Exp. 1 | `actions` > `full` | 73.63 vs 63.89, p < .01 | 0.59 vs 0.52 (5 v 5) | .008 | .040 (5) | reverses |"
     )
@@ -61,7 +91,7 @@ def test_a_verdict_the_correction_removes_is_a_lean_and_unfinished_claims_are_op
     ]
 
 
-def test_the_line_under_the_table_says_each_setting_s_runs_and_floor(readme_table: ModuleType) -> None:
+def test_the_line_under_the_table_says_each_setting_s_runs_and_floor(claims_tables: ModuleType) -> None:
     """The smallest p two groups allow is 2 / C(n1 + n2, n1): 2/924 at 6 a side; times the family after Holm. A
     setting with unequal groups says the range of runs, and 5 v 6 allows 2/462 (.0043), not 5 v 5's 2/252."""
     rows = claims(
@@ -70,11 +100,11 @@ def test_the_line_under_the_table_says_each_setting_s_runs_and_floor(readme_tabl
         + 'x,full,full,independent,>,"e",min_dist_sum,6,6,0.52,0.64,0.002,0.011,5,1,1,1,holds,\n'
         + 'y,partial,selected,full,>,"e",min_dist_sum,5,6,1.05,1.13,0.1,0.2,2,0,0,0,leans the claim\'s way,\n'
     )
-    assert readme_table.floor_line(rows) == (
+    assert claims_tables.floor_line(rows) == (
         "Runs a side (the smallest p, no overlap; after Holm over the family): Exp. 1 6 (.002; .011), Exp. 2 5-6 (.004; .009)."
     )
 
 
-def test_a_readme_without_the_markers_is_refused_saying_where(readme_table: ModuleType) -> None:
+def test_a_readme_without_the_markers_is_refused_saying_where(claims_tables: ModuleType) -> None:
     with pytest.raises(ValueError, match="README.md has no <!-- table: .* markers around the table"):
-        readme_table.readme_with_table("# README\n\nno table here\n", [])
+        claims_tables.readme_with_table("# README\n\nno table here\n", [])

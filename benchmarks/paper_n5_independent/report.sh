@@ -17,4 +17,4 @@ python -m sb3_maddpg report benchmarks/paper_n5_independent/results --seeds 0-4 
     --experiment paper_n5i_exp1 --experiment paper_n5i_exp2 --metric success_rate_r0.3 --metric min_dist_sum
 rm -f "$OUT/seeds_0-4/marl_eval.json"
 python benchmarks/paper_n5_independent/beside_shared.py --out "$OUT/beside_shared.md"
-python benchmarks/paper_n5_independent/readme_table.py  # the README's table from the claims (tests/test_readme_claims.py)
+python benchmarks/paper_n5_independent/claims_tables.py  # the README's and the docs page's tables (tests/test_readme_claims.py)

@@ -1,11 +1,15 @@
-"""The README's table "Which information helps at N=5", written from the study's committed claims.
+"""The README's table "Which information helps at N=5" and the docs page's, written from the study's committed claims.
 
-Reads ``docs/_static/paper_n5_independent/claims_min_dist_sum.csv`` (what ``report.sh`` writes from the runs) and
-writes the table between the README's two markers: each of the paper's claims against ``full``, its runs' means, the
-exact p, the Holm-adjusted p with its family's size, and the verdict the adjusted p allows; a claim whose schemes have
-not finished is one row per setting, "not finished". Run it after ``report.sh`` (``python
-benchmarks/paper_n5_independent/readme_table.py``); ``tests/test_readme_claims.py`` fails while the README says other
-numbers than the committed claims.
+Reads the claims CSVs that ``report.sh`` writes from the runs and writes two tables of the same rows: each of the
+paper's claims against ``full``, its runs' means, the exact p, the Holm-adjusted p with its family's size, and the
+verdict the adjusted p allows; a claim whose schemes have not finished is one row per setting, "not finished".
+
+- The README's, between its two markers, from every complete seed (``claims_min_dist_sum.csv``).
+- ``docs/guide/paper_n5_claims.inc``, the table of ``docs/guide/paper_n5.rst``, from the seeds its prose reads
+  (``DOCS_CLAIMS_CSV``).
+
+Run it after ``report.sh`` (``python benchmarks/paper_n5_independent/claims_tables.py``);
+``tests/test_readme_claims.py`` fails while either table says other numbers than the committed claims.
 """
 
 import csv
@@ -17,9 +21,14 @@ from sb3_maddpg.experiments.config import BASELINE_SCHEME
 from sb3_maddpg.results.claims import PAPER_CLAIMS, PAPER_TABLE2, UNDECIDED_VERDICTS, format_p_value
 
 ROOT = Path(__file__).resolve().parent.parent.parent
-CLAIMS_CSV = ROOT / "docs" / "_static" / "paper_n5_independent" / "claims_min_dist_sum.csv"
+REPORT = ROOT / "docs" / "_static" / "paper_n5_independent"
+CLAIMS_CSV = REPORT / "claims_min_dist_sum.csv"
+DOCS_CLAIMS_CSV, DOCS_SEEDS = REPORT / "seeds_0-4" / "claims_min_dist_sum.csv", "seeds 0-4"
+"""The claims the docs page's prose reads, and which seeds they are: seeds 0-4, until issue 56's seeds 5-9 have
+finished for every scheme."""
 README = ROOT / "README.md"
-START, END = "<!-- table: benchmarks/paper_n5_independent/readme_table.py -->", "<!-- end -->"
+DOCS_TABLE = ROOT / "docs" / "guide" / "paper_n5_claims.inc"
+START, END = "<!-- table: benchmarks/paper_n5_independent/claims_tables.py -->", "<!-- end -->"
 SETTINGS = {"full": "Exp. 1", "partial": "Exp. 2"}
 """The paper's settings by observability, as the table names them."""
 HEADER = (
@@ -29,18 +38,18 @@ HEADER = (
 )
 
 
-def table_rows(claims: list[dict[str, str]]) -> list[str]:
+def table_cells(claims: list[dict[str, str]]) -> list[list[str]]:
     """
     :param claims: The rows of the claims CSV.
-    :return: The table's rows, Exp. 1 then Exp. 2: each claim against ``full`` that the runs asked, then those whose
-        schemes have not run ("open"; the claims that ``full`` beats others in one row).
+    :return: The tables' rows as cells, Exp. 1 then Exp. 2: each claim against ``full`` that the runs asked, then
+        those whose schemes have not finished ("open"; the claims that ``full`` beats others in one row).
     """
     rows = []
     for observability, setting in SETTINGS.items():
         asked = [row for row in claims if row["observability"] == observability]
         for row in asked:
             if BASELINE_SCHEME not in (row["better"], row["worse"]):
-                continue  # a claim between two other schemes: a family of its own, not the README's
+                continue  # a claim between two other schemes: a family of its own, not the tables'
             p_value, holm = float(row["p_value"]), float(row["p_holm"])
             verdict = row["verdict"]
             if verdict in UNDECIDED_VERDICTS:
@@ -48,9 +57,8 @@ def table_rows(claims: list[dict[str, str]]) -> list[str]:
             means = f"{float(row['mean_better']):.2f} vs {float(row['mean_worse']):.2f} ({row['n_better']} v {row['n_worse']})"
             evidence = row["paper_evidence"] if row["better"] != "selected_next" else "(not in the paper)"
             claim = f"`{row['better']}` > `{row['worse']}`"
-            cells = [setting, claim, evidence, means, format_p_value(p_value)]
-            cells += [f"{format_p_value(holm)} ({row['family_size']})", verdict]
-            rows.append("| " + " | ".join(cells) + " |")
+            rows.append([setting, claim, evidence, means, format_p_value(p_value)])
+            rows[-1] += [f"{format_p_value(holm)} ({row['family_size']})", verdict]
         done = {(row["better"], row["worse"]) for row in asked}
         unfinished = [
             claim
@@ -61,14 +69,37 @@ def table_rows(claims: list[dict[str, str]]) -> list[str]:
         ]
         for claim in unfinished:
             if claim.worse == BASELINE_SCHEME:
-                rows.append(f"| {setting} | `{claim.better}` > `{claim.worse}` | {claim.evidence} | not finished | | | open |")
-        below = [claim.worse for claim in unfinished if claim.better == BASELINE_SCHEME]  # one row: `full` > each of them
+                rows.append([setting, f"`{claim.better}` > `{claim.worse}`", claim.evidence, "not finished", "", "", "open"])
+        below = [claim.worse for claim in unfinished if claim.better == BASELINE_SCHEME]  # one row: `full` > each
         if below:
             paper = PAPER_TABLE2[observability]
             claim_text = f"`{BASELINE_SCHEME}` > " + ", ".join(f"`{scheme}`" for scheme in below)
             evidence = f"{paper[BASELINE_SCHEME][0]:.2f} vs " + ", ".join(f"{paper[scheme][0]:.2f}" for scheme in below)
-            rows.append(f"| {setting} | {claim_text} | {evidence} | not finished | | | open |")
+            rows.append([setting, claim_text, evidence, "not finished", "", "", "open"])
     return rows
+
+
+def table_rows(claims: list[dict[str, str]]) -> list[str]:
+    """
+    :param claims: The rows of the claims CSV.
+    :return: The README's table rows (Markdown) of :func:`table_cells`.
+    """
+    return ["|" + "|".join(f" {cell} " if cell else " " for cell in cells) + "|" for cells in table_cells(claims)]
+
+
+def docs_table(claims: list[dict[str, str]], seeds: str) -> str:
+    """
+    :param claims: The rows of the claims CSV.
+    :param seeds: Which seeds the claims read, for the caption (``"seeds 0-4"``).
+    :return: The docs page's table (an RST ``list-table`` of :func:`table_cells`) and the line under it.
+    """
+    header = [cell.strip() for cell in HEADER[0].strip("|").split("|")]
+    caption = f"The paper's claims with a network per agent, {seeds} (lower min-dist sum is better)"
+    lines = [f".. list-table:: {caption}", "   :header-rows: 1", ""]
+    for cells in [header, *table_cells(claims)]:
+        rst = [cell.replace("`", "``") for cell in cells]  # Markdown's code spans are RST's literals
+        lines += [f"   * - {rst[0]}", *(f"     - {cell}".rstrip() for cell in rst[1:])]
+    return "\n".join([*lines, "", floor_line(claims), ""])
 
 
 def floor_line(claims: list[dict[str, str]]) -> str:
@@ -119,4 +150,8 @@ if __name__ == "__main__":
     changed = text != README.read_text()
     README.write_text(text)
     print(f"README.md's table {'rewritten' if changed else 'already as the claims say'} ({CLAIMS_CSV.name})")
+    table = docs_table(read_claims(DOCS_CLAIMS_CSV), DOCS_SEEDS)
+    changed = not DOCS_TABLE.exists() or table != DOCS_TABLE.read_text()
+    DOCS_TABLE.write_text(table)
+    print(f"{DOCS_TABLE.name} {'rewritten' if changed else 'already as the claims say'} ({DOCS_CLAIMS_CSV})")
     sys.exit(0)
