@@ -17,4 +17,5 @@ python -m sb3_maddpg report benchmarks/paper_n5_independent/results --seeds 0-4 
     --experiment paper_n5i_exp1 --experiment paper_n5i_exp2 --metric success_rate_r0.3 --metric min_dist_sum
 rm -f "$OUT/seeds_0-4/marl_eval.json"
 python benchmarks/paper_n5_independent/beside_shared.py --out "$OUT/beside_shared.md"
+python benchmarks/paper_n5_independent/before_after.py --out "$OUT/before_after.md"  # each family before seeds 5-9, after
 python benchmarks/paper_n5_independent/claims_tables.py  # the README's and the docs page's tables (tests/test_readme_claims.py)

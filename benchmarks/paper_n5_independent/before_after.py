@@ -1,0 +1,106 @@
+"""Issue 56's measure: each family's raw and Holm-adjusted p before seeds 5-9 and after, from the committed claims.
+
+Reads the report's claims at seeds 0-4 (``docs/_static/paper_n5_independent/seeds_0-4/claims_<metric>.csv``) and at
+every complete seed (``claims_<metric>.csv`` beside them) and writes ``before_after.md`` there: for each family (one
+setting x one metric, each scheme against ``full``) the runs a side, the means, the raw and the adjusted p and the
+verdict at both. ``report.sh`` runs it; ``tests/test_readme_claims.py`` fails on a stale page.
+"""
+
+import argparse
+import csv
+from collections.abc import Callable
+from pathlib import Path
+
+from sb3_maddpg.experiments.config import BASELINE_SCHEME
+from sb3_maddpg.results.claims import format_p_value
+
+ROOT = Path(__file__).resolve().parent.parent.parent
+REPORT = ROOT / "docs" / "_static" / "paper_n5_independent"
+BEFORE = "seeds_0-4"
+METRICS = {"min_dist_sum": "min-dist sum, lower is better", "success_rate_r0.3": "success within 0.3 (%), higher is better"}
+"""The metrics the report reads at seeds 0-4 (``report.sh``), in the order the page shows them."""
+SETTINGS = {"paper_n5i_exp1": "Exp. 1", "paper_n5i_exp2": "Exp. 2"}
+HEADER = (
+    "| claim | runs (before; after) | means (before; after) | p (before; after) | Holm p (before; after) "
+    "| verdict before | verdict after |",
+    "|---|---|---|---|---|---|---|",
+)
+
+
+def read_claims(path: Path) -> "Claims":
+    """:return: The claims against ``full`` in the CSV at ``path`` by (setting, better, worse); none where it is not."""
+    if not path.exists():
+        return {}
+    with open(path, newline="") as file:
+        rows = list(csv.DictReader(file))
+    return {
+        (row["setting"], row["better"], row["worse"]): row for row in rows if BASELINE_SCHEME in (row["better"], row["worse"])
+    }
+
+
+def _cell(before: dict[str, str] | None, after: dict[str, str] | None, text: Callable[[dict[str, str]], str]) -> str:
+    """:return: ``"<before>; <after>"``, ``-`` for a reading without the claim."""
+    return f"{text(before) if before else '-'}; {text(after) if after else '-'}"
+
+
+Claims = dict[tuple[str, str, str], dict[str, str]]
+
+
+def family_rows(before: Claims, after: Claims, setting: str) -> list[str]:
+    """
+    :param before: The claims at seeds 0-4, as :func:`read_claims` returns them.
+    :param after: The claims at every complete seed.
+    :param setting: The family's setting (its metric is the CSVs').
+    :return: The family's table rows: each claim against ``full`` that either reading asked, in the report's order.
+    """
+    keys = [key for key in after if key[0] == setting] + [key for key in before if key[0] == setting and key not in after]
+    rows = []
+    for key in keys:
+        old, new = before.get(key), after.get(key)
+        cells = [
+            f"`{key[1]}` > `{key[2]}`",
+            _cell(old, new, lambda row: f"{row['n_better']} v {row['n_worse']}"),
+            _cell(old, new, lambda row: f"{float(row['mean_better']):.2f} vs {float(row['mean_worse']):.2f}"),
+            _cell(old, new, lambda row: format_p_value(float(row["p_value"]))),
+            _cell(old, new, lambda row: f"{format_p_value(float(row['p_holm']))} ({row['family_size']})"),
+            old["verdict"] if old else "-",
+            new["verdict"] if new else "-",
+        ]
+        rows.append("| " + " | ".join(cells) + " |")
+    return rows
+
+
+def before_after_page(report: Path = REPORT) -> str:
+    """
+    :param report: The report's directory, ``seeds_0-4/`` inside it.
+    :return: The page: a table per family that either reading has, then what the columns mean.
+    """
+    parts = [
+        "# Each family before seeds 5-9 and after",
+        "",
+        f"Before: seeds 0-4 (`{BEFORE}/`). After: every seed all of a setting's schemes have finished (the report).",
+    ]
+    for metric, label in METRICS.items():
+        before = read_claims(report / BEFORE / f"claims_{metric}.csv")
+        after = read_claims(report / f"claims_{metric}.csv")
+        for setting, name in SETTINGS.items():
+            rows = family_rows(before, after, setting)
+            if rows:
+                parts += ["", f"#### {name}, {label}", "", *HEADER, *rows]
+    parts += [
+        "",
+        "A family is one setting x one metric: each scheme against `full`, declared before any score is read; Holm p is "
+        "adjusted within it (its size in brackets), and the verdict follows the adjusted p (*holds* or *reverses* below "
+        ".05, else a lean with its raw p). p: the exact two-sided Mann-Whitney U test. `-`: that reading has no such "
+        "claim (its schemes had not finished).",
+        "",
+    ]
+    return "\n".join(parts)
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=REPORT / "before_after.md", help="where to write the page")
+    out = parser.parse_args().out
+    out.write_text(before_after_page())
+    print(f"wrote {out}")
