@@ -1,9 +1,9 @@
-"""Issue 56's measure: each family's raw and Holm-adjusted p before seeds 5-9 and after, from the committed claims.
+"""Issue 56's measure: each family's raw and Holm-adjusted p at seeds 0-4 and at every complete seed, from the claims.
 
 Reads the report's claims at seeds 0-4 (``docs/_static/paper_n5_independent/seeds_0-4/claims_<metric>.csv``) and at
 every complete seed (``claims_<metric>.csv`` beside them) and writes ``before_after.md`` there: for each family (one
 setting x one metric, each scheme against ``full``) the runs a side, the means, the raw and the adjusted p and the
-verdict at both. ``report.sh`` runs it; ``tests/test_readme_claims.py`` fails on a stale page.
+verdict at both. ``report.sh`` runs it; ``tests/experiments/test_before_after.py`` fails on a stale page.
 """
 
 import argparse
@@ -20,6 +20,8 @@ BEFORE = "seeds_0-4"
 METRICS = {"min_dist_sum": "min-dist sum, lower is better", "success_rate_r0.3": "success within 0.3 (%), higher is better"}
 """The metrics the report reads at seeds 0-4 (``report.sh``), in the order the page shows them."""
 SETTINGS = {"paper_n5i_exp1": "Exp. 1", "paper_n5i_exp2": "Exp. 2"}
+Claims = dict[tuple[str, str, str], dict[str, str]]
+"""A claims CSV's claims against ``full`` by (setting, better, worse)."""
 HEADER = (
     "| claim | runs (before; after) | means (before; after) | p (before; after) | Holm p (before; after) "
     "| verdict before | verdict after |",
@@ -27,8 +29,11 @@ HEADER = (
 )
 
 
-def read_claims(path: Path) -> "Claims":
-    """:return: The claims against ``full`` in the CSV at ``path`` by (setting, better, worse); none where it is not."""
+def read_claims(path: Path) -> Claims:
+    """
+    :param path: A claims CSV the report wrote.
+    :return: Its claims against ``full`` by (setting, better, worse); an empty mapping where there is no such file.
+    """
     if not path.exists():
         return {}
     with open(path, newline="") as file:
@@ -39,11 +44,13 @@ def read_claims(path: Path) -> "Claims":
 
 
 def _cell(before: dict[str, str] | None, after: dict[str, str] | None, text: Callable[[dict[str, str]], str]) -> str:
-    """:return: ``"<before>; <after>"``, ``-`` for a reading without the claim."""
+    """
+    :param before: The claim's row at seeds 0-4, ``None`` where that reading has no such claim.
+    :param after: The claim's row at every complete seed, or ``None``.
+    :param text: What the cell shows of a row.
+    :return: ``"<before>; <after>"``, ``-`` for a reading without the claim.
+    """
     return f"{text(before) if before else '-'}; {text(after) if after else '-'}"
-
-
-Claims = dict[tuple[str, str, str], dict[str, str]]
 
 
 def family_rows(before: Claims, after: Claims, setting: str) -> list[str]:
@@ -70,15 +77,25 @@ def family_rows(before: Claims, after: Claims, setting: str) -> list[str]:
     return rows
 
 
+def _runs(row: dict[str, str] | None) -> tuple[str, str] | None:
+    """
+    :param row: A claim's row, or ``None``.
+    :return: Its runs a side, ``None`` for none.
+    """
+    return (row["n_better"], row["n_worse"]) if row else None
+
+
 def before_after_page(report: Path = REPORT) -> str:
     """
     :param report: The report's directory, ``seeds_0-4/`` inside it.
     :return: The page: a table per family that either reading has, then what the columns mean.
     """
     parts = [
-        "# Each family before seeds 5-9 and after",
+        "# Each family at seeds 0-4 and at every complete seed",
         "",
-        f"Before: seeds 0-4 (`{BEFORE}/`). After: every seed all of a setting's schemes have finished (the report).",
+        f"Before: seeds 0-4 (`{BEFORE}/`). After: every seed all of a setting's schemes have finished (the report), "
+        "seeds 0-4 among them, so not an independent replication; until seeds 5-9 have finished it is an interim look, "
+        "and nothing corrects for looking more than once: a verdict that changes between looks is not settled.",
     ]
     for metric, label in METRICS.items():
         before = read_claims(report / BEFORE / f"claims_{metric}.csv")
@@ -86,13 +103,15 @@ def before_after_page(report: Path = REPORT) -> str:
         for setting, name in SETTINGS.items():
             rows = family_rows(before, after, setting)
             if rows:
-                parts += ["", f"#### {name}, {label}", "", *HEADER, *rows]
+                same = all(_runs(before.get(key)) == _runs(after.get(key)) for key in before if key[0] == setting)
+                note = " (no seed added yet: the same runs twice)" if same and before else ""
+                parts += ["", f"#### {name}, {label}{note}", "", *HEADER, *rows]
     parts += [
         "",
         "A family is one setting x one metric: each scheme against `full`, declared before any score is read; Holm p is "
-        "adjusted within it (its size in brackets), and the verdict follows the adjusted p (*holds* or *reverses* below "
-        ".05, else a lean with its raw p). p: the exact two-sided Mann-Whitney U test. `-`: that reading has no such "
-        "claim (its schemes had not finished).",
+        "adjusted within it (its size in brackets), and the verdict follows the adjusted p: *holds* or *reverses* below "
+        ".05; else the claim *leans* one way or is *not separated*, read with the raw p beside it. p: the exact "
+        "two-sided Mann-Whitney U test. `-`: that reading has no such claim (its schemes had not finished).",
         "",
     ]
     return "\n".join(parts)

@@ -140,7 +140,10 @@ def readme_with_table(readme: str, claims: list[dict[str, str]]) -> str:
 
 
 def read_claims(path: Path = CLAIMS_CSV) -> list[dict[str, str]]:
-    """:return: The rows of the committed claims CSV."""
+    """
+    :param path: A claims CSV the report wrote: every complete seed's by default.
+    :return: Its rows.
+    """
     with open(path, newline="") as file:
         return list(csv.DictReader(file))
 

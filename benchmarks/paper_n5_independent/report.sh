@@ -3,7 +3,9 @@
 # seeds every scheme of a setting has finished; its settings only, not the learning curve's runs beside them) and the
 # study beside the shared one (beside_shared.md: Table 2 of both, the 2 x 2 of networks x the target's selection rule).
 # Run it from the repository root in every commit that adds finished runs: tests/experiments/test_experiments.py fails
-# on a stale report and tests/experiments/test_beside_shared.py on a stale beside_shared.md.
+# on a stale report, tests/experiments/test_beside_shared.py on a stale beside_shared.md,
+# tests/experiments/test_before_after.py on a stale before_after.md and tests/test_readme_claims.py on a stale README
+# or docs table.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 export SDL_VIDEODRIVER=dummy

@@ -180,7 +180,10 @@ def format_cell(cell: Mapping[str, Any] | None) -> str:
 
 
 def _p_text(p_value: float) -> str:
-    """:return: ``= .008`` for 0.0079, ``< .001`` below .001: as the claims pages and the README print it."""
+    """
+    :param p_value: A p-value.
+    :return: ``= .008`` for 0.0079, ``< .001`` below .001: as the claims pages and the README print it.
+    """
     text = format_p_value(p_value)
     return text if text.startswith("<") else "= " + text
 
