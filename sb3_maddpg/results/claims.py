@@ -351,10 +351,20 @@ def _check(
 
 
 def format_p_value(p_value: float) -> str:
-    """:return: A p-value as the claims pages show it: ``".032"``, ``"< .001"``, ``"n/a"`` for none (``nan``)."""
+    """
+    :param p_value: A p-value.
+    :return: It as the claims pages show it: ``".032"``, ``"< .001"``, ``"n/a"`` for none (``nan``). Just below
+        :data:`ALPHA`, where three decimals would round up to it, four decimals cut down (0.04988: ``".0498"``), so
+        that a verdict at p < .05 never stands beside a printed ".050".
+    """
     if math.isnan(p_value):
         return "n/a"
-    return "< .001" if p_value < 0.001 else f"{p_value:.3f}".lstrip("0")
+    if p_value < 0.001:
+        return "< .001"
+    text = f"{p_value:.3f}"
+    if p_value < ALPHA <= float(text):
+        text = f"{math.floor(p_value * 10_000) / 10_000:.4f}"
+    return text.lstrip("0")
 
 
 def _finding(check: ClaimCheck) -> str:

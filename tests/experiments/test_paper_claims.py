@@ -296,3 +296,10 @@ def test_claims_between_two_other_schemes_are_adjusted_together() -> None:
     assert checks["MADDPG-fo > MADDPG-fa"].verdict == "holds"
     # soa's runs straddle fo's (P(better) exactly 0.5): neither order.
     assert checks["MADDPG-soa > MADDPG-fo"].verdict == "not separated"
+
+
+def test_a_p_just_below_the_level_is_never_printed_as_the_level() -> None:
+    # 8 runs a side's 0.04988 rounds to ".050" at three decimals, beside a verdict that needs p < .05.
+    assert format_p_value(0.049883449883449886) == ".0498"
+    assert format_p_value(0.0504) == ".050" and format_p_value(0.05) == ".050"  # at or above the level: as rounded
+    assert format_p_value(0.0317) == ".032" and format_p_value(2 / 3432) == "< .001" and format_p_value(math.nan) == "n/a"
