@@ -57,8 +57,8 @@ def table_cells(claims: list[dict[str, str]]) -> list[list[str]]:
             means = f"{float(row['mean_better']):.2f} vs {float(row['mean_worse']):.2f} ({row['n_better']} v {row['n_worse']})"
             evidence = row["paper_evidence"] if row["better"] != "selected_next" else "(not in the paper)"
             claim = f"`{row['better']}` > `{row['worse']}`"
-            rows.append([setting, claim, evidence, means, format_p_value(p_value)])
-            rows[-1] += [f"{format_p_value(holm)} ({row['family_size']})", verdict]
+            holm_text = f"{format_p_value(holm)} ({row['family_size']})"
+            rows.append([setting, claim, evidence, means, format_p_value(p_value), holm_text, verdict])
         done = {(row["better"], row["worse"]) for row in asked}
         unfinished = [
             claim
