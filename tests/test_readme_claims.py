@@ -57,7 +57,7 @@ def test_the_docs_table_has_the_readme_s_rows_as_an_rst_list_table(claims_tables
         "   * - Exp. 1",
         "     - ``actions`` > ``full``",  # Markdown's code spans become RST literals
         "     - 73.63 vs 63.89, p < .01",
-        "     - 0.59 vs 0.52 (5 v 5)",
+        "     - 0.59 vs 0.52",  # the runs a side: in the line under the table
         "     - .008",
         "     - .040 (5)",
         "     - reverses",
@@ -76,7 +76,7 @@ def test_a_verdict_the_correction_removes_is_a_lean_and_unfinished_claims_are_op
     )
     table = claims_tables.table_rows(rows)
     assert table[0] == (
-        "| Exp. 1 | `actions` > `full` | 73.63 vs 63.89, p < .01 | 0.59 vs 0.52 (5 v 5) | .008 | .040 (5) | reverses |"
+        "| Exp. 1 | `actions` > `full` | 73.63 vs 63.89, p < .01 | 0.59 vs 0.52 | .008 | .040 (5) | reverses |"
     )
     # Raw p .032 but Holm .095: no verdict word, the lean with its raw p.
     assert table[1].endswith("| .032 | .095 (5) | leans the claim's way (p = .032) |")

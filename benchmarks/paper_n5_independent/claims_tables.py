@@ -1,8 +1,9 @@
 """The README's table "Which information helps at N=5" and the docs page's, written from the study's committed claims.
 
 Reads the claims CSVs that ``report.sh`` writes from the runs and writes two tables of the same rows: each of the
-paper's claims against ``full``, its runs' means, the exact p, the Holm-adjusted p with its family's size, and the
-verdict the adjusted p allows; a claim whose schemes have not finished is one row per setting, "not finished".
+paper's claims against ``full``, its runs' means (each setting's runs a side are in the line under the table), the
+exact p, the Holm-adjusted p with its family's size, and the verdict the adjusted p allows; a claim whose schemes have
+not finished is one row per setting, "not finished".
 
 - The README's, between its two markers, from every complete seed (``claims_min_dist_sum.csv``).
 - ``docs/guide/paper_n5_claims.inc``, the table of ``docs/guide/paper_n5.rst``, from the seeds its prose reads
@@ -32,7 +33,7 @@ START, END = "<!-- table: benchmarks/paper_n5_independent/claims_tables.py -->",
 SETTINGS = {"full": "Exp. 1", "partial": "Exp. 2"}
 """The paper's settings by observability, as the table names them."""
 HEADER = (
-    "| setting | the paper's claim | paper (success %, 31 seeds) | a network per agent (min-dist sum, runs) | p | Holm p "
+    "| setting | the paper's claim | paper (success %, 31 seeds) | a network per agent (min-dist sum) | p | Holm p "
     "| verdict |",
     "|---|---|---|---|---|---|---|",
 )
@@ -54,7 +55,7 @@ def table_cells(claims: list[dict[str, str]]) -> list[list[str]]:
             verdict = row["verdict"]
             if verdict in UNDECIDED_VERDICTS:
                 verdict = f"{verdict} (p = {format_p_value(p_value)})"
-            means = f"{float(row['mean_better']):.2f} vs {float(row['mean_worse']):.2f} ({row['n_better']} v {row['n_worse']})"
+            means = f"{float(row['mean_better']):.2f} vs {float(row['mean_worse']):.2f}"  # runs: the line under it
             evidence = row["paper_evidence"] if row["better"] != "selected_next" else "(not in the paper)"
             claim = f"`{row['better']}` > `{row['worse']}`"
             holm_text = f"{format_p_value(holm)} ({row['family_size']})"
