@@ -49,4 +49,5 @@ SDL_VIDEODRIVER=dummy python -m sb3_maddpg run --config "$CONFIG" --results "$ST
     --workers 1 --threads 1 --quiet
 echo "$(date -u +%Y-%m-%dT%H:%M:%SZ) merged exp2 independent,observations,actions seeds 0-4 from" \
     "results_exp2_extra/ (run from 487a75a: its commits.log)" >> "$STUDY/results/commits.log"
-echo "merged: results/paper_n5i_exp2 holds six schemes at seeds 0-4; now run report.sh"
+echo "merged: results/paper_n5i_exp2 holds six schemes at seeds 0-4; now run report.sh. The README's table gains" \
+    "two Exp. 2 rows (about 65 words): keep README.md within its 1,000 (tests/test_docs_length.py)"
