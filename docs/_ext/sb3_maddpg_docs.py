@@ -1,7 +1,8 @@
 """Small Sphinx helpers for the sb3-maddpg docs (no extra dependency).
 
 - ``.. markdown-include:: ../CHANGELOG.md``: renders a simple Markdown file (headings, paragraphs,
-  bullet lists, inline code, bold, links) as reStructuredText, so the changelog has one source.
+  bullet lists, inline code, bold, links) as reStructuredText, so the changelog has one source; where the file is
+  missing, the directive's content (a note on a page not generated yet), else a warning.
 - ``.. include-if-exists:: path``: includes a reStructuredText file when it exists at build time and
   otherwise renders the directive's content (a fallback note), so generated results can be linked
   before they are produced without breaking a ``-W`` build.
@@ -112,20 +113,24 @@ def _list_table(rows: list[list[str]]) -> list[str]:
 
 
 class MarkdownInclude(SphinxDirective):
-    """Render a simple Markdown file as reStructuredText."""
+    """Render a simple Markdown file as reStructuredText; where it is missing, the directive's content (a note on a
+    page not yet generated), or a warning when there is none."""
 
     required_arguments = 1
-    has_content = False
+    has_content = True
 
     def run(self) -> list[nodes.Node]:
         _, path = self.env.relfn2path(self.arguments[0])
-        if not Path(path).is_file():
+        if Path(path).is_file():
+            self.env.note_dependency(path)
+            lines = StringList(markdown_to_rst(Path(path).read_text(encoding="utf-8")), source=path)
+        elif self.content:
+            lines = self.content
+        else:
             return [self.state.document.reporter.warning(f"markdown-include: no file {path}", line=self.lineno)]
-        self.env.note_dependency(path)
-        text = Path(path).read_text(encoding="utf-8")
         container = nodes.section()
         container.document = self.state.document
-        nested_parse_with_titles(self.state, StringList(markdown_to_rst(text), source=path), container)
+        nested_parse_with_titles(self.state, lines, container)
         return container.children
 
 
