@@ -105,6 +105,17 @@ def test_the_line_under_the_table_says_each_setting_s_runs_and_floor(claims_tabl
     )
 
 
+def test_a_setting_whose_rows_read_different_runs_is_refused(claims_tables: ModuleType) -> None:
+    """The rows leave their runs to the line under the table, so they must all read the same runs."""
+    rows = claims(
+        HEADER
+        + 'x,full,actions,full,>,"e",min_dist_sum,6,6,0.59,0.52,0.002,0.011,5,0,0,0,reverses,\n'
+        + 'x,full,full,independent,>,"e",min_dist_sum,6,5,0.52,0.64,0.002,0.011,5,1,1,1,holds,\n'
+    )
+    with pytest.raises(ValueError, match=r"Exp. 1's claims against full read different runs .*run report.sh"):
+        claims_tables.table_cells(rows)
+
+
 def test_a_readme_without_the_markers_is_refused_saying_where(claims_tables: ModuleType) -> None:
     with pytest.raises(ValueError, match="README.md has no <!-- table: .* markers around the table"):
         claims_tables.readme_with_table("# README\n\nno table here\n", [])

@@ -44,10 +44,17 @@ def table_cells(claims: list[dict[str, str]]) -> list[list[str]]:
     :param claims: The rows of the claims CSV.
     :return: The tables' rows as cells, Exp. 1 then Exp. 2: each claim against ``full`` that the runs asked, then
         those whose schemes have not finished ("open"; the claims that ``full`` beats others in one row).
+    :raise ValueError: When a setting's claims against ``full`` read different runs a side (no complete seeds).
     """
     rows = []
     for observability, setting in SETTINGS.items():
         asked = [row for row in claims if row["observability"] == observability]
+        sizes = {(row["n_better"], row["n_worse"]) for row in asked if BASELINE_SCHEME in (row["better"], row["worse"])}
+        if len(sizes) > 1:  # the rows leave their runs to the line under the table, which then would hide this
+            raise ValueError(
+                f"{setting}'s claims against {BASELINE_SCHEME} read different runs ({sorted(sizes)}): the tables read a "
+                "report of complete seeds (report.sh's --complete-seeds); run report.sh."
+            )
         for row in asked:
             if BASELINE_SCHEME not in (row["better"], row["worse"]):
                 continue  # a claim between two other schemes: a family of its own, not the tables'

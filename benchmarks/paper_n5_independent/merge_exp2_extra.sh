@@ -16,6 +16,11 @@ TARGET="$STUDY/results/paper_n5i_exp2"
 SCHEMES=(independent observations actions)
 CONFIG="$(cd "$(dirname "$0")" && pwd)/exp2.json"
 
+if [ -f "$STUDY/results/sweep.lock" ] && ! flock -n "$STUDY/results/sweep.lock" true; then
+    echo "a sweep runs in results/ ($(cat "$STUDY/results/sweep.lock")): stop it first (kill -INT; it resumes from its" \
+        "snapshot), then merge" >&2
+    exit 1
+fi
 for scheme in "${SCHEMES[@]}"; do
     if [ -e "$TARGET/$scheme" ]; then
         echo "$TARGET/$scheme exists already: the merge has run, or a run of that scheme is in the way" >&2
@@ -30,23 +35,29 @@ for scheme in "${SCHEMES[@]}"; do
     done
 done
 
+moved=()
+move_back() {  # until the sweep has written the six schemes into experiment.json, any failure undoes the moves
+    for scheme in "${moved[@]}"; do
+        mv "$TARGET/$scheme" "$EXTRA/$scheme"
+    done
+    echo "not merged, the runs are back in results_exp2_extra/" >&2
+}
+trap move_back EXIT
 for scheme in "${SCHEMES[@]}"; do
     mv "$EXTRA/$scheme" "$TARGET/$scheme"
+    moved+=("$scheme")
 done
 # Nothing may be left to train: a run the check does not count as finished would otherwise start here.
 plan="$(SDL_VIDEODRIVER=dummy python -m sb3_maddpg run --config "$CONFIG" --results "$STUDY/results" \
     --seeds 0,1,2,3,4 --dry-run 2>&1 | tail -n 1)" || plan="the check failed: $plan"
 if [ "$plan" != "0 run(s) to do, 30 finished" ]; then
-    for scheme in "${SCHEMES[@]}"; do
-        mv "$TARGET/$scheme" "$EXTRA/$scheme"
-    done
-    echo "not merged, the runs are back in results_exp2_extra/: the sweep's check says '$plan'" >&2
-    echo "(its whole message: move them in again and run sb3-maddpg run --config $CONFIG --results" \
-        "$STUDY/results --seeds 0,1,2,3,4 --dry-run)" >&2
+    echo "the sweep's check says '$plan' (its whole message: move the runs in again and run sb3-maddpg run --config" \
+        "$CONFIG --results $STUDY/results --seeds 0,1,2,3,4 --dry-run)" >&2
     exit 1
 fi
 SDL_VIDEODRIVER=dummy python -m sb3_maddpg run --config "$CONFIG" --results "$STUDY/results" --seeds 0,1,2,3,4 \
     --workers 1 --threads 1 --quiet
+trap - EXIT
 echo "$(date -u +%Y-%m-%dT%H:%M:%SZ) merged exp2 independent,observations,actions seeds 0-4 from" \
     "results_exp2_extra/ (run from 487a75a: its commits.log)" >> "$STUDY/results/commits.log"
 echo "merged: results/paper_n5i_exp2 holds six schemes at seeds 0-4; now run report.sh. The README's table gains" \

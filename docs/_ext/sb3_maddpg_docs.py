@@ -121,8 +121,8 @@ class MarkdownInclude(SphinxDirective):
 
     def run(self) -> list[nodes.Node]:
         _, path = self.env.relfn2path(self.arguments[0])
+        self.env.note_dependency(path)  # a missing file counts as changed: the page is read again once it is there
         if Path(path).is_file():
-            self.env.note_dependency(path)
             lines = StringList(markdown_to_rst(Path(path).read_text(encoding="utf-8")), source=path)
         elif self.content:
             lines = self.content

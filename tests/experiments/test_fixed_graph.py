@@ -110,17 +110,43 @@ def test_no_finished_run_is_refused_saying_what_to_do(fixed_graph: ModuleType, t
         fixed_graph.read_runs(tmp_path / "nothing", tmp_path)
 
 
+def test_an_undeclared_seed_or_no_exp1_seed_is_refused(fixed_graph: ModuleType, tmp_path: Path) -> None:
+    fixed, study = tmp_path / "fixed", tmp_path / "study"
+    write_run(fixed, "paper_n5i_exp1_fixed_graph", "selected_fixed", 0, 0.6)
+    experiment = {**json.loads(EXP1_CONFIG.read_text()), "schemes": ["full", "selected"]}
+    (study / "paper_n5i_exp1").mkdir(parents=True)
+    (study / "paper_n5i_exp1" / "experiment.json").write_text(json.dumps(experiment))
+    write_run(study, "paper_n5i_exp1", "full", 0, 0.5)  # `selected` has no seed: no complete seed
+    with pytest.raises(SystemExit, match="has no seed that every Exp. 1 scheme has finished"):
+        fixed_graph.read_runs(fixed, study)
+    write_run(fixed, "paper_n5i_exp1_fixed_graph", "selected_fixed", 5, 0.6)
+    with pytest.raises(SystemExit, match="is seed 5, not one of the declared seeds 0-4"):
+        fixed_graph.read_runs(fixed, study)
+
+
 def test_the_page_shows_each_metric_s_family_and_the_reading(fixed_graph: ModuleType) -> None:
     scored = runs([0.51, 0.53, 0.55, 0.57, 0.60], FULL, SELECTED)
     page = fixed_graph.page(scored, {"min_dist_sum": fixed_graph.compare(scored, "min_dist_sum")})
     assert "Its 5 runs (seeds 0-4) against Exp. 1's `full` (5 runs) and `selected` (5 runs)" in page
     assert "| sum of min. distances, lower is better | `selected` | 0.55 vs 1.20 | -0.65 [" in page
     assert f"| .008 | {fixed_graph.format_p_value(2 * 2 / 252)} | the fixed graph scores better |" in page
-    assert page.rstrip().endswith("the distance: the fixed graph beats `selected` and does not lose to `full`.")
+    assert page.rstrip().endswith("the distance: the fixed graph beats `selected` and is not shown worse than `full`.")
+    # Exp. 1 at 5 of its declared 10 seeds: an interim look, which the page says.
+    assert "**Interim look** (runs: `selected_fixed` 5 of 5, `full` 5 of 10, `selected` 5 of 10)" in page
+    assert "**Interim reading** (the min-dist sum" in page
+
+
+def test_the_reading_is_the_declared_one_at_the_declared_seeds(fixed_graph: ModuleType) -> None:
+    whole = runs([0.51, 0.53, 0.55, 0.57, 0.60], FULL * 2, SELECTED * 2)
+    assert fixed_graph.is_final(whole)
+    page = fixed_graph.page(whole, {"min_dist_sum": fixed_graph.compare(whole, "min_dist_sum")})
+    assert "Interim" not in page and "**Reading** (the min-dist sum" in page
+    assert not fixed_graph.is_final(runs([0.51, 0.53, 0.55, 0.57], FULL * 2, SELECTED * 2))  # a fixed-graph run missing
 
 
 def test_the_committed_page_is_the_committed_runs_reading(fixed_graph: ModuleType) -> None:
-    """``report.sh`` writes the page once the fixed graph has a finished run; until then there is none."""
+    """``report.sh`` writes the page once the fixed graph has a finished run; until then there is none. It reads the
+    working tree, so a run finished here fails it until ``report.sh`` has run, as the report's own tests do."""
     page = REPO / "docs" / "_static" / "paper_n5_independent" / "fixed_graph.md"
     finished = list(fixed_graph.FIXED_RESULTS.glob("*/*/seed_*/done"))
     assert page.exists() == bool(finished), "run bash benchmarks/paper_n5_independent/report.sh"
