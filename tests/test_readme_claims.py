@@ -82,12 +82,13 @@ def test_a_verdict_the_correction_removes_is_a_lean_and_unfinished_claims_are_op
     assert table[1].endswith("| .032 | .095 (5) | leans the claim's way (p = .032) |")
     assert not any("`independent` > `observations`" in row for row in table)  # not against full: not the README's
     # What has no runs is open: Exp. 1's `selected` > `full` and `full` > `observations`, and all of Exp. 2.
+    # Each setting is named on its first row only.
+    assert table[1].startswith("| | `full` > `independent` |")
     assert table[2:] == [
-        "| Exp. 1 | `selected` > `full` | 71.58 vs 63.89, p < .05 | not finished | | | open |",
-        "| Exp. 1 | `full` > `observations` | 63.89 vs 36.89 | not finished | | | open |",
+        "| | `selected` > `full` | 71.58 vs 63.89, p < .05 | not finished | | | open |",
+        "| | `full` > `observations` | 63.89 vs 36.89 | not finished | | | open |",
         "| Exp. 2 | `selected` > `full` | 74.99 vs 70.11, not significant | not finished | | | open |",
-        "| Exp. 2 | `full` > `observations`, `actions`, `independent` | 70.11 vs 67.70, 51.88, 51.02 | not finished "
-        "| | | open |",
+        "| | `full` > `observations`, `actions`, `independent` | 70.11 vs 67.70, 51.88, 51.02 | not finished | | | open |",
     ]
 
 

@@ -42,8 +42,9 @@ HEADER = (
 def table_cells(claims: list[dict[str, str]]) -> list[list[str]]:
     """
     :param claims: The rows of the claims CSV.
-    :return: The tables' rows as cells, Exp. 1 then Exp. 2: each claim against ``full`` that the runs asked, then
-        those whose schemes have not finished ("open"; the claims that ``full`` beats others in one row).
+    :return: The tables' rows as cells, Exp. 1 then Exp. 2, each setting named on its first row: each claim against
+        ``full`` that the runs asked, then those whose schemes have not finished ("open"; the claims that ``full``
+        beats others in one row).
     :raise ValueError: When a setting's claims against ``full`` read different runs a side (no complete seeds).
     """
     rows = []
@@ -84,7 +85,8 @@ def table_cells(claims: list[dict[str, str]]) -> list[list[str]]:
             claim_text = f"`{BASELINE_SCHEME}` > " + ", ".join(f"`{scheme}`" for scheme in below)
             evidence = f"{paper[BASELINE_SCHEME][0]:.2f} vs " + ", ".join(f"{paper[scheme][0]:.2f}" for scheme in below)
             rows.append([setting, claim_text, evidence, "not finished", "", "", "open"])
-    return rows
+    # A setting is named on its first row only: the rows under it are its own.
+    return [["" if i and row[0] == rows[i - 1][0] else row[0], *row[1:]] for i, row in enumerate(rows)]
 
 
 def table_rows(claims: list[dict[str, str]]) -> list[str]:
@@ -106,7 +108,7 @@ def docs_table(claims: list[dict[str, str]], seeds: str) -> str:
     lines = [f".. list-table:: {caption}", "   :header-rows: 1", ""]
     for cells in [header, *table_cells(claims)]:
         rst = [cell.replace("`", "``") for cell in cells]  # Markdown's code spans are RST's literals
-        lines += [f"   * - {rst[0]}", *(f"     - {cell}".rstrip() for cell in rst[1:])]
+        lines += [f"   * - {rst[0]}".rstrip(), *(f"     - {cell}".rstrip() for cell in rst[1:])]
     return "\n".join([*lines, "", floor_line(claims), ""])
 
 
