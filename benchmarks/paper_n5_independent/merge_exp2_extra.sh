@@ -61,4 +61,5 @@ trap - EXIT
 echo "$(date -u +%Y-%m-%dT%H:%M:%SZ) merged exp2 independent,observations,actions seeds 0-4 from" \
     "results_exp2_extra/ (run from 487a75a: its commits.log)" >> "$STUDY/results/commits.log"
 echo "merged: results/paper_n5i_exp2 holds six schemes at seeds 0-4; now run report.sh. The README's table gains" \
-    "two Exp. 2 rows (about 65 words): keep README.md within its 1,000 (tests/test_docs_length.py)"
+    "two Exp. 2 rows (about 60 words; tried on a copy: 964 -> 1,026): trim its prose to keep README.md within its 1,000" \
+    "(tests/test_docs_length.py)"
