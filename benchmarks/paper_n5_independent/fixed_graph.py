@@ -30,13 +30,13 @@ same training path and settings. It stays a reading of this configuration (tuned
 """
 
 import argparse
-import math
 import sys
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from sb3_maddpg.experiments.group_state import seed_ranges
 from sb3_maddpg.experiments.metrics import METRICS
 from sb3_maddpg.experiments.results_dir import link_complete_seeds, load_summaries
 from sb3_maddpg.results.aggregates import IntervalEstimate, mean_difference_interval
@@ -116,7 +116,7 @@ def read_runs(fixed_results: Path = FIXED_RESULTS, study_results: Path = STUDY_R
             if seed not in FINAL_SEEDS[FIXED_SCHEME]:
                 raise SystemExit(
                     f"{summary['directory']} is seed {seed}, not one of the declared seeds "
-                    f"{_seed_text(FINAL_SEEDS[FIXED_SCHEME])}: move it out of {fixed_results}, or declare it in "
+                    f"{seed_ranges(FINAL_SEEDS[FIXED_SCHEME])}: move it out of {fixed_results}, or declare it in "
                     "fixed_graph.py before reading it."
                 )
             runs[FIXED_SCHEME][seed] = summary["score"]
@@ -175,10 +175,6 @@ def reading(family: Sequence[Comparison]) -> str:
     return "not decided at these runs: the fixed graph neither beats `selected` nor loses to `full` at Holm p < .05"
 
 
-def _number(value: float, metric: str) -> str:
-    return "nan" if math.isnan(value) else f"{value * METRICS[metric].scale:.2f}"
-
-
 def page(runs: Runs, families: Mapping[str, Sequence[Comparison]]) -> str:
     """
     :param runs: The runs read (:func:`read_runs`).
@@ -191,7 +187,7 @@ def page(runs: Runs, families: Mapping[str, Sequence[Comparison]]) -> str:
         "",
         f"`{FIXED_SCHEME}`: Exp. 1's `selected` with each agent's two partners fixed for the run (a ring: agent i "
         "selects i - 1 and i + 1) instead of its two nearest at each step, a network per agent, everything else as "
-        f"Exp. 1. Its {len(seeds[FIXED_SCHEME])} runs (seeds {_seed_text(seeds[FIXED_SCHEME])}) against Exp. 1's "
+        f"Exp. 1. Its {len(seeds[FIXED_SCHEME])} runs (seeds {seed_ranges(seeds[FIXED_SCHEME])}) against Exp. 1's "
         + " and ".join(f"`{scheme}` ({len(seeds[scheme])} runs)" for scheme in AGAINST)
         + ", at the seeds every Exp. 1 scheme has finished.",
         "",
@@ -202,13 +198,11 @@ def page(runs: Runs, families: Mapping[str, Sequence[Comparison]]) -> str:
         info = METRICS[metric]
         label = f"{info.label}, {'higher' if info.higher_is_better else 'lower'} is better"
         for comparison in family:
-            difference = comparison.difference
-            interval = (
-                f"{_number(difference.value, metric)} [{_number(difference.low, metric)}, {_number(difference.high, metric)}]"
-            )
-            means = " vs ".join(_number(sum(scores) / len(scores), metric) for scores in (comparison.fixed, comparison.other))
+            difference = comparison.difference  # in the page's units (% for rates)
+            interval = IntervalEstimate(*(info.scale * end for end in (difference.value, difference.low, difference.high)))
+            means = " vs ".join(f"{info.scale * sum(runs) / len(runs):.2f}" for runs in (comparison.fixed, comparison.other))
             lines.append(
-                f"| {label} | `{comparison.against}` | {means} | {interval} | {format_p_value(comparison.p_value)} "
+                f"| {label} | `{comparison.against}` | {means} | {interval.format()} | {format_p_value(comparison.p_value)} "
                 f"| {format_p_value(comparison.p_holm)} | {comparison.verdict()} |"
             )
     first = next(iter(families.values()))
@@ -229,12 +223,6 @@ def page(runs: Runs, families: Mapping[str, Sequence[Comparison]]) -> str:
         "",
     ]
     return "\n".join(lines)
-
-
-def _seed_text(seeds: Sequence[int]) -> str:
-    if list(seeds) == list(range(seeds[0], seeds[-1] + 1)) and len(seeds) > 1:
-        return f"{seeds[0]}-{seeds[-1]}"
-    return ", ".join(str(seed) for seed in seeds)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
