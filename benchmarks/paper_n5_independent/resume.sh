@@ -11,6 +11,8 @@
 # First, if all 15 runs of Exp. 2's three have finished and are not merged yet, it merges them into results/
 # (merge_exp2_extra.sh, which needs results/'s lock: free before lane 1 starts). Finished runs are skipped and a killed
 # run goes on from its last snapshot. While a sweep runs in one of the three results folders it starts nothing.
+# A snapshot (resume/, not committed: a replay buffer) lives on its disk only: in a new checkout such a run starts
+# again from zero.
 #
 #     bash benchmarks/paper_n5_independent/resume.sh            # from the main checkout
 #     DRY_RUN=1 bash benchmarks/paper_n5_independent/resume.sh  # only say what it would do
