@@ -16,7 +16,11 @@
 #
 #     bash benchmarks/paper_n5_independent/resume.sh            # from the main checkout
 #     DRY_RUN=1 bash benchmarks/paper_n5_independent/resume.sh  # only say what it would do
+#     STOP_AFTER=06:20 bash benchmarks/paper_n5_independent/resume.sh
 #
+# STOP_AFTER (a time `date -d` reads, UTC): once it has passed, each lane ends as soon as one more of its runs finishes,
+# before the next one trains (it is sent SIGTERM seconds into that run), and does not go on to the fixed graph: set it
+# to the session's end less a run's length (about 45 minutes), so that no run is cut off there.
 # Logs: /tmp/sweep-n5i.log (lane 1), /tmp/sweep-side.log (lane 2).
 set -euo pipefail
 STUDY="$(cd "$(dirname "$0")" && pwd)"
@@ -27,6 +31,39 @@ FIXED="$STUDY/results_fixed_graph"
 export SDL_VIDEODRIVER=dummy
 
 now() { date -u +%Y-%m-%dT%H:%M:%SZ; }
+STOP_AFTER="${STOP_AFTER:-}"
+if [ -n "$STOP_AFTER" ]; then
+    STOP_AT="$(date -u -d "$STOP_AFTER" +%s)" || { echo "STOP_AFTER=$STOP_AFTER is no time date -d reads" >&2; exit 2; }
+fi
+runs_done() { find "$1" -path '*/seed_*/done' | wc -l; }
+
+watched() {  # watched RESULTS LANE CMD...: CMD, stopped past STOP_AFTER once one more run under RESULTS has finished
+    local results="$1" stopped="/tmp/sweep-$2.stopped" pid before
+    shift 2
+    rm -f "$stopped"
+    "$@" &
+    pid=$!
+    if [ -n "$STOP_AFTER" ]; then
+        (
+            while kill -0 "$pid" 2> /dev/null && [ "$(date -u +%s)" -lt "$STOP_AT" ]; do sleep 20; done
+            before="$(runs_done "$results")"
+            while kill -0 "$pid" 2> /dev/null; do
+                if [ "$(runs_done "$results")" -gt "$before" ]; then
+                    echo "$(now) past STOP_AFTER=$STOP_AFTER and a run has finished: stopping before the next trains"
+                    touch "$stopped"
+                    # SIGTERM: a sweep started in the background ignores SIGINT (as bash starts it); seconds into its
+                    # next run there is no snapshot to lose
+                    pkill -TERM -P "$pid" || true  # the sweep under run.sh's shell
+                    kill -TERM "$pid" 2> /dev/null || true
+                    break
+                fi
+                sleep 10
+            done
+        ) &
+    fi
+    wait "$pid" || [ -f "$stopped" ]  # a sweep stopped on purpose is no failure
+}
+stopped() { [ -f "/tmp/sweep-$1.stopped" ]; }
 locked() { [ -f "$1/sweep.lock" ] && ! flock -n "$1/sweep.lock" true; }  # a sweep there holds the lock
 finished() { # finished() DIR EXPERIMENT SCHEME...: every one of those schemes has seeds 0-4 done under DIR
     local results="$1" experiment="$2" scheme seed
@@ -50,7 +87,8 @@ fixed_graph() {  # the fixed graph, unless it runs in the other lane already or 
         return 0
     fi
     echo "$(now) commit $SIDE_COMMIT item 4: exp1_fixed_graph seeds 0-4" >> "$FIXED/commits.log"
-    nice -n 19 python -m sb3_maddpg run --config benchmarks/paper_n5_independent/exp1_fixed_graph.json \
+    watched "$FIXED" "$1" nice -n 19 python -m sb3_maddpg run \
+        --config benchmarks/paper_n5_independent/exp1_fixed_graph.json \
         --seeds 0,1,2,3,4 --results "$FIXED" --workers 1 --threads 1 --quiet
 }
 
@@ -58,8 +96,8 @@ case "${1:-}" in
     --lane1)
         cd "$EXP1_TREE"
         SETTINGS=exp1 SEEDS=0,1,2,3,4,5,6,7,8,9 RESULTS_ROOT="$MAIN/benchmarks" WORKERS=1 \
-            bash benchmarks/paper_n5_independent/run.sh
-        fixed_graph
+            watched "$STUDY/results" lane1 bash benchmarks/paper_n5_independent/run.sh
+        stopped lane1 || fixed_graph lane1
         exit 0
         ;;
     --lane2)
@@ -67,11 +105,12 @@ case "${1:-}" in
         if [ "${2:-}" != merged ]; then
             echo "$(now) commit $SIDE_COMMIT side queue resumed: exp2 independent,observations,actions seeds 0-4" \
                 >> "$STUDY/results_exp2_extra/commits.log"
-            nice -n 19 python -m sb3_maddpg run --config benchmarks/paper_n5_independent/exp2.json \
+            watched "$STUDY/results_exp2_extra" lane2 nice -n 19 python -m sb3_maddpg run \
+                --config benchmarks/paper_n5_independent/exp2.json \
                 --schemes "[independent,observations,actions]" --seeds 0,1,2,3,4 \
                 --results "$STUDY/results_exp2_extra" --workers 1 --threads 1 --quiet
         fi
-        fixed_graph
+        stopped lane2 || fixed_graph lane2
         exit 0
         ;;
     "") ;;
@@ -117,6 +156,7 @@ lane2="Exp. 2's three, then the fixed graph"
 [ "$merged" = True ] && lane2="the fixed graph (Exp. 2's three are merged)"
 if [ -n "$DRY_RUN" ]; then
     echo "would start lane 1 (Exp. 1 seeds 0-9 from $EXP1_TREE, then the fixed graph) and lane 2 ($lane2)"
+    [ -z "$STOP_AFTER" ] || echo "each lane would end at the first run it finishes after $(date -u -d "@$STOP_AT")"
     exit 0
 fi
 nohup bash "$STUDY/resume.sh" --lane1 > /tmp/sweep-n5i.log 2>&1 &
