@@ -21,6 +21,8 @@ from sb3_maddpg.cli.options import (
     options_of,
     setting_options,
 )
+from sb3_maddpg.cli.termination import sigterm_as_ctrl_c
+from sb3_maddpg.common.progress import INTERRUPTED_EXIT_CODE
 from sb3_maddpg.experiments.config import EXPERIMENTS
 from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS, LEFT_OUT_SHOWN
 from sb3_maddpg.experiments.setting import (
@@ -182,7 +184,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     :param argv: The arguments (default: ``sys.argv[1:]``).
     :return: The exit status: 0 when every run finished (or the report was written), 1 otherwise, 2 for a usage
-        error (said in one line on stderr), 130 after Ctrl-C (the sweep resumes with the same command).
+        error (said in one line on stderr), 130 after Ctrl-C and 143 after SIGTERM (either stops a ``run`` or ``tune``
+        cleanly: the same command resumes it).
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
@@ -200,19 +203,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not args.config:
             print(no_config_message(), file=sys.stderr)
             return 2
-        try:
-            return run_command(args)
-        except KeyboardInterrupt:  # Ctrl-C before the sweep began (run_command handles it during the sweep)
-            print("sb3-maddpg run: interrupted before the sweep started; nothing was run.", file=sys.stderr)
-            return 130
+        with sigterm_as_ctrl_c() as termination:
+            try:
+                status = run_command(args)
+            except KeyboardInterrupt:  # Ctrl-C before the sweep began (run_command handles it during the sweep)
+                print("sb3-maddpg run: interrupted before the sweep started; nothing was run.", file=sys.stderr)
+                status = INTERRUPTED_EXIT_CODE
+        return termination.exit_status(status)
     if parsed.command == "tune":
         from sb3_maddpg.cli.tune import tune_command
 
-        try:
-            return tune_command(args)
-        except KeyboardInterrupt:
-            print("sb3-maddpg tune: interrupted; the same command resumes the study.", file=sys.stderr)
-            return 130
+        with sigterm_as_ctrl_c() as termination:
+            try:
+                status = tune_command(args)
+            except KeyboardInterrupt:
+                print("sb3-maddpg tune: interrupted; the same command resumes the study.", file=sys.stderr)
+                status = INTERRUPTED_EXIT_CODE
+        return termination.exit_status(status)
     from sb3_maddpg.cli.report import report_command
 
     return report_command(args)

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from sb3_maddpg.cli.options import execution_options, given_fields, override, setting_options
+from sb3_maddpg.common.progress import INTERRUPTED_EXIT_CODE
 from sb3_maddpg.experiments.config import EXPERIMENTS, algorithm_argument, load_algorithm, load_experiment
 from sb3_maddpg.experiments.defaults import ALGORITHMS
 from sb3_maddpg.experiments.setting import CONCERNS, ExperimentConfig
@@ -164,7 +165,7 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"sb3-maddpg run: {error}", file=sys.stderr)
         return 1
     except SweepInterrupted:  # Ctrl-C: the sweep has said how far it got and that the same command resumes
-        return 130
+        return INTERRUPTED_EXIT_CODE
     if not args.quiet:
         print(f"results in {args.results}; report with: sb3-maddpg report {args.results}")
     return 0 if result.ok else 1

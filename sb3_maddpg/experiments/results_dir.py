@@ -448,7 +448,7 @@ def _locked_message(results_dir: Path, holder_text: str) -> str:
     try:
         holder = json.loads(holder_text)
         who = f"PID {holder['pid']}, started {holder['started']}: {holder['command']}"
-        stop = f"stop it (kill -INT {holder['pid']}; it resumes later)"
+        stop = f"stop it (kill {holder['pid']}, or Ctrl-C in its terminal; the same command resumes it)"
     except (ValueError, KeyError, TypeError):
         who, stop = "PID unknown", "stop it"
     return (

@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 import types
 from collections.abc import Callable
 from pathlib import Path
@@ -21,6 +22,7 @@ from pathlib import Path
 import pytest
 
 from sb3_maddpg.cli.main import main
+from sb3_maddpg.cli.termination import Termination, sigterm_as_ctrl_c
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.experiments import SMOKE, ExperimentConfig, run_sweep
 from sb3_maddpg.experiments.local_pool import LOST_RUN
@@ -85,8 +87,12 @@ def done_lines(log: str, run_id: str) -> int:
     return sum(f" {run_id} done in " in line for line in log.splitlines())
 
 
-def start_cli_sweep(exp: ExperimentConfig, results: Path, *options: str) -> subprocess.Popen[str]:
-    """``python -m sb3_maddpg run`` in its own session (a terminal's process group), from the repository."""
+def start_cli_sweep(exp: ExperimentConfig, results: Path, *options: str, in_background: bool = False) -> subprocess.Popen[str]:
+    """
+    ``python -m sb3_maddpg run`` in its own session (a terminal's process group), from the repository.
+
+    :param in_background: Start it as a script's ``cmd &`` does (no job control): with SIGINT ignored.
+    """
     config_path = results.parent / f"{results.name}.json"
     config_path.write_text(json.dumps(exp.to_dict()))
     command = [sys.executable, "-m", "sb3_maddpg", "run", "--config", str(config_path), "--results", str(results)]
@@ -99,6 +105,7 @@ def start_cli_sweep(exp: ExperimentConfig, results: Path, *options: str) -> subp
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=(lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)) if in_background else None,
     )
 
 
@@ -245,6 +252,7 @@ def test_a_killed_local_sweep_resumes_and_a_second_sweep_is_refused(
         assert main(["run", "--config", str(tmp_path / "results.json"), "--results", str(results)]) == 1
         error = capsys.readouterr().err
         assert f"in use by another sweep (PID {sweep.pid}" in error and "another results directory" in error
+        assert f"stop it (kill {sweep.pid}," in error  # SIGTERM stops a sweep started in the background too
         # The refused sweep wrote nothing; the first one's run lines may go on meanwhile (its next run can finish).
         log_after = (results / SWEEP_LOG).read_text()
         assert log_after.startswith(log_before) and "sweep of" not in log_after[len(log_before) :]
@@ -293,6 +301,33 @@ def test_ctrl_c_stops_the_cli_cleanly_and_the_same_command_resumes(tmp_path: Pat
     todo, finished = plan_sweep([exp], results)  # the partial run is left for the next sweep
     assert [config.run_id for config in todo] == ["faults/independent/seed_000"] and finished == 1
     assert (results / "faults/independent/seed_000" / CONFIG_FILE).exists()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("workers", [1, 2])
+def test_sigterm_stops_a_background_cli_sweep_as_ctrl_c_does(tmp_path: Path, workers: int) -> None:
+    """Started in the background, a sweep ignores SIGINT; ``kill`` (SIGTERM), which the lock's message names, stops it
+    cleanly, with its workers, and the same command resumes it."""
+    trigger, results = tmp_path / "stall", tmp_path / "results"
+    trigger.touch()
+    exp = experiment(schemes=("full", "independent"), stalls={"independent": trigger})
+    sweep = start_cli_sweep(exp, results, "--workers", str(workers), "--quiet", in_background=True)
+    try:
+        wait_for(lambda: stalled_pid(trigger), "a stalled run")
+        wait_for(lambda: f"{exp.runs()[0].run_id} done" in sweep_log(results), "the sweep to count the other run")
+        assert ignores_sigint(sweep.pid)  # kill -INT would not stop it
+        sweep.terminate()
+        out, err = sweep.communicate(timeout=60)
+    finally:
+        stop_session(sweep)
+    assert sweep.returncode == 143, err  # 128 + SIGTERM, as a shell reports it
+    assert "Traceback" not in out + err, err
+    assert "sweep interrupted: 1 of 2 run(s) finished (1 by this sweep)" in out
+    assert "Run the same command again to resume." in out
+    worker = stalled_pid(trigger)
+    assert worker is not None and not alive(worker)
+    todo, finished = plan_sweep([exp], results)
+    assert [config.run_id for config in todo] == ["faults/independent/seed_000"] and finished == 1
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -404,3 +439,14 @@ def test_a_ray_sweep_counts_the_clusters_cpus(
     monkeypatch.setitem(sys.modules, "ray", cluster)
     assert run_sweep([experiment().replace(seeds=())], tmp_path, backend="ray", workers=0, threads=threads, verbose=0).ok
     assert f"Ray: {parallel} run(s) at once ({threads} CPU(s) each)" in (tmp_path / SWEEP_LOG).read_text()
+
+
+def test_sigterm_raises_keyboard_interrupt_inside_the_block_and_its_handler_comes_back() -> None:
+    before = signal.getsignal(signal.SIGTERM)
+    with pytest.raises(KeyboardInterrupt), sigterm_as_ctrl_c() as termination:
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # the handler runs at the next bytecode: not reached
+    assert signal.getsignal(signal.SIGTERM) is before
+    assert termination.received
+    assert termination.exit_status(130) == 143 and termination.exit_status(1) == 1
+    assert Termination().exit_status(130) == 130  # Ctrl-C's status stays without SIGTERM
