@@ -124,7 +124,7 @@ DRY_RUN="${DRY_RUN:-}"
 for results in "$STUDY/results" "$STUDY/results_exp2_extra" "$FIXED"; do
     if locked "$results"; then
         echo "a sweep runs in $results already ($(cat "$results/sweep.lock")): this starts lanes only when none" \
-            "runs; stop them (kill -INT, they resume from their snapshots) or let them go on" >&2
+            "runs; stop them (kill <pid>, right after a \"snapshot at\" line: they resume from it) or let them go on" >&2
         [ -n "$DRY_RUN" ] || exit 1
     fi
 done
