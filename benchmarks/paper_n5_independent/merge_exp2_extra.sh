@@ -18,7 +18,7 @@ CONFIG="$(cd "$(dirname "$0")" && pwd)/exp2.json"
 
 if [ -f "$STUDY/results/sweep.lock" ] && ! flock -n "$STUDY/results/sweep.lock" true; then
     echo "a sweep runs in results/ ($(cat "$STUDY/results/sweep.lock")): stop it first (kill <pid>, right after a run's" \
-        "\"snapshot at\" line: it resumes from that snapshot), then merge" >&2
+        "train.log says \"snapshot at\": it resumes from that snapshot), then merge" >&2
     exit 1
 fi
 for scheme in "${SCHEMES[@]}"; do

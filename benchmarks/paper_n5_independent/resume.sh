@@ -35,7 +35,8 @@ STOP_AFTER="${STOP_AFTER:-}"
 if [ -n "$STOP_AFTER" ]; then
     STOP_AT="$(date -u -d "$STOP_AFTER" +%s)" || { echo "STOP_AFTER=$STOP_AFTER is no time date -d reads" >&2; exit 2; }
 fi
-runs_done() { find "$1" -path '*/seed_*/done' | wc -l; }
+# a snapshot's rename can make find fail on a folder it walks: that must not end the watcher under set -e
+runs_done() { { find "$1" -path '*/seed_*/done' 2> /dev/null || true; } | wc -l; }
 
 watched() {  # watched RESULTS LANE CMD...: CMD, stopped past STOP_AFTER once one more run under RESULTS has finished
     local results="$1" stopped="/tmp/sweep-$2.stopped" pid before
@@ -45,10 +46,12 @@ watched() {  # watched RESULTS LANE CMD...: CMD, stopped past STOP_AFTER once on
     pid=$!
     if [ -n "$STOP_AFTER" ]; then
         (
-            while kill -0 "$pid" 2> /dev/null && [ "$(date -u +%s)" -lt "$STOP_AT" ]; do sleep 20; done
             before="$(runs_done "$results")"
             while kill -0 "$pid" 2> /dev/null; do
-                if [ "$(runs_done "$results")" -gt "$before" ]; then
+                done_now="$(runs_done "$results")"
+                if [ "$(date -u +%s)" -lt "$STOP_AT" ]; then
+                    before="$done_now"  # a run finished before STOP_AFTER does not count
+                elif [ "$done_now" -gt "$before" ]; then
                     echo "$(now) past STOP_AFTER=$STOP_AFTER and a run has finished: stopping before the next trains"
                     touch "$stopped"
                     # SIGTERM: a sweep started in the background ignores SIGINT (as bash starts it); seconds into its
@@ -75,8 +78,12 @@ finished() { # finished() DIR EXPERIMENT SCHEME...: every one of those schemes h
     done
 }
 
-fixed_graph() {  # the fixed graph, unless it runs in the other lane already or is done
+fixed_graph() {  # the fixed graph, unless it runs in the other lane already or is done, or STOP_AFTER has passed
     cd "$SIDE_TREE"
+    if [ -n "$STOP_AFTER" ] && [ "$(date -u +%s)" -ge "$STOP_AT" ]; then
+        echo "$(now) past STOP_AFTER=$STOP_AFTER: the fixed graph is not started"
+        return 0
+    fi
     if finished "$FIXED" paper_n5i_exp1_fixed_graph selected_fixed; then
         echo "the fixed graph's 5 runs are done"
         return 0
@@ -124,7 +131,8 @@ DRY_RUN="${DRY_RUN:-}"
 for results in "$STUDY/results" "$STUDY/results_exp2_extra" "$FIXED"; do
     if locked "$results"; then
         echo "a sweep runs in $results already ($(cat "$results/sweep.lock")): this starts lanes only when none" \
-            "runs; stop them (kill <pid>, right after a \"snapshot at\" line: they resume from it) or let them go on" >&2
+            "runs; stop them (kill <pid>, right after a run's train.log says \"snapshot at\": they resume from it) or" \
+            "let them go on" >&2
         [ -n "$DRY_RUN" ] || exit 1
     fi
 done
@@ -159,6 +167,7 @@ if [ -n "$DRY_RUN" ]; then
     [ -z "$STOP_AFTER" ] || echo "each lane would end at the first run it finishes after $(date -u -d "@$STOP_AT")"
     exit 0
 fi
+rm -f /tmp/sweep-lane1.stopped /tmp/sweep-lane2.stopped  # a lane's mark from an earlier start
 nohup bash "$STUDY/resume.sh" --lane1 > /tmp/sweep-n5i.log 2>&1 &
 nohup bash "$STUDY/resume.sh" --lane2 "$([ "$merged" = True ] && echo merged || echo extra)" > /tmp/sweep-side.log 2>&1 &
 echo "started lane 1 (Exp. 1, then the fixed graph; /tmp/sweep-n5i.log) and lane 2 ($lane2; /tmp/sweep-side.log)"
