@@ -21,8 +21,7 @@ from sb3_maddpg.cli.options import (
     options_of,
     setting_options,
 )
-from sb3_maddpg.cli.termination import sigterm_as_ctrl_c
-from sb3_maddpg.common.progress import INTERRUPTED_EXIT_CODE
+from sb3_maddpg.cli.termination import run_stoppable
 from sb3_maddpg.experiments.config import EXPERIMENTS
 from sb3_maddpg.experiments.defaults import DEFAULT_RESULTS, LEFT_OUT_SHOWN
 from sb3_maddpg.experiments.setting import (
@@ -203,23 +202,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not args.config:
             print(no_config_message(), file=sys.stderr)
             return 2
-        with sigterm_as_ctrl_c() as termination:
-            try:
-                status = run_command(args)
-            except KeyboardInterrupt:  # Ctrl-C before the sweep began (run_command handles it during the sweep)
-                print("sb3-maddpg run: interrupted before the sweep started; nothing was run.", file=sys.stderr)
-                status = INTERRUPTED_EXIT_CODE
-        return termination.exit_status(status)
+        # run_command handles an interrupt during the sweep; one reaching here came before it began
+        return run_stoppable(
+            lambda: run_command(args), "sb3-maddpg run: interrupted before the sweep started; nothing was run."
+        )
     if parsed.command == "tune":
         from sb3_maddpg.cli.tune import tune_command
 
-        with sigterm_as_ctrl_c() as termination:
-            try:
-                status = tune_command(args)
-            except KeyboardInterrupt:
-                print("sb3-maddpg tune: interrupted; the same command resumes the study.", file=sys.stderr)
-                status = INTERRUPTED_EXIT_CODE
-        return termination.exit_status(status)
+        return run_stoppable(lambda: tune_command(args), "sb3-maddpg tune: interrupted; the same command resumes the study.")
     from sb3_maddpg.cli.report import report_command
 
     return report_command(args)

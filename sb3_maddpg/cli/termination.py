@@ -8,8 +8,9 @@ workers left to notice their owner's death on their own.
 
 import contextlib
 import signal
+import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from types import FrameType
 
@@ -55,3 +56,22 @@ def sigterm_as_ctrl_c() -> Iterator[Termination]:
         yield termination
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def run_stoppable(command: Callable[[], int], interrupted: str) -> int:
+    """
+    Run a command that Ctrl-C or SIGTERM may stop.
+
+    :param command: The command; it handles an interrupt during its own work and returns its exit status.
+    :param interrupted: What to print on stderr when the interrupt reaches here instead (before the command's work
+        began, or a command that leaves it to its caller).
+    :return: The command's exit status, :data:`INTERRUPTED_EXIT_CODE` after Ctrl-C, :data:`TERMINATED_EXIT_CODE`
+        after SIGTERM.
+    """
+    with sigterm_as_ctrl_c() as termination:
+        try:
+            status = command()
+        except KeyboardInterrupt:
+            print(interrupted, file=sys.stderr)
+            status = INTERRUPTED_EXIT_CODE
+    return termination.exit_status(status)

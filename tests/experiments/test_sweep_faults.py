@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 from sb3_maddpg.cli.main import main
-from sb3_maddpg.cli.termination import Termination, sigterm_as_ctrl_c
+from sb3_maddpg.cli.termination import Termination, run_stoppable, sigterm_as_ctrl_c
 from sb3_maddpg.common.install_hint import extra_install_command
 from sb3_maddpg.experiments import SMOKE, ExperimentConfig, run_sweep
 from sb3_maddpg.experiments.local_pool import LOST_RUN
@@ -450,3 +450,25 @@ def test_sigterm_raises_keyboard_interrupt_inside_the_block_and_its_handler_come
     assert termination.received
     assert termination.exit_status(130) == 143 and termination.exit_status(1) == 1
     assert Termination().exit_status(130) == 130  # Ctrl-C's status stays without SIGTERM
+
+
+def sigterm_to_self() -> int:
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(5)  # the handler runs at the next bytecode: not reached
+    return 0
+
+
+def ctrl_c() -> int:
+    raise KeyboardInterrupt
+
+
+@pytest.mark.parametrize(
+    ("command", "status", "said"), [(lambda: 0, 0, False), (ctrl_c, 130, True), (sigterm_to_self, 143, True)]
+)
+def test_a_stoppable_command_says_it_was_stopped_and_exits_as_a_shell_reports_the_signal(
+    capsys: pytest.CaptureFixture[str], command: Callable[[], int], status: int, said: bool
+) -> None:
+    before = signal.getsignal(signal.SIGTERM)
+    assert run_stoppable(command, "stopped; the same command resumes") == status
+    assert ("stopped; the same command resumes" in capsys.readouterr().err) is said
+    assert signal.getsignal(signal.SIGTERM) is before
