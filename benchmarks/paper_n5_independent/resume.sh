@@ -7,6 +7,7 @@
 #   lane 2, Exp. 2's three missing schemes into results_exp2_extra/ (487a75a), then the same.
 #   The fixed graph (item 4): Exp. 1's selected over a fixed ring of partners into results_fixed_graph/, from 487a75a,
 #   which reads its {"neighbors": ...} selector; whichever lane comes to it second finds it running (its lock) or done.
+#   Once Exp. 1's 60 runs are done and Exp. 2's three merged, one lane runs the fixed graph on both cores (2 workers).
 #
 # First, if all 15 runs of Exp. 2's three have finished and are not merged yet, it merges them into results/
 # (merge_exp2_extra.sh, which needs results/'s lock: free before lane 1 starts). Finished runs are skipped and a killed
@@ -78,7 +79,7 @@ finished() { # finished() DIR EXPERIMENT SCHEME...: every one of those schemes h
     done
 }
 
-fixed_graph() {  # the fixed graph, unless it runs in the other lane already or is done, or STOP_AFTER has passed
+fixed_graph() {  # fixed_graph LANE WORKERS: unless it runs in the other lane already or is done, or STOP_AFTER passed
     cd "$SIDE_TREE"
     if [ -n "$STOP_AFTER" ] && [ "$(date -u +%s)" -ge "$STOP_AT" ]; then
         echo "$(now) past STOP_AFTER=$STOP_AFTER: the fixed graph is not started"
@@ -93,10 +94,10 @@ fixed_graph() {  # the fixed graph, unless it runs in the other lane already or 
         echo "the fixed graph runs in the other lane"
         return 0
     fi
-    echo "$(now) commit $SIDE_COMMIT item 4: exp1_fixed_graph seeds 0-4" >> "$FIXED/commits.log"
+    echo "$(now) commit $SIDE_COMMIT item 4: exp1_fixed_graph seeds 0-4 workers $2" >> "$FIXED/commits.log"
     watched "$FIXED" "$1" nice -n 19 python -m sb3_maddpg run \
         --config benchmarks/paper_n5_independent/exp1_fixed_graph.json \
-        --seeds 0,1,2,3,4 --results "$FIXED" --workers 1 --threads 1 --quiet
+        --seeds 0,1,2,3,4 --results "$FIXED" --workers "$2" --threads 1 --quiet
 }
 
 case "${1:-}" in
@@ -104,7 +105,7 @@ case "${1:-}" in
         cd "$EXP1_TREE"
         SETTINGS=exp1 SEEDS=0,1,2,3,4,5,6,7,8,9 RESULTS_ROOT="$MAIN/benchmarks" WORKERS=1 \
             watched "$STUDY/results" lane1 bash benchmarks/paper_n5_independent/run.sh
-        stopped lane1 || fixed_graph lane1
+        stopped lane1 || fixed_graph lane1 1
         exit 0
         ;;
     --lane2)
@@ -117,12 +118,16 @@ case "${1:-}" in
                 --schemes "[independent,observations,actions]" --seeds 0,1,2,3,4 \
                 --results "$STUDY/results_exp2_extra" --workers 1 --threads 1 --quiet
         fi
-        stopped lane2 || fixed_graph lane2
+        stopped lane2 || fixed_graph lane2 1
+        exit 0
+        ;;
+    --fixed)
+        fixed_graph fixed 2
         exit 0
         ;;
     "") ;;
     *)
-        echo "resume.sh takes no argument (--lane1 and --lane2 are its own lanes): run it as it is" >&2
+        echo "resume.sh takes no argument (--lane1, --lane2 and --fixed are its own lanes): run it as it is" >&2
         exit 2
         ;;
 esac
@@ -159,6 +164,17 @@ if [ "$merged" = False ] && finished "$STUDY/results_exp2_extra" paper_n5i_exp2 
     else
         echo "the merge failed (above); the lanes start all the same and it is tried again at the next start" >&2
     fi
+fi
+if [ "$merged" = True ] && [ "$(runs_done "$STUDY/results/paper_n5i_exp1")" -ge 60 ]; then
+    if [ -n "$DRY_RUN" ]; then
+        echo "Exp. 1's 60 runs are done and Exp. 2's three merged: would run the fixed graph on both cores"
+        [ -z "$STOP_AFTER" ] || echo "it would end at the first run it finishes after $(date -u -d "@$STOP_AT")"
+        exit 0
+    fi
+    rm -f /tmp/sweep-fixed.stopped
+    nohup bash "$STUDY/resume.sh" --fixed > /tmp/sweep-fixed.log 2>&1 &
+    echo "started the fixed graph on both cores (/tmp/sweep-fixed.log): Exp. 1 and Exp. 2 are done"
+    exit 0
 fi
 lane2="Exp. 2's three, then the fixed graph"
 [ "$merged" = True ] && lane2="the fixed graph (Exp. 2's three are merged)"
