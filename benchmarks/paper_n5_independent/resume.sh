@@ -21,8 +21,10 @@
 #
 # STOP_AFTER (a time `date -d` reads, UTC): once it has passed, each lane ends as soon as one more of its runs finishes,
 # before the next one trains (it is sent SIGTERM seconds into that run), and does not go on to the fixed graph: set it
-# to the session's end less a run's length (about 45 minutes), so that no run is cut off there.
-# Logs: /tmp/sweep-n5i.log (lane 1), /tmp/sweep-side.log (lane 2).
+# to the session's end less a run's length (about 45 minutes), so that no run is cut off there. The fixed graph on two
+# workers ends once two runs have finished after that time (the second worker's, and the first worker's next run,
+# cut back to its last snapshot: a new checkout starts it again).
+# Logs: /tmp/sweep-n5i.log (lane 1), /tmp/sweep-side.log (lane 2), /tmp/sweep-fixed.log (the fixed graph alone).
 set -euo pipefail
 STUDY="$(cd "$(dirname "$0")" && pwd)"
 MAIN="$(cd "$STUDY/../.." && pwd)"
@@ -39,7 +41,7 @@ fi
 # a snapshot's rename can make find fail on a folder it walks: that must not end the watcher under set -e
 runs_done() { { find "$1" -path '*/seed_*/done' 2> /dev/null || true; } | wc -l; }
 
-watched() {  # watched RESULTS LANE CMD...: CMD, stopped past STOP_AFTER once one more run under RESULTS has finished
+watched() {  # watched RESULTS LANE CMD...: CMD, stopped past STOP_AFTER once STOP_RUNS more runs under RESULTS finished
     local results="$1" stopped="/tmp/sweep-$2.stopped" pid before
     shift 2
     rm -f "$stopped"
@@ -52,12 +54,14 @@ watched() {  # watched RESULTS LANE CMD...: CMD, stopped past STOP_AFTER once on
                 done_now="$(runs_done "$results")"
                 if [ "$(date -u +%s)" -lt "$STOP_AT" ]; then
                     before="$done_now"  # a run finished before STOP_AFTER does not count
-                elif [ "$done_now" -gt "$before" ]; then
-                    echo "$(now) past STOP_AFTER=$STOP_AFTER and a run has finished: stopping before the next trains"
+                elif [ "$((done_now - before))" -ge "${STOP_RUNS:-1}" ]; then
+                    echo "$(now) past STOP_AFTER=$STOP_AFTER and ${STOP_RUNS:-1} run(s) have finished since: stopping"
                     touch "$stopped"
                     # SIGTERM: a sweep started in the background ignores SIGINT (as bash starts it); seconds into its
                     # next run there is no snapshot to lose
-                    pkill -TERM -P "$pid" || true  # the sweep under run.sh's shell
+                    if [ "$(ps -o comm= -p "$pid")" = bash ]; then  # the sweep under run.sh's shell, not a pool's workers
+                        pkill -TERM -P "$pid" || true
+                    fi
                     kill -TERM "$pid" 2> /dev/null || true
                     break
                 fi
@@ -122,7 +126,7 @@ case "${1:-}" in
         exit 0
         ;;
     --fixed)
-        fixed_graph fixed 2
+        STOP_RUNS=2 fixed_graph fixed 2  # one run per worker past STOP_AFTER
         exit 0
         ;;
     "") ;;
@@ -166,6 +170,10 @@ if [ "$merged" = False ] && finished "$STUDY/results_exp2_extra" paper_n5i_exp2 
     fi
 fi
 if [ "$merged" = True ] && [ "$(runs_done "$STUDY/results/paper_n5i_exp1")" -ge 60 ]; then
+    if finished "$FIXED" paper_n5i_exp1_fixed_graph selected_fixed; then
+        echo "nothing to resume: Exp. 1, Exp. 2 and the fixed graph are done"
+        exit 0
+    fi
     if [ -n "$DRY_RUN" ]; then
         echo "Exp. 1's 60 runs are done and Exp. 2's three merged: would run the fixed graph on both cores"
         [ -z "$STOP_AFTER" ] || echo "it would end at the first run it finishes after $(date -u -d "@$STOP_AT")"
