@@ -43,7 +43,8 @@ def test_each_claim_is_read_before_and_after_and_a_claim_one_reading_lacks_says_
     )
     page = before_after.before_after_page(tmp_path)
     assert "#### Exp. 1, min-dist sum, lower is better\n" in page  # seeds added: no note
-    assert "#### Exp. 2, min-dist sum, lower is better (no seed added yet: the same runs twice)\n" in page
+    assert "#### Exp. 2, min-dist sum, lower is better (seeds 0-4 in both: the same runs twice)\n" in page
+    assert "Exp. 1's 10 seeds are the reading issue 56 declared" in page and "interim" not in page
     assert "success within 0.3" not in page  # no claims on that metric in either reading
     rows = [line for line in page.splitlines() if line.startswith("| `")][:2]
     assert rows == [
@@ -59,3 +60,11 @@ def test_the_committed_page_is_the_committed_claims(before_after: ModuleType) ->
         "docs/_static/paper_n5_independent/before_after.md differs from the committed claims: run "
         "bash benchmarks/paper_n5_independent/report.sh"
     )
+
+
+def test_a_reading_short_of_exp_1_s_ten_seeds_says_it_is_an_interim_look(before_after: ModuleType, tmp_path: Path) -> None:
+    rows = "paper_n5i_exp1,full,actions,full,>,e,min_dist_sum,{n},{n},0.6,0.5,0.0001,0.0004,4,0,0,0,reverses,\n"
+    write_claims(tmp_path / "seeds_0-4" / "claims_min_dist_sum.csv", rows.format(n=5))
+    write_claims(tmp_path / "claims_min_dist_sum.csv", rows.format(n=9))
+    page = before_after.before_after_page(tmp_path)
+    assert "until Exp. 1 has 10 seeds it is an interim look" in page and "declared;" not in page
