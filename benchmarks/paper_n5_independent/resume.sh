@@ -176,7 +176,7 @@ if [ "$merged" = True ] && [ "$(runs_done "$STUDY/results/paper_n5i_exp1")" -ge 
     fi
     if [ -n "$DRY_RUN" ]; then
         echo "Exp. 1's 60 runs are done and Exp. 2's three merged: would run the fixed graph on both cores"
-        [ -z "$STOP_AFTER" ] || echo "it would end at the first run it finishes after $(date -u -d "@$STOP_AT")"
+        [ -z "$STOP_AFTER" ] || echo "it would end once two runs have finished after $(date -u -d "@$STOP_AT")"
         exit 0
     fi
     rm -f /tmp/sweep-fixed.stopped
