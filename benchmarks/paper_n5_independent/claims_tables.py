@@ -6,8 +6,7 @@ exact p, the Holm-adjusted p with its family's size, and the verdict the adjuste
 not finished is one row per setting, "not finished".
 
 - The README's, between its two markers, from every complete seed (``claims_min_dist_sum.csv``).
-- ``docs/guide/paper_n5_claims.inc``, the table of ``docs/guide/paper_n5.rst``, from the seeds its prose reads
-  (``DOCS_CLAIMS_CSV``).
+- ``docs/guide/paper_n5_claims.inc``, the table of ``docs/guide/paper_n5.rst``, from the same claims.
 
 Run it after ``report.sh`` (``python benchmarks/paper_n5_independent/claims_tables.py``);
 ``tests/test_readme_claims.py`` fails while either table says other numbers than the committed claims.
@@ -19,18 +18,18 @@ import sys
 from pathlib import Path
 
 from sb3_maddpg.experiments.config import BASELINE_SCHEME
-from sb3_maddpg.results.claims import PAPER_CLAIMS, PAPER_TABLE2, UNDECIDED_VERDICTS, format_p_value
+from sb3_maddpg.results.claims import PAPER_CLAIMS, PAPER_TABLE2, UNDECIDED_VERDICTS, Observability, format_p_value
 
 ROOT = Path(__file__).resolve().parent.parent.parent
 REPORT = ROOT / "docs" / "_static" / "paper_n5_independent"
 CLAIMS_CSV = REPORT / "claims_min_dist_sum.csv"
-DOCS_CLAIMS_CSV, DOCS_SEEDS = CLAIMS_CSV, "every complete seed"
-"""The claims the docs page's prose reads, and which seeds they are: the README's, every seed that all of a setting's
-schemes have finished (the line under the table gives each setting's runs a side)."""
+DOCS_SEEDS = "every complete seed"
+"""The docs table's caption for the seeds it reads: every seed that all of a setting's schemes have finished (the line
+under the table gives each setting's runs a side)."""
 README = ROOT / "README.md"
 DOCS_TABLE = ROOT / "docs" / "guide" / "paper_n5_claims.inc"
 START, END = "<!-- table: benchmarks/paper_n5_independent/claims_tables.py -->", "<!-- end -->"
-SETTINGS = {"full": "Exp. 1", "partial": "Exp. 2"}
+SETTINGS: dict[Observability, str] = {"full": "Exp. 1", "partial": "Exp. 2"}
 """The paper's settings by observability, as the table names them."""
 HEADER = (
     "| setting | the paper's claim | paper (success %, 31 seeds) | a network per agent (min-dist sum) | p | Holm p "
@@ -65,9 +64,9 @@ def table_cells(claims: list[dict[str, str]]) -> list[list[str]]:
                 verdict = f"{verdict} (p = {format_p_value(p_value)})"
             means = f"{float(row['mean_better']):.2f} vs {float(row['mean_worse']):.2f}"  # runs: the line under it
             evidence = row["paper_evidence"] if row["better"] != "selected_next" else "(not in the paper)"
-            claim = f"`{row['better']}` > `{row['worse']}`"
+            claim_text = f"`{row['better']}` > `{row['worse']}`"
             holm_text = f"{format_p_value(holm)} ({row['family_size']})"
-            rows.append([setting, claim, evidence, means, format_p_value(p_value), holm_text, verdict])
+            rows.append([setting, claim_text, evidence, means, format_p_value(p_value), holm_text, verdict])
         done = {(row["better"], row["worse"]) for row in asked}
         unfinished = [
             claim
@@ -159,12 +158,13 @@ def read_claims(path: Path = CLAIMS_CSV) -> list[dict[str, str]]:
 
 
 if __name__ == "__main__":
-    text = readme_with_table(README.read_text(), read_claims())
+    claims = read_claims()
+    text = readme_with_table(README.read_text(), claims)
     changed = text != README.read_text()
     README.write_text(text)
     print(f"README.md's table {'rewritten' if changed else 'already as the claims say'} ({CLAIMS_CSV.name})")
-    table = docs_table(read_claims(DOCS_CLAIMS_CSV), DOCS_SEEDS)
+    table = docs_table(claims, DOCS_SEEDS)
     changed = not DOCS_TABLE.exists() or table != DOCS_TABLE.read_text()
     DOCS_TABLE.write_text(table)
-    print(f"{DOCS_TABLE.name} {'rewritten' if changed else 'already as the claims say'} ({DOCS_CLAIMS_CSV})")
+    print(f"{DOCS_TABLE.name} {'rewritten' if changed else 'already as the claims say'} ({CLAIMS_CSV.name})")
     sys.exit(0)
